@@ -1,0 +1,58 @@
+"""The Backend protocol: what an env needs from a simulator or a real robot.
+
+Positions are in the task frame; joint vectors are in /joint_states order.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Protocol
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class JointReading:
+    position: np.ndarray
+    velocity: np.ndarray
+    stamp: float  # seconds: simulated time in sim, local receive time on hardware
+
+
+@dataclass(frozen=True)
+class ObjectReading:
+    position: np.ndarray
+    quaternion: np.ndarray  # x, y, z, w
+    stamp: float
+
+
+class BackendError(RuntimeError):
+    """The backend cannot go on: the arm is stopped and the step fails."""
+
+
+class Backend(Protocol):
+    def reset(self, q_arm: np.ndarray, gripper: float | None, objects: dict[str, tuple[np.ndarray, np.ndarray]]) -> None:
+        ...
+
+    def command_joints(self, q_arm_target: np.ndarray, duration: float) -> None:
+        ...
+
+    def command_gripper(self, value: float) -> None:
+        ...
+
+    def advance(self, seconds: float) -> None:
+        """Let `seconds` pass: simulated time in sim, wall time on hardware."""
+
+    def read_joints(self) -> JointReading:
+        ...
+
+    def read_object(self, name: str) -> ObjectReading:
+        ...
+
+    def render(self, width: int, height: int) -> np.ndarray:
+        ...
+
+    def close(self) -> None:
+        ...
+
+
+BackendFactory = Callable[..., Backend]

@@ -1,0 +1,3 @@
+from envfactory.backends.pybullet.backend import PyBulletBackend
+
+__all__ = ["PyBulletBackend"]

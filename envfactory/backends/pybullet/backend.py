@@ -1,0 +1,212 @@
+"""The embedded PyBullet backend: headless DIRECT by default, GUI on request."""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pybullet as p
+
+from envfactory.backends.base import BackendError, JointReading, ObjectReading
+from envfactory.backends.pybullet import scene
+from envfactory.spec.schema import EnvSpec
+
+# Followers of a mimic joint track their driver through gear constraints;
+# PyBullet ignores URDF <mimic> tags.
+GEAR_MAX_FORCE = 1000.0
+
+
+class PyBulletBackend:
+    def __init__(self, spec: EnvSpec, urdf_path: Path, task_origin_world: np.ndarray, render_mode: str | None = None):
+        self.spec = spec
+        self.robot = spec.robot
+        self.task_origin = np.asarray(task_origin_world, float)
+        self.dt = 1.0 / spec.sim.physics_hz
+        self.realtime = spec.env.timing.realtime
+        mode = p.GUI if spec.env.gui or render_mode == "human" else p.DIRECT
+        try:
+            self.client = p.connect(mode)
+        except p.error as exc:
+            raise BackendError(f"PyBullet could not open a {'GUI' if mode == p.GUI else 'DIRECT'} session: {exc}")
+        if self.client < 0:
+            raise BackendError("PyBullet could not connect (is a display available for the GUI?)")
+        self._lock = threading.Lock()
+        self._closed = False
+        self._sim_time = 0.0
+        try:
+            self._build(urdf_path)
+        except Exception:
+            p.disconnect(self.client)
+            raise
+        self._thread = None
+        if self.realtime:
+            self._thread = threading.Thread(target=self._run_realtime, name="pybullet-realtime", daemon=True)
+            self._thread.start()
+
+    # ---------------------------------------------------------------- scene
+
+    def _build(self, urdf_path: Path) -> None:
+        c = self.client
+        p.resetSimulation(physicsClientId=c)
+        p.setGravity(0, 0, -9.81, physicsClientId=c)
+        p.setTimeStep(self.dt, physicsClientId=c)
+        p.setPhysicsEngineParameter(numSolverIterations=self.spec.sim.solver_iterations, physicsClientId=c)
+        p.configureDebugVisualizer(p.COV_ENABLE_GUI, 0, physicsClientId=c)
+        scene.add_floor(c, self.spec.env.safety.floor_z)
+        scene.add_table(c, self.spec.scene.table)
+        mount = np.asarray(self.robot.mount, float)
+        if self.robot.pedestal is not None:
+            scene.add_pedestal(c, self.robot.pedestal, mount)
+        # Self-collision stays off: the gripper's linkage links overlap by design.
+        self.body = p.loadURDF(str(urdf_path), basePosition=mount.tolist(), useFixedBase=True,
+                               flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=c)
+        index = {p.getJointInfo(self.body, j, physicsClientId=c)[1].decode(): j
+                 for j in range(p.getNumJoints(self.body, physicsClientId=c))}
+        self._arm = [index[j.name] for j in self.robot.arm_joints]
+        self._state_joints = [index[e.urdf_joint] for e in self.robot.joint_states]
+        # Unactuated joints would otherwise hold still under PyBullet's default velocity motors.
+        for joint in index.values():
+            p.setJointMotorControl2(self.body, joint, p.VELOCITY_CONTROL, force=0.0, physicsClientId=c)
+        self._gripper = None
+        if self.robot.gripper is not None:
+            gripper = self.robot.gripper
+            self._gripper = index[gripper.joint]
+            self._gripper_followers = [(index[name], gain) for name, gain in gripper.mimic.items()]
+            for follower, gain in self._gripper_followers:
+                constraint = p.createConstraint(self.body, self._gripper, self.body, follower, p.JOINT_GEAR,
+                                                [1, 0, 0], [0, 0, 0], [0, 0, 0], physicsClientId=c)
+                p.changeConstraint(constraint, gearRatio=-1.0 / gain, maxForce=GEAR_MAX_FORCE, erp=0.8,
+                                   physicsClientId=c)
+        self.objects = {
+            name: scene.add_object(c, spec, self.task_origin + [0.0, 0.0, -10.0 - i])
+            for i, (name, spec) in enumerate(self.spec.task.objects.items())
+        }
+        self._set_joint_state(np.asarray(self.robot.home, float), self._gripper_reset_value(None))
+        self._hold(np.asarray(self.robot.home, float), None)
+        self._saved = p.saveState(physicsClientId=c)
+
+    def _gripper_reset_value(self, value: float | None) -> float | None:
+        if self._gripper is None:
+            return None
+        return self.robot.gripper.open if value is None else value
+
+    def _set_joint_state(self, q_arm: np.ndarray, gripper: float | None) -> None:
+        c = self.client
+        for joint, value in zip(self._arm, q_arm):
+            p.resetJointState(self.body, joint, float(value), 0.0, physicsClientId=c)
+        if gripper is not None:
+            p.resetJointState(self.body, self._gripper, gripper, 0.0, physicsClientId=c)
+            for follower, gain in self._gripper_followers:
+                p.resetJointState(self.body, follower, gain * gripper, 0.0, physicsClientId=c)
+
+    def _hold(self, q_arm: np.ndarray, gripper: float | None) -> None:
+        c = self.client
+        p.setJointMotorControlArray(self.body, self._arm, p.POSITION_CONTROL, targetPositions=q_arm.tolist(),
+                                    forces=[self.robot.arm_force] * len(self._arm), physicsClientId=c)
+        if self._gripper is not None:
+            target = self.robot.gripper.open if gripper is None else gripper
+            p.setJointMotorControl2(self.body, self._gripper, p.POSITION_CONTROL, targetPosition=target,
+                                    force=self.robot.gripper.force, physicsClientId=c)
+
+    # ---------------------------------------------------------------- protocol
+
+    def reset(self, q_arm, gripper, objects) -> None:
+        c = self.client
+        q_arm = np.asarray(q_arm, float)
+        with self._lock:
+            p.restoreState(self._saved, physicsClientId=c)
+            gripper_value = self._gripper_reset_value(gripper)
+            self._set_joint_state(q_arm, gripper_value)
+            self._hold(q_arm, gripper_value)
+            for name, (position, quaternion) in objects.items():
+                body = self.objects[name]
+                p.resetBasePositionAndOrientation(body, (self.task_origin + position).tolist(), list(quaternion),
+                                                  physicsClientId=c)
+                p.resetBaseVelocity(body, [0, 0, 0], [0, 0, 0], physicsClientId=c)
+            self._sim_time = 0.0
+
+    def command_joints(self, q_arm_target, duration: float) -> None:
+        # The motors move at the speed that lands every joint on its target
+        # after `duration`, which interpolates the motion without per-substep calls.
+        c = self.client
+        with self._lock:
+            current = [s[0] for s in p.getJointStates(self.body, self._arm, physicsClientId=c)]
+            for joint, target, now in zip(self._arm, q_arm_target, current):
+                speed = min(max(abs(target - now) / duration, 1e-3), self.robot.arm_max_velocity)
+                p.setJointMotorControl2(self.body, joint, p.POSITION_CONTROL, targetPosition=float(target),
+                                        force=self.robot.arm_force, maxVelocity=speed, physicsClientId=c)
+
+    def command_gripper(self, value: float) -> None:
+        if self._gripper is None:
+            raise BackendError(f"robot {self.robot.name!r} has no gripper")
+        with self._lock:
+            p.setJointMotorControl2(self.body, self._gripper, p.POSITION_CONTROL, targetPosition=float(value),
+                                    force=self.robot.gripper.force, physicsClientId=self.client)
+
+    def advance(self, seconds: float) -> None:
+        if self.realtime:
+            time.sleep(seconds)
+            return
+        steps = max(1, round(seconds / self.dt))
+        step, c = p.stepSimulation, self.client
+        with self._lock:
+            for _ in range(steps):
+                step(physicsClientId=c)
+            self._sim_time += steps * self.dt
+
+    def step_physics(self, steps: int) -> None:
+        """Raw stepping with nothing around it: the benchmark's yardstick."""
+        step, c = p.stepSimulation, self.client
+        for _ in range(steps):
+            step(physicsClientId=c)
+
+    def _run_realtime(self) -> None:
+        next_tick = time.perf_counter()
+        while not self._closed:
+            with self._lock:
+                if self._closed:
+                    return
+                p.stepSimulation(physicsClientId=self.client)
+                self._sim_time += self.dt
+            next_tick += self.dt
+            delay = next_tick - time.perf_counter()
+            if delay > 0:
+                time.sleep(delay)
+            else:
+                next_tick = time.perf_counter()  # fell behind: do not try to catch up in a burst
+
+    def read_joints(self) -> JointReading:
+        with self._lock:
+            states = p.getJointStates(self.body, self._state_joints, physicsClientId=self.client)
+            stamp = self._sim_time
+        return JointReading(np.array([s[0] for s in states]), np.array([s[1] for s in states]), stamp)
+
+    def read_object(self, name: str) -> ObjectReading:
+        with self._lock:
+            position, quaternion = p.getBasePositionAndOrientation(self.objects[name], physicsClientId=self.client)
+            stamp = self._sim_time
+        return ObjectReading(np.array(position) - self.task_origin, np.array(quaternion), stamp)
+
+    def render(self, width: int = 480, height: int = 360) -> np.ndarray:
+        table = self.spec.scene.table
+        view = p.computeViewMatrixFromYawPitchRoll(
+            cameraTargetPosition=[table.center[0] - 0.2, table.center[1], table.top_z], distance=1.7, yaw=50,
+            pitch=-28, roll=0, upAxisIndex=2)
+        projection = p.computeProjectionMatrixFOV(fov=55, aspect=width / height, nearVal=0.05, farVal=6.0)
+        with self._lock:
+            _, _, rgba, _, _ = p.getCameraImage(width, height, view, projection, renderer=p.ER_TINY_RENDERER,
+                                               physicsClientId=self.client)
+        return np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        if self._thread is not None:
+            self._thread.join(timeout=1.0)
+        try:
+            p.disconnect(self.client)
+        except p.error:
+            pass

@@ -1,0 +1,293 @@
+"""Spec -> Blueprint: every term resolved, every slice and bound known.
+
+The blueprint is immutable and needs no physics, so `describe`, the spec
+snapshots and the spaces all come from it before any backend exists.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from pydantic import BaseModel, ValidationError
+
+from envfactory.spec.compose import LoadedSpec, validation_problems
+from envfactory.spec.errors import Problem, SpecError, suggest
+from envfactory.spec.schema import EnvSpec
+from envfactory.terms import OBSERVATIONS, REWARDS, TERMINATIONS, Layout
+from envfactory.terms.library import Description, ObservationTerm, RewardTerm
+
+
+@dataclass(frozen=True)
+class ObservationSlot:
+    name: str
+    term: ObservationTerm
+    params: BaseModel
+    start: int
+    size: int
+    low: np.ndarray
+    high: np.ndarray
+    description: Description
+
+    @property
+    def stop(self) -> int:
+        return self.start + self.size
+
+    @property
+    def goal_dependent(self) -> bool:
+        return self.term.goal_dependent
+
+
+@dataclass(frozen=True)
+class WeightedTerm:
+    name: str
+    term: RewardTerm
+    weight: float
+    params: BaseModel
+    active: bool = True  # terminations: whether this reward type uses it
+
+
+@dataclass(frozen=True)
+class ActionRow:
+    label: str
+    low: float
+    high: float
+    joint: str
+    unit: str
+
+
+@dataclass(frozen=True)
+class ActionLayout:
+    ee: bool
+    delta: bool
+    delta_coeff: float
+    rows: tuple[ActionRow, ...]
+    gripper_in_action: bool
+
+    @property
+    def size(self) -> int:
+        return len(self.rows)
+
+    @property
+    def low(self) -> np.ndarray:
+        return np.array([row.low for row in self.rows])
+
+    @property
+    def high(self) -> np.ndarray:
+        return np.array([row.high for row in self.rows])
+
+
+@dataclass(frozen=True)
+class Blueprint:
+    env_id: str
+    family: str
+    backend: str
+    goal_env: bool
+    max_episode_steps: int
+    spec: EnvSpec
+    asset_root: Path
+    observation: tuple[ObservationSlot, ...]  # the full layout, as the standard env sees it
+    action: ActionLayout
+    rewards: tuple[WeightedTerm, ...]  # the set the reward type selects
+    terminations: tuple[WeightedTerm, ...]
+    achieved_from: str  # "ee" or an object name
+    info_keys: tuple[str, ...] = field(default=())
+
+    @property
+    def policy_observation(self) -> tuple[ObservationSlot, ...]:
+        """The `observation` entry: goal envs drop every goal-dependent column."""
+        if not self.goal_env:
+            return self.observation
+        return _reindex(slot for slot in self.observation if not slot.goal_dependent)
+
+    @property
+    def observation_size(self) -> int:
+        return sum(slot.size for slot in self.policy_observation)
+
+    def to_json(self) -> str:
+        """A stable text form of everything a layout or a default change would alter."""
+        spec = self.spec
+        data: dict[str, Any] = {
+            "id": self.env_id,
+            "family": self.family,
+            "backend": self.backend,
+            "goal_env": self.goal_env,
+            "max_episode_steps": self.max_episode_steps,
+            "observation": [_slot_json(slot) for slot in self.policy_observation],
+            "action": {
+                "ee": self.action.ee,
+                "delta": self.action.delta,
+                "delta_coeff": self.action.delta_coeff,
+                "rows": [vars(row) for row in self.action.rows],
+            },
+            "reward_type": spec.env.reward_type,
+            "rewards": [{"name": t.name, "term": t.term.name, "weight": t.weight,
+                         "params": t.params.model_dump(by_alias=True)} for t in self.rewards],
+            "terminations": [{"name": t.name, "term": t.term.name, "active": t.active} for t in self.terminations],
+            "goal": {"achieved": spec.task.goal.achieved, "tolerance": spec.task.goal.tolerance,
+                     "box": [list(spec.task.goal.box[0]), list(spec.task.goal.box[1])]},
+            "env": spec.env.model_dump(),
+            "workspace": spec.workspace.model_dump(),
+            "robot": {"name": spec.robot.name, "mount": list(spec.robot.mount), "home": spec.robot.home,
+                      "ee_frame": spec.robot.ee_frame, "task_frame": spec.robot.task_frame},
+        }
+        return json.dumps(data, indent=2, sort_keys=True, default=_json_default)
+
+
+def _json_default(value):
+    if isinstance(value, np.ndarray):
+        return [round(float(v), 6) for v in value]
+    if isinstance(value, (tuple, set)):
+        return list(value)
+    raise TypeError(type(value))
+
+
+def _slot_json(slot: ObservationSlot) -> dict:
+    return {
+        "idx": [slot.start, slot.stop - 1],
+        "dim": slot.size,
+        "term": slot.name,
+        "params": slot.params.model_dump(by_alias=True),
+        "component": slot.description.component,
+        "source": slot.description.source,
+        "unit": slot.description.unit,
+        "low": slot.low,
+        "high": slot.high,
+    }
+
+
+def _reindex(slots) -> tuple[ObservationSlot, ...]:
+    out, start = [], 0
+    for slot in slots:
+        out.append(ObservationSlot(slot.name, slot.term, slot.params, start, slot.size, slot.low, slot.high,
+                                   slot.description))
+        start += slot.size
+    return tuple(out)
+
+
+# ---------------------------------------------------------------- compile
+
+
+def _action_layout(spec: EnvSpec) -> ActionLayout:
+    robot, settings = spec.robot, spec.env.action
+    kind = "delta" if settings.delta else "(absolute)"
+    rows: list[ActionRow] = []
+    if settings.ee:
+        low, high = robot.ee_bounds
+        for axis, lo, hi in zip("xyz", low, high):
+            label = f"Δ{axis}" if settings.delta else f"absolute {axis}"
+            rows.append(ActionRow(label, lo, hi, f"EE {axis} ({robot.task_frame} frame)", "m"))
+    else:
+        for joint in robot.arm_joints:
+            rows.append(ActionRow(f"{joint.label or joint.name} {kind}", joint.lower, joint.upper, joint.name, "rad"))
+    if spec.task.gripper.in_action:
+        gripper = robot.gripper
+        state_name = next(e.name for e in robot.joint_states if e.urdf_joint == gripper.joint)
+        unit = next(e.unit for e in robot.joint_states if e.urdf_joint == gripper.joint)
+        rows.append(ActionRow(gripper.label, gripper.low, gripper.high, state_name, unit))
+    return ActionLayout(settings.ee, settings.delta, settings.delta_coeff, tuple(rows), spec.task.gripper.in_action)
+
+
+def _params(term, raw: dict, path: str, loaded: LoadedSpec, problems: list[Problem]):
+    try:
+        return term.params.model_validate(raw)
+    except ValidationError as exc:
+        for problem in validation_problems(exc, loaded.sources, term.params):
+            problems.append(loaded.problem(f"{path}.{problem.path}" if problem.path else path, problem.message))
+        return None
+
+
+def _lookup(table: dict, name: str, path: str, kind: str, loaded: LoadedSpec, problems: list[Problem]):
+    term = table.get(name)
+    if term is None:
+        problems.append(loaded.problem(path, f"unknown {kind} term {name!r}{suggest(name, table)}"))
+    return term
+
+
+def _observation(spec: EnvSpec, layout: Layout, loaded: LoadedSpec, problems: list[Problem]):
+    slots, start = [], 0
+    for index, entry in enumerate(spec.task.observation):
+        (name, raw_params), = entry.items()
+        path = f"task.observation.{index}"
+        term = _lookup(OBSERVATIONS, name, path, "observation", loaded, problems)
+        if term is None:
+            continue
+        params = _params(term, raw_params, f"{path}.{name}", loaded, problems)
+        if params is None:
+            continue
+        if term.check is not None:
+            try:
+                term.check(layout, params)
+            except ValueError as exc:
+                problems.append(loaded.problem(f"{path}.{name}", str(exc)))
+                continue
+        size = term.size(layout, params)
+        low, high = term.bounds(layout, params, size)
+        slots.append(ObservationSlot(name, term, params, start, size, np.asarray(low, float).reshape(size),
+                                     np.asarray(high, float).reshape(size), term.describe(layout, params)))
+        start += size
+    return tuple(slots)
+
+
+def _weighted(refs: dict, table: dict, path: str, kind: str, loaded: LoadedSpec, problems: list[Problem],
+              reward_type: str | None = None):
+    out = []
+    for name, ref in refs.items():
+        term = _lookup(table, ref.term, f"{path}.{name}.term", kind, loaded, problems)
+        if term is None:
+            continue
+        params = _params(term, ref.params, f"{path}.{name}.params", loaded, problems)
+        if params is None:
+            continue
+        when = getattr(ref, "when", "always")
+        active = when == "always" or (reward_type or "").lower() == when
+        out.append(WeightedTerm(name, term, getattr(ref, "weight", 1.0), params, active))
+    return tuple(out)
+
+
+def _achieved_from(spec: EnvSpec, loaded: LoadedSpec, problems: list[Problem]) -> str:
+    source, _, quantity = spec.task.goal.achieved.partition(".")
+    valid = ["ee.position", *(f"{name}.position" for name in spec.task.objects)]
+    if quantity != "position" or (source != "ee" and source not in spec.task.objects):
+        problems.append(loaded.problem("task.goal.achieved",
+                                       f"unknown achieved goal {spec.task.goal.achieved!r}"
+                                       f"{suggest(spec.task.goal.achieved, valid)}"))
+    return source
+
+
+def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: bool) -> Blueprint:
+    spec = loaded.spec
+    problems: list[Problem] = []
+    action = _action_layout(spec)
+    layout = Layout(spec.robot, spec.task, action.size, action.low, action.high)
+    observation = _observation(spec, layout, loaded, problems)
+    reward_set = "sparse" if spec.env.reward_type == "Sparse" else "dense"
+    rewards = _weighted(getattr(spec.task.reward, reward_set), REWARDS, f"task.reward.{reward_set}", "reward",
+                        loaded, problems)
+    # the other set is compiled too, so a typo there is caught before anyone switches to it
+    other = "dense" if reward_set == "sparse" else "sparse"
+    _weighted(getattr(spec.task.reward, other), REWARDS, f"task.reward.{other}", "reward", loaded, problems)
+    terminations = _weighted(spec.task.termination, TERMINATIONS, "task.termination", "termination", loaded,
+                             problems, reward_type=spec.env.reward_type)
+    achieved_from = _achieved_from(spec, loaded, problems)
+    if problems:
+        raise SpecError(problems, env_id)
+    info_keys = tuple(sorted({key for t in rewards for key in t.term.info_keys}))
+    return Blueprint(
+        env_id=env_id,
+        family=loaded.family.name,
+        backend=backend,
+        goal_env=goal_env,
+        max_episode_steps=spec.registration.max_episode_steps,
+        spec=spec,
+        asset_root=loaded.file_of("robot.model").parent,
+        observation=observation,
+        action=action,
+        rewards=rewards,
+        terminations=terminations,
+        achieved_from=achieved_from,
+        info_keys=info_keys,
+    )

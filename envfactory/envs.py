@@ -1,0 +1,209 @@
+"""RobotEnv (Box observation) and GoalRobotEnv (Dict observation for HER).
+
+The env is generic: everything robot- or task-specific arrives compiled in
+the blueprint, and the physics or hardware sits behind a Backend.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import gymnasium as gym
+import numpy as np
+import pinocchio as pin
+from gymnasium import spaces
+
+from envfactory.actions import ActionAdapter
+from envfactory.backends import backend_factory
+from envfactory.compiler import Blueprint
+from envfactory.goals import GoalSampler
+from envfactory.kinematics import Kinematics
+from envfactory.managers import ObservationManager, RewardManager
+from envfactory.safety import SafetyCheck, Surfaces
+from envfactory.state import EnvState
+from envfactory.urdf_assembly import assemble
+
+log = logging.getLogger("envfactory")
+
+STEP_FLAGS = ("action_out_of_bounds", "action_rejected", "goal_sampling_failed")
+
+
+class RobotEnv(gym.Env):
+    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 2}
+
+    def __init__(self, blueprint: Blueprint, render_mode: str | None = None, **backend_options):
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode {render_mode!r} is not one of {self.metadata['render_modes']}")
+        self.blueprint = blueprint
+        self.render_mode = render_mode
+        spec = blueprint.spec
+        robot = spec.robot
+        self.metadata = {**self.metadata, "render_fps": 1.0 / spec.env.timing.action_cycle_time}
+        mount = np.asarray(robot.mount, float)
+        self.task_origin = mount if robot.task_frame == "base" else np.zeros(3)
+        urdf = assemble(robot.model, blueprint.asset_root, robot.name)
+        self.kinematics = Kinematics(urdf, robot, mount - self.task_origin)
+        surfaces = Surfaces.from_scene(spec.scene.table, spec.env.safety.floor_z, self.task_origin)
+        self.safety = SafetyCheck(self.kinematics, surfaces, spec.env.safety)
+        self.actions = ActionAdapter(blueprint.action, self.kinematics, spec.workspace)
+        self.home = np.asarray(robot.home, float)
+        self.goals = GoalSampler(spec.task.goal, self.kinematics, self.safety, self.home,
+                                 check_reach=blueprint.achieved_from == "ee")
+        self.rewards = RewardManager(blueprint.rewards, blueprint.terminations, spec.task.goal.tolerance,
+                                     blueprint.info_keys)
+        self.observations = ObservationManager(blueprint.policy_observation)
+        self.action_space = spaces.Box(blueprint.action.low.astype(np.float32),
+                                       blueprint.action.high.astype(np.float32), dtype=np.float32)
+        self.observation_space = self._observation_space()
+
+        names = [entry.urdf_joint for entry in robot.joint_states]
+        self._arm_in_states = np.array([names.index(j.name) for j in robot.arm_joints])
+        self._gripper_in_states = names.index(robot.gripper.joint) if robot.gripper is not None else None
+        self._gripper_reset = {"open": getattr(robot.gripper, "open", None),
+                               "closed": getattr(robot.gripper, "closed", None)}.get(spec.task.gripper.at_reset)
+        self._timing = spec.env.timing
+        self._verbose = spec.env.log_internal_state
+        self._seed_pending = spec.env.seed
+        self._goal = np.zeros(3)
+        self._goal_failed = False
+        self._state: EnvState | None = None
+
+        self.backend = backend_factory(blueprint.backend)(spec, urdf, self.task_origin, render_mode,
+                                                          **backend_options)
+
+    # ------------------------------------------------------------ spaces
+
+    def _observation_space(self) -> spaces.Space:
+        return spaces.Box(self.observations.low, self.observations.high, dtype=np.float32)
+
+    # ------------------------------------------------------------ state
+
+    def _read_state(self, previous_action: np.ndarray) -> EnvState:
+        reading = self.backend.read_joints()
+        q_arm = reading.position[self._arm_in_states]
+        gripper = float(reading.position[self._gripper_in_states]) if self._gripper_in_states is not None else 0.0
+        ee_position, ee_rotation = self.kinematics.ee_pose(q_arm, gripper)
+        return EnvState(
+            joint_positions=reading.position,
+            joint_velocities=reading.velocity,
+            q_arm=q_arm,
+            gripper=gripper,
+            ee_position=ee_position,
+            ee_rotation=ee_rotation,
+            ee_rpy=pin.rpy.matrixToRpy(ee_rotation),
+            desired_goal=self._goal,
+            previous_action=previous_action,
+        )
+
+    def achieved_goal(self, state: EnvState) -> np.ndarray:
+        return state.position_of(self.blueprint.achieved_from)
+
+    def _observe(self, state: EnvState):
+        return self.observations.compute(state)
+
+    # ------------------------------------------------------------ gym API
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        if seed is None and self._seed_pending is not None:
+            seed = self._seed_pending
+        self._seed_pending = None
+        super().reset(seed=seed)
+        self.backend.reset(self.home, self._gripper_reset, {})
+        self._goal, self._goal_failed = self.goals.sample(self.np_random)
+        if options and "goal" in options:
+            self._goal = np.asarray(options["goal"], float).reshape(3)
+            self._goal_failed = False
+        self._state = self._read_state(np.zeros(self.action_space.shape, dtype=np.float32))
+        info = self._info(out_of_bounds=False, rejection="")
+        return self._observe(self._state), info
+
+    def step(self, action):
+        if self._state is None:
+            raise RuntimeError("call reset() before step()")
+        state = self._state
+        command = self.actions.translate(action, state)
+        rejection = command.rejection
+        if not rejection:
+            verdict = self.safety.check(state.q_arm, command.q_arm, state.gripper)
+            rejection = verdict.reason
+        if not rejection:
+            self.backend.command_joints(command.q_arm, self._timing.action_speed)
+            if command.gripper is not None:
+                self.backend.command_gripper(command.gripper)
+        elif self._verbose:
+            log.info("%s: action rejected: %s", self.blueprint.env_id, rejection)
+        self.backend.advance(self._timing.action_cycle_time)
+        if np.all(np.isfinite(action)):
+            previous = np.clip(np.asarray(action, dtype=np.float32), self.action_space.low, self.action_space.high)
+        else:
+            previous = np.zeros(self.action_space.shape, dtype=np.float32)
+        self._state = self._read_state(previous)
+        info = self._info(command.out_of_bounds, rejection)
+        achieved = self.achieved_goal(self._state)
+        reward = float(self.rewards.reward(achieved, self._goal, info))
+        terminated = bool(self.rewards.terminated(achieved, self._goal, info))
+        return self._observe(self._state), reward, terminated, False, info
+
+    def _info(self, out_of_bounds: bool, rejection: str) -> dict:
+        achieved = self.achieved_goal(self._state)
+        distance = float(np.linalg.norm(achieved - self._goal))
+        return {
+            "action_out_of_bounds": float(out_of_bounds),
+            "action_rejected": float(bool(rejection)),
+            "goal_sampling_failed": float(self._goal_failed),
+            "rejection_reason": rejection,
+            "distance": distance,
+            "is_success": distance < self.blueprint.spec.task.goal.tolerance,
+        }
+
+    def render(self):
+        if self.render_mode == "rgb_array":
+            return self.backend.render(480, 360)
+        return None
+
+    def close(self):
+        backend = getattr(self, "backend", None)
+        if backend is not None:
+            backend.close()
+        super().close()
+
+    # ------------------------------------------------------------ introspection
+
+    @property
+    def goal(self) -> np.ndarray:
+        return self._goal.copy()
+
+    @property
+    def state(self) -> EnvState | None:
+        return self._state
+
+
+class GoalRobotEnv(RobotEnv):
+    """Dict observation for goal-conditioned learning; rewards pure in the goals."""
+
+    def _observation_space(self) -> spaces.Space:
+        spec = self.blueprint.spec
+        goal_low, goal_high = (np.asarray(b, np.float32) for b in spec.task.goal.box)
+        achieved_low, achieved_high = (np.asarray(b, np.float32) for b in spec.robot.ee_bounds)
+        return spaces.Dict({
+            "observation": spaces.Box(self.observations.low, self.observations.high, dtype=np.float32),
+            "achieved_goal": spaces.Box(achieved_low, achieved_high, dtype=np.float32),
+            "desired_goal": spaces.Box(goal_low, goal_high, dtype=np.float32),
+        })
+
+    def _observe(self, state: EnvState):
+        return {
+            "observation": self.observations.compute(state),
+            "achieved_goal": self.achieved_goal(state).astype(np.float32),
+            "desired_goal": self._goal.astype(np.float32),
+        }
+
+    def compute_reward(self, achieved_goal, desired_goal, info):
+        return self.rewards.reward(achieved_goal, desired_goal, info)
+
+    def compute_terminated(self, achieved_goal, desired_goal, info):
+        return self.rewards.terminated(achieved_goal, desired_goal, info)
+
+    def compute_truncated(self, achieved_goal, desired_goal, info):
+        # truncation is the registered time limit's job
+        return np.zeros(np.asarray(achieved_goal).shape[:-1], dtype=bool)

@@ -1,0 +1,150 @@
+"""Pinocchio kinematics of one robot: FK of every link, IK and Jacobians.
+
+Sim and real share this code, so an action is judged by the same geometry
+whichever backend executes it. Positions are in the task frame (world for the
+UR5e, the robot base for the VX300S).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from envfactory.spec.schema import RobotSpec
+
+
+@dataclass(frozen=True)
+class IkResult:
+    q_arm: np.ndarray
+    success: bool
+    position_error: float
+
+
+class Kinematics:
+    def __init__(self, urdf_path: Path, robot: RobotSpec, base_in_task: np.ndarray):
+        self.robot = robot
+        self.model = pin.buildModelFromUrdf(str(urdf_path))
+        self.data = self.model.createData()
+        self.base_in_task = np.asarray(base_in_task, dtype=float)
+        self._arm_q = np.array([self._q_index(j.name) for j in robot.arm_joints])
+        self._arm_v = np.array([self.model.idx_vs[self.model.getJointId(j.name)] for j in robot.arm_joints])
+        self.arm_lower = np.array([j.lower for j in robot.arm_joints])
+        self.arm_upper = np.array([j.upper for j in robot.arm_joints])
+        self._gripper_q: np.ndarray = np.zeros(0, dtype=int)
+        self._gripper_gain: np.ndarray = np.zeros(0)
+        if robot.gripper is not None:
+            followers = [(robot.gripper.joint, 1.0), *robot.gripper.mimic.items()]
+            self._gripper_q = np.array([self._q_index(name) for name, _ in followers])
+            self._gripper_gain = np.array([gain for _, gain in followers])
+        self.ee_frame = self._frame_id(robot.ee_frame)
+        self.checked_frames, self.checked_radii = self._safety_frames()
+        self._q = pin.neutral(self.model)
+
+    # ----------------------------------------------------------- lookups
+
+    def _q_index(self, joint_name: str) -> int:
+        if not self.model.existJointName(joint_name):
+            known = [self.model.names[i] for i in range(1, self.model.njoints)]
+            raise ValueError(f"robot {self.robot.name!r}: the URDF has no joint {joint_name!r} (joints: {known})")
+        joint = self.model.joints[self.model.getJointId(joint_name)]
+        if joint.nq != 1:
+            raise ValueError(f"robot {self.robot.name!r}: joint {joint_name!r} must have one degree of freedom")
+        return joint.idx_q
+
+    def _frame_id(self, frame_name: str) -> int:
+        if not self.model.existFrame(frame_name):
+            raise ValueError(f"robot {self.robot.name!r}: the URDF has no frame {frame_name!r}")
+        return self.model.getFrameId(frame_name)
+
+    def _safety_frames(self) -> tuple[list[int], np.ndarray]:
+        # Links that no arm joint moves (the base) cannot be moved by an action,
+        # and several URDF frames share one origin: check each point once.
+        first_arm_joint = self.model.getJointId(self.robot.arm_joints[0].name)
+        moved = set(self.model.subtrees[first_arm_joint])
+        skip = set(self.robot.safety_links.skip)
+        chosen: dict[tuple, int] = {}
+        q = pin.neutral(self.model)
+        pin.framesForwardKinematics(self.model, self.data, q)
+        for frame_id, frame in enumerate(self.model.frames):
+            if frame.type != pin.FrameType.BODY or frame.parentJoint not in moved or frame.name in skip:
+                continue
+            key = (frame.parentJoint, *np.round(frame.placement.translation, 6))
+            radius = self.robot.safety_links.radius.get(frame.name, 0.0)
+            if key not in chosen or radius > self.robot.safety_links.radius.get(self.model.frames[chosen[key]].name, 0.0):
+                chosen[key] = frame_id
+        ids = sorted(chosen.values())
+        radii = np.array([self.robot.safety_links.radius.get(self.model.frames[i].name, 0.0) for i in ids])
+        return ids, radii
+
+    def frame_names(self, ids: list[int]) -> list[str]:
+        return [self.model.frames[i].name for i in ids]
+
+    # ----------------------------------------------------------- configuration
+
+    def full_q(self, q_arm: np.ndarray, gripper: float = 0.0) -> np.ndarray:
+        q = self._q
+        q[self._arm_q] = q_arm
+        if self._gripper_q.size:
+            q[self._gripper_q] = self._gripper_gain * gripper
+        return q
+
+    # ----------------------------------------------------------- forward kinematics
+
+    def ee_pose(self, q_arm: np.ndarray, gripper: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """EE position (task frame) and rotation matrix."""
+        pin.forwardKinematics(self.model, self.data, self.full_q(q_arm, gripper))
+        placement = pin.updateFramePlacement(self.model, self.data, self.ee_frame)
+        return placement.translation + self.base_in_task, placement.rotation.copy()
+
+    def checked_link_positions(self, q_arm: np.ndarray, gripper: float = 0.0) -> np.ndarray:
+        """Task-frame positions of every link the safety check guards, shape (n, 3)."""
+        pin.framesForwardKinematics(self.model, self.data, self.full_q(q_arm, gripper))
+        oMf = self.data.oMf
+        return np.array([oMf[i].translation for i in self.checked_frames]) + self.base_in_task
+
+    # ----------------------------------------------------------- inverse kinematics
+
+    def solve_ik(
+        self,
+        q_arm_start: np.ndarray,
+        target_position: np.ndarray,
+        target_rotation: np.ndarray | None = None,
+        gripper: float = 0.0,
+        rotation_weight: float = 0.5,
+        max_iterations: int = 150,
+        tolerance: float = 5e-4,
+        damping: float = 1e-2,
+    ) -> IkResult:
+        """Damped least squares on the arm joints, within their bounds.
+
+        Orientation is a soft objective: success is judged on position alone,
+        so a target the wrist cannot reach at the asked orientation still
+        resolves to the nearest pose that puts the EE on the point.
+        """
+        model, data = self.model, self.data
+        q_arm = np.clip(np.array(q_arm_start, dtype=float), self.arm_lower, self.arm_upper)
+        target_position = np.asarray(target_position, dtype=float) - self.base_in_task
+        error = np.inf
+        for _ in range(max_iterations):
+            q = self.full_q(q_arm, gripper)
+            pin.forwardKinematics(model, data, q)
+            placement = pin.updateFramePlacement(model, data, self.ee_frame)
+            position_error = target_position - placement.translation
+            error = float(np.linalg.norm(position_error))
+            jacobian = pin.computeFrameJacobian(model, data, q, self.ee_frame, pin.LOCAL_WORLD_ALIGNED)[:, self._arm_v]
+            if target_rotation is None:
+                if error < tolerance:
+                    return IkResult(q_arm, True, error)
+                rows, residual = jacobian[:3], position_error
+            else:
+                rotation_error = pin.log3(target_rotation @ placement.rotation.T)
+                if error < tolerance and np.linalg.norm(rotation_error) * rotation_weight < 10 * tolerance:
+                    return IkResult(q_arm, True, error)
+                rows = np.vstack([jacobian[:3], rotation_weight * jacobian[3:]])
+                residual = np.concatenate([position_error, rotation_weight * rotation_error])
+            step = rows.T @ np.linalg.solve(rows @ rows.T + damping**2 * np.eye(rows.shape[0]), residual)
+            q_arm = np.clip(q_arm + np.clip(step, -0.3, 0.3), self.arm_lower, self.arm_upper)
+        return IkResult(q_arm, error < tolerance, error)

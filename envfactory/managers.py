@@ -1,0 +1,75 @@
+"""Observation and reward managers: run the compiled terms, print their tables."""
+
+from __future__ import annotations
+
+from typing import Iterable, Sequence
+
+import numpy as np
+
+from envfactory.compiler import ObservationSlot, WeightedTerm
+from envfactory.state import EnvState
+
+
+class ObservationManager:
+    def __init__(self, slots: Sequence[ObservationSlot]):
+        self.slots = tuple(slots)
+        self.size = sum(slot.size for slot in self.slots)
+        self.low = np.concatenate([slot.low for slot in self.slots]).astype(np.float32)
+        self.high = np.concatenate([slot.high for slot in self.slots]).astype(np.float32)
+        self._calls = [(slot.term.fn, slot.params, slice(slot.start, slot.stop)) for slot in self.slots]
+
+    def compute(self, state: EnvState) -> np.ndarray:
+        buffer = np.empty(self.size, dtype=np.float32)
+        for fn, params, where in self._calls:
+            buffer[where] = fn(state, params)
+        return buffer
+
+    def table(self) -> list[tuple[str, str, str, str, str]]:
+        rows = []
+        for slot in self.slots:
+            index = str(slot.start) if slot.size == 1 else f"{slot.start}–{slot.stop - 1}"
+            d = slot.description
+            rows.append((index, str(slot.size), d.component, d.source, d.unit))
+        return rows
+
+
+def info_columns(info: dict | Sequence[dict] | np.ndarray, keys: Iterable[str], batch: int) -> dict[str, np.ndarray]:
+    """Step-time flags as arrays: from one info dict, or from a batch of them (HER)."""
+    if isinstance(info, dict):
+        return {key: np.full(batch, float(info.get(key, 0.0))) for key in keys}
+    infos = list(info)
+    if len(infos) != batch:
+        raise ValueError(f"got {len(infos)} info dicts for a batch of {batch} goals")
+    return {key: np.array([float(item.get(key, 0.0)) for item in infos]) for key in keys}
+
+
+class RewardManager:
+    def __init__(self, terms: Sequence[WeightedTerm], terminations: Sequence[WeightedTerm], tolerance: float,
+                 info_keys: Sequence[str]):
+        self.terms = tuple(terms)
+        self.terminations = tuple(t for t in terminations if t.active)
+        self.tolerance = tolerance
+        self.info_keys = tuple(info_keys)
+
+    def reward(self, achieved: np.ndarray, desired: np.ndarray, info) -> np.ndarray:
+        achieved, desired = np.asarray(achieved, float), np.asarray(desired, float)
+        batch = achieved.shape[:-1]
+        columns = info_columns(info, self.info_keys, int(np.prod(batch)) if batch else 1)
+        if not batch:
+            columns = {key: value[0] for key, value in columns.items()}
+        else:
+            columns = {key: value.reshape(batch) for key, value in columns.items()}
+        total = np.zeros(batch)
+        for term in self.terms:
+            total = total + term.weight * term.term.fn(achieved, desired, columns, term.params, self.tolerance)
+        return total
+
+    def terminated(self, achieved: np.ndarray, desired: np.ndarray, info) -> np.ndarray:
+        achieved, desired = np.asarray(achieved, float), np.asarray(desired, float)
+        done = np.zeros(achieved.shape[:-1], dtype=bool)
+        for term in self.terminations:
+            done |= term.term.fn(achieved, desired, None, term.params, self.tolerance)
+        return done
+
+    def table(self) -> list[tuple[str, str, str, str]]:
+        return [(t.name, t.term.name, f"{t.weight:g}", t.term.description) for t in self.terms]

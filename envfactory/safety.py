@@ -1,0 +1,90 @@
+"""Decides whether a joint target may be sent to the arm.
+
+One check serves sim and real: finite values, joint bounds, the largest joint
+change allowed in one action, and per-link FK clearance above the floor and
+the table top. The motion between the current pose and the target is sampled
+too, because two safe end poses can sweep a link through the table.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from envfactory.kinematics import Kinematics
+from envfactory.spec.schema import SafetySettings, TableSpec
+
+
+@dataclass(frozen=True)
+class Verdict:
+    accepted: bool
+    reason: str = ""
+
+
+ACCEPTED = Verdict(True)
+
+
+@dataclass(frozen=True)
+class Surfaces:
+    """The floor and the table top, in the task frame."""
+
+    floor_z: float
+    table_min_xy: np.ndarray
+    table_max_xy: np.ndarray
+    table_top_z: float
+
+    @classmethod
+    def from_scene(cls, table: TableSpec, floor_z_world: float, task_origin_world: np.ndarray) -> "Surfaces":
+        half = np.asarray(table.size) / 2.0
+        center = np.asarray(table.center) - task_origin_world[:2]
+        return cls(
+            floor_z=floor_z_world - task_origin_world[2],
+            table_min_xy=center - half,
+            table_max_xy=center + half,
+            table_top_z=table.top_z - task_origin_world[2],
+        )
+
+    def clearance(self, points: np.ndarray, radii: np.ndarray, footprint_margin: float) -> np.ndarray:
+        """Height of each sphere's bottom above the surface below it."""
+        reach = footprint_margin + radii[:, None]
+        over_table = np.all(
+            (points[:, :2] >= self.table_min_xy - reach) & (points[:, :2] <= self.table_max_xy + reach), axis=1
+        )
+        surface = np.where(over_table, self.table_top_z, self.floor_z)
+        return points[:, 2] - radii - surface
+
+
+class SafetyCheck:
+    # Fractions of the commanded motion at which link clearance is checked.
+    PATH_SAMPLES = (0.5, 1.0)
+
+    def __init__(self, kinematics: Kinematics, surfaces: Surfaces, settings: SafetySettings):
+        self.kinematics = kinematics
+        self.surfaces = surfaces
+        self.settings = settings
+
+    def link_clearance(self, q_arm: np.ndarray, gripper: float = 0.0) -> np.ndarray:
+        points = self.kinematics.checked_link_positions(q_arm, gripper)
+        return self.surfaces.clearance(points, self.kinematics.checked_radii, self.settings.table_footprint_margin)
+
+    def pose_is_clear(self, q_arm: np.ndarray, gripper: float = 0.0) -> bool:
+        return bool(np.all(self.link_clearance(q_arm, gripper) >= self.settings.surface_margin))
+
+    def check(self, q_arm_now: np.ndarray, q_arm_target: np.ndarray, gripper: float = 0.0) -> Verdict:
+        if not np.all(np.isfinite(q_arm_target)):
+            return Verdict(False, "non-finite joint target")
+        kin = self.kinematics
+        if np.any(q_arm_target < kin.arm_lower) or np.any(q_arm_target > kin.arm_upper):
+            return Verdict(False, "joint target outside the joint bounds")
+        delta = q_arm_target - q_arm_now
+        largest = float(np.max(np.abs(delta)))
+        if largest > self.settings.max_joint_delta + 1e-12:
+            return Verdict(False, f"joint change {largest:.3f} rad exceeds max_joint_delta {self.settings.max_joint_delta}")
+        for fraction in self.PATH_SAMPLES:
+            clearance = self.link_clearance(q_arm_now + fraction * delta, gripper)
+            lowest = int(np.argmin(clearance))
+            if clearance[lowest] < self.settings.surface_margin:
+                link = kin.frame_names([kin.checked_frames[lowest]])[0]
+                return Verdict(False, f"link {link} would come within {clearance[lowest]:.3f} m of a surface")
+        return ACCEPTED

@@ -1,0 +1,286 @@
+"""Compose a family spec with Hydra, apply overrides and kwargs, validate it.
+
+Order of precedence, lowest first: the defaults list of the family file,
+then Hydra override strings, then the registered ID's kwargs, then the
+caller's gym.make kwargs (each mapped onto a spec path by its alias).
+"""
+
+from __future__ import annotations
+
+import copy
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Iterable
+
+import yaml
+from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import OmegaConfBaseException
+from pydantic import BaseModel, ValidationError
+
+from envfactory.spec.errors import Problem, SpecError, suggest
+from envfactory.spec.schema import EnvSpec
+from envfactory.spec.sources import SourceMap, parse_yaml
+
+MISSING = "???"
+
+
+@dataclass(frozen=True)
+class FamilyFile:
+    """A family spec file and the roots its defaults list searches."""
+
+    path: Path
+    search_roots: tuple[Path, ...]  # each may hold robots/, tasks/ and specs/
+
+    @property
+    def name(self) -> str:
+        return self.path.stem
+
+
+@dataclass(frozen=True)
+class Composed:
+    config: dict
+    sources: SourceMap
+
+
+# ------------------------------------------------------------------ defaults
+
+
+def _defaults_sources(family: FamilyFile, node: yaml.Node | None, sources: SourceMap) -> list[Problem]:
+    """Record the files the defaults list pulls in, in merge order, and check they exist."""
+    problems: list[Problem] = []
+    entries = _defaults_entries(node)
+    own_position = next((i for i, (group, _, _, _) in enumerate(entries) if group == "_self_"), len(entries))
+    ordered = entries[:own_position] + [("_self_", None, None, None)] + entries[own_position + 1 :]
+    for group, package, option, line in ordered:
+        if group == "_self_":
+            sources.record_file(family.path, "")
+            continue
+        relative = f"{group}/{option}.yaml" if option is not None else f"{group}.yaml"
+        found = _find(relative.lstrip("/"), family)
+        if found is None:
+            what = group.strip("/").split("/")[-1]
+            choices = _options(group.strip("/"), family) if option is not None else []
+            label = f"{what} {option!r}" if option is not None else f"config {group!r}"
+            problems.append(
+                Problem("defaults", f"no {label} found{suggest(option or group, choices)}", str(family.path), line)
+            )
+            continue
+        sources.record_file(found, "" if package in (None, "_here_", "_global_") else package)
+    return problems
+
+
+def _defaults_entries(node: yaml.Node | None) -> list[tuple[str, str | None, str | None, int]]:
+    if not isinstance(node, yaml.MappingNode):
+        return []
+    for key, value in node.value:
+        if key.value == "defaults" and isinstance(value, yaml.SequenceNode):
+            entries = []
+            for item in value.value:
+                line = item.start_mark.line + 1
+                if isinstance(item, yaml.ScalarNode):
+                    target, option = item.value, None
+                elif isinstance(item, yaml.MappingNode) and len(item.value) == 1:
+                    target, option = item.value[0][0].value, item.value[0][1].value
+                else:
+                    continue
+                group, _, package = target.partition("@")
+                entries.append((group, package or None, option, line))
+            return entries
+    return []
+
+
+def _find(relative: str, family: FamilyFile) -> Path | None:
+    if not relative.startswith("specs/"):
+        local = family.path.parent / relative
+        if local.is_file():
+            return local
+    for root in family.search_roots:
+        candidate = root / relative
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def _options(group: str, family: FamilyFile) -> list[str]:
+    names = set()
+    for root in (family.path.parent, *family.search_roots):
+        folder = root / group
+        if folder.is_dir():
+            names |= {p.stem for p in folder.glob("*.yaml") if not p.stem.startswith("_")}
+    return sorted(names)
+
+
+# ------------------------------------------------------------------ hydra
+
+
+def _hydra_compose(family: FamilyFile, overrides: tuple[str, ...]) -> DictConfig:
+    from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    # A user's own Hydra app may hold the global instance: park it, compose,
+    # and give it back, so building an env never disturbs the caller.
+    global_hydra = GlobalHydra.instance()
+    parked = global_hydra.hydra if global_hydra.is_initialized() else None
+    if parked is not None:
+        global_hydra.clear()
+    try:
+        roots = ",".join(f"'file://{root.resolve()}'" for root in family.search_roots)
+        with initialize_config_dir(config_dir=str(family.path.parent.resolve()), version_base=None):
+            return compose(config_name=family.name, overrides=[f"hydra.searchpath=[{roots}]", *overrides])
+    finally:
+        if parked is not None:
+            GlobalHydra.instance().clear()
+            GlobalHydra.instance().initialize(parked)
+
+
+@functools.lru_cache(maxsize=64)
+def _compose_cached(family: FamilyFile, overrides: tuple[str, ...]) -> Composed:
+    sources = SourceMap()
+    node = parse_yaml(family.path)
+    problems = _defaults_sources(family, node, sources)
+    if problems:
+        raise SpecError(problems, family.name)
+    try:
+        config = _hydra_compose(family, overrides)
+    except Exception as exc:  # hydra raises several unrelated types
+        message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        where = f"override {list(overrides)}" if overrides else str(family.path)
+        raise SpecError([Problem("", f"composition failed: {message}", where)], family.name) from None
+    for override in overrides:
+        key = override.split("=", 1)[0].lstrip("+~")
+        sources.note(key, f"override {override!r}")
+    return Composed(config=OmegaConf.to_container(config, resolve=False), sources=sources)
+
+
+# ------------------------------------------------------------------ kwargs
+
+
+def apply_kwargs(config: dict, sources: SourceMap, kwargs: dict[str, Any], origin: str) -> None:
+    aliases = {**config.get("kwargs", {}), **config.get("task", {}).get("kwargs", {})}
+    problems = []
+    for name, value in kwargs.items():
+        if name not in aliases:
+            problems.append(
+                Problem("", f"unknown kwarg {name!r}{suggest(name, aliases)}; valid kwargs: {', '.join(sorted(aliases))}",
+                        origin)
+            )
+            continue
+        _set_path(config, aliases[name], value)
+        sources.note(aliases[name], f"{origin} {name}={value!r}")
+    if problems:
+        raise SpecError(problems)
+
+
+def _set_path(config: dict, dotted: str, value: Any) -> None:
+    node = config
+    *parents, leaf = dotted.split(".")
+    for part in parents:
+        node = node.setdefault(part, {})
+    node[leaf] = value
+
+
+# ------------------------------------------------------------------ validation
+
+
+def _missing_paths(node: Any, prefix: str = "") -> Iterable[str]:
+    if isinstance(node, dict):
+        for key, value in node.items():
+            yield from _missing_paths(value, f"{prefix}.{key}" if prefix else str(key))
+    elif isinstance(node, list):
+        for index, value in enumerate(node):
+            yield from _missing_paths(value, f"{prefix}.{index}")
+    elif node == MISSING:
+        yield prefix
+
+
+def _resolve(config: dict, sources: SourceMap) -> dict:
+    try:
+        return OmegaConf.to_container(OmegaConf.create(config), resolve=True)
+    except OmegaConfBaseException as exc:
+        path = getattr(exc, "full_key", "") or ""
+        message = str(exc).splitlines()[0]
+        raise SpecError([sources.problem(path, f"interpolation failed: {message}")]) from None
+
+
+def _fields_at(model: type[BaseModel], loc: tuple) -> list[str]:
+    """Field names of the model found at `loc` under `model`, for suggestions."""
+    from typing import get_args, get_origin
+
+    current: Any = model
+    for part in loc:
+        if isinstance(current, type) and issubclass(current, BaseModel):
+            field = current.model_fields.get(str(part))
+            if field is None:
+                return []
+            current = field.annotation
+        elif get_origin(current) in (dict, list, tuple):
+            current = get_args(current)[-1]
+        else:
+            return []
+        while get_origin(current) is not None and get_origin(current) not in (dict, list, tuple):
+            args = [a for a in get_args(current) if a is not type(None)]
+            current = args[0] if args else current
+    if isinstance(current, type) and issubclass(current, BaseModel):
+        return list(current.model_fields)
+    return []
+
+
+def validation_problems(exc: ValidationError, sources: SourceMap, model: type[BaseModel]) -> list[Problem]:
+    problems = []
+    for error in exc.errors():
+        loc = tuple(part for part in error["loc"] if not str(part).startswith("function-"))
+        path = ".".join(str(part) for part in loc)
+        message = error["msg"]
+        if error["type"] == "extra_forbidden":
+            message = f"unknown key {loc[-1]!r}{suggest(str(loc[-1]), _fields_at(model, loc[:-1]))}"
+        elif error["type"] == "missing":
+            message = "missing value"
+        elif "input" in error and error["type"] not in ("model_type", "dict_type"):
+            message += f" (got {error['input']!r})"
+        problems.append(sources.problem(path, message))
+    return problems
+
+
+@dataclass(frozen=True)
+class LoadedSpec:
+    """A validated spec with the map back to where each value was written."""
+
+    spec: EnvSpec
+    sources: SourceMap
+    family: FamilyFile
+
+    def problem(self, path: str, message: str) -> Problem:
+        return self.sources.problem(path, message)
+
+    def file_of(self, path: str) -> Path:
+        shell = self.sources.locate(path)
+        return Path(shell.file) if shell.file and shell.line is not None else self.family.path
+
+
+def load_env_spec(
+    family: FamilyFile,
+    overrides: Iterable[str] = (),
+    id_kwargs: dict[str, Any] | None = None,
+    kwargs: dict[str, Any] | None = None,
+) -> LoadedSpec:
+    composed = _compose_cached(family, tuple(overrides))
+    config = copy.deepcopy(composed.config)
+    sources = copy.deepcopy(composed.sources)
+    try:
+        if id_kwargs:
+            apply_kwargs(config, sources, id_kwargs, "registered kwarg")
+        if kwargs:
+            apply_kwargs(config, sources, kwargs, "gym.make kwarg")
+    except SpecError as exc:
+        raise SpecError(exc.problems, family.name) from None
+    missing = list(_missing_paths(config))
+    if missing:
+        raise SpecError([sources.problem(path, "missing value (???)") for path in missing], family.name)
+    resolved = _resolve(config, sources)
+    resolved.pop("defaults", None)
+    try:
+        spec = EnvSpec.model_validate(resolved)
+    except ValidationError as exc:
+        raise SpecError(validation_problems(exc, sources, EnvSpec), family.name) from None
+    return LoadedSpec(spec, sources, family)

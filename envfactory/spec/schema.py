@@ -1,0 +1,330 @@
+"""The validated shape of a composed env spec.
+
+Every model forbids unknown keys, so a typo is reported with its dotted path
+and the nearest valid name instead of being silently ignored.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+Vec3 = tuple[float, float, float]
+
+
+class Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+# --------------------------------------------------------------------- robot
+
+
+class UrdfPart(Model):
+    airo_models: str | None = None
+    urdf: str | None = None
+    prefix: str = ""
+    parent: str | None = None
+    xyz: Vec3 = (0.0, 0.0, 0.0)
+    rpy: Vec3 = (0.0, 0.0, 0.0)
+
+    @model_validator(mode="after")
+    def _one_source(self) -> "UrdfPart":
+        if (self.airo_models is None) == (self.urdf is None):
+            raise ValueError("give exactly one of 'airo_models' or 'urdf'")
+        return self
+
+
+class FrameSpec(Model):
+    parent: str
+    xyz: Vec3 = (0.0, 0.0, 0.0)
+    rpy: Vec3 = (0.0, 0.0, 0.0)
+
+
+class ModelSpec(Model):
+    parts: list[UrdfPart] = Field(min_length=1)
+    frames: dict[str, FrameSpec] = {}
+
+    @model_validator(mode="after")
+    def _attached_parts_name_parent(self) -> "ModelSpec":
+        for index, part in enumerate(self.parts[1:], start=1):
+            if part.parent is None:
+                raise ValueError(f"parts[{index}] needs 'parent': the link it is mounted on")
+        return self
+
+
+class ArmJoint(Model):
+    name: str
+    lower: float
+    upper: float
+    label: str = ""
+
+    @model_validator(mode="after")
+    def _ordered(self) -> "ArmJoint":
+        if self.lower >= self.upper:
+            raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
+        return self
+
+
+class JointStateEntry(Model):
+    """One entry of the robot's /joint_states message, in message order."""
+
+    name: str
+    urdf: str | None = None  # the URDF joint in simulation, when its name differs
+    position: tuple[float, float]
+    velocity: tuple[float, float]
+    unit: Literal["rad", "m"] = "rad"
+
+    @property
+    def urdf_joint(self) -> str:
+        return self.urdf or self.name
+
+
+class GripperSpec(Model):
+    joint: str  # the driven URDF joint
+    open: float
+    closed: float
+    mimic: dict[str, float] = {}  # URDF joint -> multiplier of the driven joint
+    force: float = 100.0
+    label: str = "gripper command (absolute)"
+
+    @model_validator(mode="after")
+    def _distinct(self) -> "GripperSpec":
+        if self.open == self.closed:
+            raise ValueError("open and closed must differ")
+        return self
+
+    @property
+    def low(self) -> float:
+        return min(self.open, self.closed)
+
+    @property
+    def high(self) -> float:
+        return max(self.open, self.closed)
+
+
+class SafetyLinks(Model):
+    # Radius of a sphere around the link origin that must clear the surfaces,
+    # for links whose body reaches well beyond their origin.
+    radius: dict[str, float] = {}
+    skip: list[str] = []
+
+
+class PedestalSpec(Model):
+    """A stand under the robot base: a top plate on four legs."""
+
+    size: tuple[float, float]
+    rgba: tuple[float, float, float, float] = (0.3, 0.3, 0.32, 1.0)
+
+
+class RobotSpec(Model):
+    name: str
+    label: str
+    model: ModelSpec
+    mount: Vec3  # world position of the robot base
+    pedestal: PedestalSpec | None = None
+    task_frame: Literal["world", "base"]
+    arm_joints: list[ArmJoint] = Field(min_length=1)
+    home: list[float]
+    ee_frame: str
+    ee_bounds: tuple[Vec3, Vec3]  # EE position bounds in the task frame (obs and absolute EE actions)
+    joint_states: list[JointStateEntry] = Field(min_length=1)
+    joint_states_topic: str
+    gripper: GripperSpec | None = None
+    arm_force: float = 150.0
+    arm_max_velocity: float = 3.15
+    safety_links: SafetyLinks = SafetyLinks()
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "RobotSpec":
+        if len(self.home) != len(self.arm_joints):
+            raise ValueError(f"home has {len(self.home)} values for {len(self.arm_joints)} arm_joints")
+        for joint, value in zip(self.arm_joints, self.home):
+            if not joint.lower <= value <= joint.upper:
+                raise ValueError(f"home value {value} of {joint.name} is outside [{joint.lower}, {joint.upper}]")
+        urdf_names = {entry.urdf_joint for entry in self.joint_states}
+        missing = [j.name for j in self.arm_joints if j.name not in urdf_names]
+        if missing:
+            raise ValueError(f"arm joints {missing} are missing from joint_states")
+        return self
+
+
+# ---------------------------------------------------------------------- task
+
+
+class TermRef(Model):
+    """A term by name, its params and, for rewards, its weight."""
+
+    term: str
+    weight: float = 1.0
+    params: dict[str, Any] = {}
+
+
+class ObjectSpec(Model):
+    shape: Literal["box"] = "box"
+    size: float = Field(gt=0)
+    rgba: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 1.0)
+    mass: float = Field(gt=0)
+    friction: float = 1.0
+
+
+class GripperUse(Model):
+    in_action: bool = False
+    at_reset: Literal["open", "closed", "unchanged"] = "unchanged"
+
+
+class GoalSpec(Model):
+    achieved: str  # "ee.position" or "<object>.position"
+    tolerance: float = Field(gt=0)
+    box: tuple[Vec3, Vec3]
+    sampling_tries: int = Field(default=20, ge=1)
+
+    @field_validator("box")
+    @classmethod
+    def _ordered_box(cls, box):
+        low, high = box
+        if any(lo > hi for lo, hi in zip(low, high)):
+            raise ValueError(f"box low {list(low)} exceeds high {list(high)}")
+        return box
+
+
+class RewardSets(Model):
+    sparse: dict[str, TermRef]
+    dense: dict[str, TermRef]
+
+
+class TerminationRef(Model):
+    term: str
+    params: dict[str, Any] = {}
+    when: Literal["always", "sparse", "dense"] = "always"
+
+
+class TaskSpec(Model):
+    name: str
+    label: str
+    gripper: GripperUse = GripperUse()
+    objects: dict[str, ObjectSpec] = {}
+    goal: GoalSpec
+    observation: list[dict[str, dict[str, Any]]] = Field(min_length=1)
+    reward: RewardSets
+    termination: dict[str, TerminationRef] = {}
+    expert: str | None = None
+    kwargs: dict[str, str] = {}
+
+    @field_validator("observation", mode="before")
+    @classmethod
+    def _normalise_observation(cls, entries):
+        # YAML lets a term be a bare name or a one-key mapping to its params.
+        normalised = []
+        for index, entry in enumerate(entries or []):
+            if isinstance(entry, str):
+                normalised.append({entry: {}})
+            elif isinstance(entry, dict) and len(entry) == 1:
+                (name, params), = entry.items()
+                normalised.append({name: dict(params or {})})
+            else:
+                raise ValueError(f"entry {index} must be a term name or a one-key mapping of name to params")
+        return normalised
+
+
+# ----------------------------------------------------------------------- env
+
+
+class ActionSettings(Model):
+    ee: bool = False
+    delta: bool = True
+    delta_coeff: float = Field(default=0.05, gt=0)
+
+
+class TimingSettings(Model):
+    loop_rate: float = Field(default=10.0, gt=0)
+    action_cycle_time: float = Field(default=0.5, gt=0)
+    action_speed: float = Field(default=0.2, gt=0)
+    realtime: bool = False
+
+    @model_validator(mode="after")
+    def _cycle_covers_loop(self) -> "TimingSettings":
+        if self.action_cycle_time < 1.0 / self.loop_rate - 1e-9:
+            raise ValueError(
+                f"action_cycle_time ({self.action_cycle_time}) must be >= 1 / loop_rate ({1.0 / self.loop_rate:g})"
+            )
+        return self
+
+
+class SafetySettings(Model):
+    floor_z: float = 0.0
+    surface_margin: float = Field(default=0.015, ge=0)
+    table_footprint_margin: float = Field(default=0.03, ge=0)
+    max_joint_delta: float = Field(default=0.5, gt=0)
+
+
+class EnvSettings(Model):
+    seed: int | None = None
+    gui: bool = False
+    reward_type: Literal["Dense", "Sparse"] = "Dense"
+    action: ActionSettings = ActionSettings()
+    timing: TimingSettings = TimingSettings()
+    safety: SafetySettings = SafetySettings()
+    use_kinect: bool = False
+    log_internal_state: bool = False
+
+    @field_validator("reward_type", mode="before")
+    @classmethod
+    def _capitalised(cls, value):
+        # the seeds write "Dense"/"Sparse"; accept any case
+        return value.capitalize() if isinstance(value, str) else value
+
+
+class TableSpec(Model):
+    center: tuple[float, float]
+    top_z: float
+    size: tuple[float, float]
+    thickness: float = 0.04
+
+
+class SceneSpec(Model):
+    table: TableSpec
+
+
+class SimSettings(Model):
+    physics_hz: float = Field(default=240.0, gt=0)
+    solver_iterations: int = Field(default=50, ge=1)
+
+
+class Workspace(Model):
+    min: Vec3
+    max: Vec3
+
+
+class IdEntry(Model):
+    backend: str
+    goal_env: bool = False
+    kwargs: dict[str, Any] = {}
+
+
+class Registration(Model):
+    max_episode_steps: int = Field(default=100, ge=1)
+    ids: dict[str, IdEntry] = Field(min_length=1)
+
+
+class EnvSpec(Model):
+    """A composed env family: robot x task, plus the IDs it registers."""
+
+    robot: RobotSpec
+    task: TaskSpec
+    env: EnvSettings = EnvSettings()
+    scene: SceneSpec
+    sim: SimSettings = SimSettings()
+    workspace: Workspace
+    registration: Registration
+    kwargs: dict[str, str] = {}
+
+    @model_validator(mode="after")
+    def _gripper_needed(self) -> "EnvSpec":
+        uses_gripper = self.task.gripper.in_action or self.task.gripper.at_reset != "unchanged"
+        if uses_gripper and self.robot.gripper is None:
+            raise ValueError(f"task {self.task.name!r} uses a gripper but robot {self.robot.name!r} declares none")
+        return self
+
+    def kwarg_aliases(self) -> dict[str, str]:
+        return {**self.kwargs, **self.task.kwargs}

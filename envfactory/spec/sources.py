@@ -1,0 +1,93 @@
+"""Where each value of a composed spec was written: file and line per dotted path.
+
+Hydra and OmegaConf drop line numbers, so the spec files are read once more
+with PyYAML's node API, and every key is recorded under the package Hydra
+merges it into. Later sources overwrite earlier ones, as in the merge.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from envfactory.spec.errors import Problem, SpecError
+
+try:  # the C loader is an order of magnitude faster where present
+    from yaml import CSafeLoader as _Loader
+except ImportError:  # pragma: no cover
+    from yaml import SafeLoader as _Loader
+
+
+@dataclass
+class SourceMap:
+    locations: dict[str, tuple[str, int]] = field(default_factory=dict)
+    notes: dict[str, str] = field(default_factory=dict)  # path -> "gym.make kwarg x" etc.
+
+    def record_file(self, path: Path, package: str) -> yaml.Node | None:
+        node = parse_yaml(path)
+        if node is not None:
+            self._walk(node, package, str(path))
+        return node
+
+    def _walk(self, node: yaml.Node, prefix: str, file: str) -> None:
+        if isinstance(node, yaml.MappingNode):
+            for key_node, value_node in node.value:
+                key = str(key_node.value)
+                if not prefix and key == "defaults":
+                    continue
+                path = f"{prefix}.{key}" if prefix else key
+                self.locations[path] = (file, key_node.start_mark.line + 1)
+                self.notes.pop(path, None)
+                self._walk(value_node, path, file)
+        elif isinstance(node, yaml.SequenceNode):
+            for index, item in enumerate(node.value):
+                path = f"{prefix}.{index}"
+                self.locations[path] = (file, item.start_mark.line + 1)
+                self._walk(item, path, file)
+
+    def note(self, path: str, origin: str) -> None:
+        self.notes[path] = origin
+
+    def locate(self, path: str) -> Problem:
+        """A Problem shell at the nearest recorded ancestor of `path`."""
+        probe = path
+        while True:
+            if probe in self.notes:
+                return Problem(path, "", file=self.notes[probe])
+            if probe in self.locations:
+                file, line = self.locations[probe]
+                return Problem(path, "", file=file, line=line)
+            if "." not in probe:
+                return Problem(path, "")
+            probe = probe.rsplit(".", 1)[0]
+
+    def problem(self, path: str, message: str) -> Problem:
+        shell = self.locate(path)
+        return Problem(path, message, file=shell.file, line=shell.line)
+
+
+def parse_yaml(path: Path) -> yaml.Node | None:
+    try:
+        return yaml.compose(path.read_text(), Loader=_Loader)
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        line = mark.line + 1 if mark else None
+        raise SpecError([Problem("", f"YAML syntax: {exc.problem or exc}", file=str(path), line=line)]) from None
+    except OSError as exc:
+        raise SpecError([Problem("", f"cannot read: {exc.strerror}", file=str(path))]) from None
+
+
+def load_plain(path: Path) -> dict:
+    """The file's mapping, for the registry's quick scan (no composition)."""
+    try:
+        data = yaml.load(path.read_text(), Loader=_Loader)
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        raise SpecError(
+            [Problem("", f"YAML syntax: {exc.problem or exc}", file=str(path), line=mark.line + 1 if mark else None)]
+        ) from None
+    if not isinstance(data, dict):
+        raise SpecError([Problem("", "a spec file must hold a mapping", file=str(path), line=1)])
+    return data

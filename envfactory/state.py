@@ -1,0 +1,33 @@
+"""What the env knows after a step: read once, then shared by every term."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class ObjectState:
+    position: np.ndarray
+    rpy: np.ndarray
+    linear_velocity: np.ndarray
+    angular_velocity: np.ndarray
+
+
+@dataclass
+class EnvState:
+    joint_positions: np.ndarray  # /joint_states order
+    joint_velocities: np.ndarray
+    q_arm: np.ndarray  # action order
+    gripper: float
+    ee_position: np.ndarray  # task frame
+    ee_rotation: np.ndarray
+    ee_rpy: np.ndarray
+    desired_goal: np.ndarray
+    previous_action: np.ndarray
+    objects: dict[str, ObjectState] = field(default_factory=dict)
+
+    def position_of(self, name: str) -> np.ndarray:
+        """`ee` or an object's name: the point a goal term measures from."""
+        return self.ee_position if name == "ee" else self.objects[name].position

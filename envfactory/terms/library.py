@@ -1,0 +1,121 @@
+"""The term registry: every observation, reward and termination term by name.
+
+A term is a plain function plus what the compiler needs to know without
+running physics: its size, its Box bounds, how it reads in a table, and a
+params model that rejects unknown or ill-typed params.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict
+
+
+class NoParams(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class TermParams(NoParams):
+    pass
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Compile-time facts a term may need: the robot, the task and the action."""
+
+    robot: Any
+    task: Any
+    action_size: int
+    action_low: np.ndarray
+    action_high: np.ndarray
+
+
+@dataclass(frozen=True)
+class Description:
+    component: str
+    source: str
+    unit: str
+
+
+@dataclass(frozen=True)
+class ObservationTerm:
+    name: str
+    fn: Callable  # (state, params) -> array of `size`
+    size: Callable[[Layout, Any], int]
+    bounds: Callable[[Layout, Any, int], tuple[np.ndarray, np.ndarray]]
+    describe: Callable[[Layout, Any], Description]
+    params: type[BaseModel] = NoParams
+    goal_dependent: bool = False
+    check: Callable[[Layout, Any], None] | None = None  # raises ValueError on a layout it cannot serve
+
+
+@dataclass(frozen=True)
+class RewardTerm:
+    """Vectorised over a batch: fn(achieved, desired, info_columns, params, tolerance) -> (N,)."""
+
+    name: str
+    fn: Callable
+    description: str
+    params: type[BaseModel] = NoParams
+    info_keys: tuple[str, ...] = ()
+
+
+OBSERVATIONS: dict[str, ObservationTerm] = {}
+REWARDS: dict[str, RewardTerm] = {}
+TERMINATIONS: dict[str, RewardTerm] = {}
+
+
+def _register(table: dict, term) -> None:
+    if term.name in table:
+        raise ValueError(f"term {term.name!r} is registered twice")
+    table[term.name] = term
+
+
+def observation_term(**spec) -> Callable:
+    def wrap(fn):
+        _register(OBSERVATIONS, ObservationTerm(name=spec.pop("name", fn.__name__), fn=fn, **spec))
+        return fn
+
+    return wrap
+
+
+def reward_term(**spec) -> Callable:
+    def wrap(fn):
+        _register(REWARDS, RewardTerm(name=spec.pop("name", fn.__name__), fn=fn, **spec))
+        return fn
+
+    return wrap
+
+
+def termination_term(**spec) -> Callable:
+    def wrap(fn):
+        _register(TERMINATIONS, RewardTerm(name=spec.pop("name", fn.__name__), fn=fn, **spec))
+        return fn
+
+    return wrap
+
+
+def fixed(size: int) -> Callable[[Layout, Any], int]:
+    return lambda layout, params: size
+
+
+def constant_bounds(low, high) -> Callable:
+    def bounds(layout, params, size):
+        return np.broadcast_to(np.asarray(low, float), (size,)).copy(), np.broadcast_to(
+            np.asarray(high, float), (size,)
+        ).copy()
+
+    return bounds
+
+
+@dataclass
+class InfoColumns:
+    """Step-time flags that rewards read, as arrays over a batch."""
+
+    columns: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        return self.columns[key]

@@ -1,0 +1,130 @@
+"""Observation terms. Each returns its slice of the observation vector."""
+
+from __future__ import annotations
+
+import numpy as np
+from pydantic import ConfigDict, Field
+
+from envfactory.terms.library import (
+    Description,
+    TermParams,
+    constant_bounds,
+    fixed,
+    observation_term,
+)
+
+TWO_PI = 6.2832
+MAX_GOAL_DISTANCE = 2.10
+
+
+class FromPoint(TermParams):
+    # `from` is a Python keyword; YAML users write `from: cube`.
+    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
+    from_: str = Field(default="ee", alias="from")
+
+
+def _point_label(name: str) -> str:
+    return "EE" if name == "ee" else name
+
+
+def _point_symbol(name: str) -> str:
+    return "ee" if name == "ee" else name
+
+
+def _check_point(layout, params) -> None:
+    if params.from_ != "ee" and params.from_ not in layout.task.objects:
+        known = ["ee", *layout.task.objects]
+        raise ValueError(f"'from: {params.from_}' names no object of the task (known: {known})")
+
+
+def _joint_units(layout, per_second: bool) -> str:
+    units = sorted({entry.unit for entry in layout.robot.joint_states}, key=["rad", "m"].index)
+    suffix = "/s" if per_second else ""
+    return " / ".join(unit + suffix for unit in units)
+
+
+@observation_term(
+    size=fixed(3),
+    bounds=lambda layout, params, size: tuple(np.array(b, float) for b in layout.robot.ee_bounds),
+    describe=lambda layout, params: Description("EE position", "Pinocchio FK", "m"),
+)
+def ee_position(state, params):
+    return state.ee_position
+
+
+@observation_term(
+    size=fixed(3),
+    bounds=constant_bounds(-TWO_PI, TWO_PI),
+    describe=lambda layout, params: Description("EE rpy", "Pinocchio FK", "rad"),
+)
+def ee_rpy(state, params):
+    return state.ee_rpy
+
+
+@observation_term(
+    size=fixed(3),
+    bounds=constant_bounds(-1.0, 1.0),
+    describe=lambda layout, params: Description(
+        f"Unit vector {_point_label(params.from_)} → goal", "normalized", "unitless"
+    ),
+    params=FromPoint,
+    goal_dependent=True,
+    check=_check_point,
+)
+def goal_direction(state, params):
+    offset = state.desired_goal - state.position_of(params.from_)
+    norm = np.linalg.norm(offset)
+    return offset / norm if norm > 1e-9 else np.zeros(3)
+
+
+@observation_term(
+    size=fixed(1),
+    bounds=constant_bounds(0.0, MAX_GOAL_DISTANCE),
+    describe=lambda layout, params: Description(
+        f"Euclidean distance {_point_label(params.from_)} → goal",
+        f"‖goal − {_point_symbol(params.from_)}‖",
+        "m",
+    ),
+    params=FromPoint,
+    goal_dependent=True,
+    check=_check_point,
+)
+def goal_distance(state, params):
+    return np.linalg.norm(state.desired_goal - state.position_of(params.from_))
+
+
+@observation_term(
+    size=lambda layout, params: len(layout.robot.joint_states),
+    bounds=lambda layout, params, size: (
+        np.array([entry.position[0] for entry in layout.robot.joint_states]),
+        np.array([entry.position[1] for entry in layout.robot.joint_states]),
+    ),
+    describe=lambda layout, params: Description(
+        "Current joint positions", f"``{layout.robot.joint_states_topic}.position``", _joint_units(layout, False)
+    ),
+)
+def joint_positions(state, params):
+    return state.joint_positions
+
+
+@observation_term(
+    size=lambda layout, params: layout.action_size,
+    bounds=lambda layout, params, size: (layout.action_low.copy(), layout.action_high.copy()),
+    describe=lambda layout, params: Description("Previous action", "cached", "matches action space"),
+)
+def previous_action(state, params):
+    return state.previous_action
+
+
+@observation_term(
+    size=lambda layout, params: len(layout.robot.joint_states),
+    bounds=lambda layout, params, size: (
+        np.array([entry.velocity[0] for entry in layout.robot.joint_states]),
+        np.array([entry.velocity[1] for entry in layout.robot.joint_states]),
+    ),
+    describe=lambda layout, params: Description(
+        "Current joint velocities", f"``{layout.robot.joint_states_topic}.velocity``", _joint_units(layout, True)
+    ),
+)
+def joint_velocities(state, params):
+    return state.joint_velocities

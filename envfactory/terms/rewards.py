@@ -1,0 +1,53 @@
+"""Reward and termination terms, vectorised over a batch of goals.
+
+Goal-derived terms compute from (achieved, desired) alone, so HER can
+relabel them; the others read flags that the step recorded in `info`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from envfactory.terms.library import reward_term, termination_term
+
+
+def _distance(achieved, desired):
+    return np.linalg.norm(achieved - desired, axis=-1)
+
+
+@reward_term(description="‖achieved − goal‖")
+def goal_distance(achieved, desired, info, params, tolerance):
+    return _distance(achieved, desired)
+
+
+@reward_term(description="1 if ‖achieved − goal‖ < tolerance")
+def goal_reached(achieved, desired, info, params, tolerance):
+    return (_distance(achieved, desired) < tolerance).astype(float)
+
+
+@reward_term(description="0 if ‖achieved − goal‖ < tolerance else -1")
+def goal_reached_sparse(achieved, desired, info, params, tolerance):
+    return (_distance(achieved, desired) < tolerance).astype(float) - 1.0
+
+
+@reward_term(description="1 every step")
+def constant(achieved, desired, info, params, tolerance):
+    return np.ones(achieved.shape[:-1])
+
+
+def _info_flag(key: str, description: str):
+    def flag(achieved, desired, info, params, tolerance):
+        return info[key]
+
+    flag.__name__ = key
+    return reward_term(description=description, info_keys=(key,))(flag)
+
+
+action_out_of_bounds = _info_flag("action_out_of_bounds", "1 if the action left the joint or workspace bounds")
+action_rejected = _info_flag("action_rejected", "1 if the safety check rejected the action")
+goal_sampling_failed = _info_flag("goal_sampling_failed", "1 if no reachable goal was found at reset")
+
+
+@termination_term(name="goal_reached", description="‖achieved − goal‖ < tolerance")
+def goal_reached_termination(achieved, desired, info, params, tolerance):
+    return _distance(achieved, desired) < tolerance
