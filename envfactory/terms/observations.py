@@ -100,7 +100,7 @@ def goal_distance(state, params):
         np.array([entry.position[1] for entry in layout.robot.joint_states]),
     ),
     describe=lambda layout, params: Description(
-        "Current joint positions", f"``{layout.robot.joint_states_topic}.position``", _joint_units(layout, False)
+        "Current joint positions", f"{layout.robot.joint_states_topic}.position", _joint_units(layout, False)
     ),
 )
 def joint_positions(state, params):
@@ -123,7 +123,7 @@ def previous_action(state, params):
         np.array([entry.velocity[1] for entry in layout.robot.joint_states]),
     ),
     describe=lambda layout, params: Description(
-        "Current joint velocities", f"``{layout.robot.joint_states_topic}.velocity``", _joint_units(layout, True)
+        "Current joint velocities", f"{layout.robot.joint_states_topic}.velocity", _joint_units(layout, True)
     ),
 )
 def joint_velocities(state, params):
