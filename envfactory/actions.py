@@ -26,8 +26,9 @@ class Command:
 
 
 class ActionAdapter:
-    def __init__(self, layout: ActionLayout, kinematics: Kinematics, workspace: Workspace):
+    def __init__(self, layout: ActionLayout, kinematics: Kinematics, workspace: Workspace, max_joint_delta: float):
         self.layout = layout
+        self.max_joint_delta = max_joint_delta
         self.kinematics = kinematics
         self.low, self.high = layout.low, layout.high
         self.workspace_min = np.asarray(workspace.min, float)
@@ -62,6 +63,10 @@ class ActionAdapter:
         solution = self.kinematics.solve_ik(
             state.q_arm, bounded, target_rotation=state.ee_rotation, gripper=state.gripper, max_iterations=40
         )
+        if not solution.success or np.max(np.abs(solution.q_arm - state.q_arm)) > self.max_joint_delta:
+            # Holding the orientation can be out of reach near the workspace edge,
+            # or cost a large wrist roll on a 6-DoF arm: then only the position counts.
+            solution = self.kinematics.solve_ik(state.q_arm, bounded, gripper=state.gripper, max_iterations=60)
         if not solution.success:
             return Command(None, gripper, out_of_bounds, f"IK found no joint target for EE {np.round(bounded, 3)}")
         return Command(solution.q_arm, gripper, out_of_bounds)

@@ -178,8 +178,14 @@ def _action_layout(spec: EnvSpec) -> ActionLayout:
     if settings.ee:
         low, high = robot.ee_bounds
         for axis, lo, hi in zip("xyz", low, high):
-            label = f"Δ{axis}" if settings.delta else f"absolute {axis}"
-            rows.append(ActionRow(label, lo, hi, f"EE {axis} ({robot.task_frame} frame)", "m"))
+            if settings.delta:
+                # The seeds' EE box (e.g. z in [0, 1.5]) bounds absolute positions;
+                # as a delta box it would forbid ever moving down, so deltas get
+                # the symmetric box of the same reach.
+                reach = max(abs(lo), abs(hi))
+                rows.append(ActionRow(f"Δ{axis}", -reach, reach, f"EE {axis} ({robot.task_frame} frame)", "m"))
+            else:
+                rows.append(ActionRow(f"absolute {axis}", lo, hi, f"EE {axis} ({robot.task_frame} frame)", "m"))
     else:
         for joint in robot.arm_joints:
             rows.append(ActionRow(f"{joint.label or joint.name} {kind}", joint.lower, joint.upper, joint.name, "rad"))

@@ -45,7 +45,7 @@ class RobotEnv(gym.Env):
         self.kinematics = Kinematics(urdf, robot, mount - self.task_origin)
         surfaces = Surfaces.from_scene(spec.scene.table, spec.env.safety.floor_z, self.task_origin)
         self.safety = SafetyCheck(self.kinematics, surfaces, spec.env.safety)
-        self.actions = ActionAdapter(blueprint.action, self.kinematics, spec.workspace)
+        self.actions = ActionAdapter(blueprint.action, self.kinematics, spec.workspace, spec.env.safety.max_joint_delta)
         self.home = np.asarray(robot.home, float)
         self.goals = GoalSampler(spec.task.goal, self.kinematics, self.safety, self.home,
                                  check_reach=blueprint.achieved_from == "ee")

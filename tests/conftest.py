@@ -1,0 +1,21 @@
+import gymnasium as gym
+import pytest
+
+import envfactory
+
+SIM_IDS = sorted(env_id for env_id, record in envfactory.records().items() if record.backend == "pybullet")
+
+
+@pytest.fixture
+def make():
+    """gym.make that closes every env it opened."""
+    opened = []
+
+    def _make(env_id, **kwargs):
+        env = gym.make(env_id, **kwargs)
+        opened.append(env)
+        return env
+
+    yield _make
+    for env in opened:
+        env.close()
