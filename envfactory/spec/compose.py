@@ -274,13 +274,27 @@ def load_env_spec(
             apply_kwargs(config, sources, kwargs, "gym.make kwarg")
     except SpecError as exc:
         raise SpecError(exc.problems, family.name) from None
+    # Report every ??? and every other problem in one go: drop the missing
+    # keys so validation still runs, then keep one message per missing path.
     missing = list(_missing_paths(config))
-    if missing:
-        raise SpecError([sources.problem(path, "missing value (???)") for path in missing], family.name)
+    for path in missing:
+        _delete_path(config, path)
+    problems = [sources.problem(path, "missing value (???)") for path in missing]
     resolved = _resolve(config, sources)
     resolved.pop("defaults", None)
     try:
         spec = EnvSpec.model_validate(resolved)
     except ValidationError as exc:
-        raise SpecError(validation_problems(exc, sources, EnvSpec), family.name) from None
+        problems += [p for p in validation_problems(exc, sources, EnvSpec) if p.path not in missing]
+    if problems:
+        raise SpecError(problems, family.name)
     return LoadedSpec(spec, sources, family)
+
+
+def _delete_path(config: dict, dotted: str) -> None:
+    node: Any = config
+    *parents, leaf = dotted.split(".")
+    for part in parents:
+        node = node[int(part)] if isinstance(node, list) else node[part]
+    if isinstance(node, dict):
+        del node[leaf]
