@@ -72,9 +72,7 @@ def parse_yaml(path: Path) -> yaml.Node | None:
     try:
         return yaml.compose(path.read_text(), Loader=_Loader)
     except yaml.MarkedYAMLError as exc:
-        mark = exc.problem_mark or exc.context_mark
-        line = mark.line + 1 if mark else None
-        raise SpecError([Problem("", f"YAML syntax: {exc.problem or exc}", file=str(path), line=line)]) from None
+        raise SpecError([yaml_problem(exc, path)]) from None
     except OSError as exc:
         raise SpecError([Problem("", f"cannot read: {exc.strerror}", file=str(path))]) from None
 
@@ -84,10 +82,15 @@ def load_plain(path: Path) -> dict:
     try:
         data = yaml.load(path.read_text(), Loader=_Loader)
     except yaml.MarkedYAMLError as exc:
-        mark = exc.problem_mark or exc.context_mark
-        raise SpecError(
-            [Problem("", f"YAML syntax: {exc.problem or exc}", file=str(path), line=mark.line + 1 if mark else None)]
-        ) from None
+        raise SpecError([yaml_problem(exc, path)]) from None
     if not isinstance(data, dict):
         raise SpecError([Problem("", "a spec file must hold a mapping", file=str(path), line=1)])
     return data
+
+
+def yaml_problem(exc: yaml.MarkedYAMLError, path: Path) -> Problem:
+    mark = exc.problem_mark or exc.context_mark
+    message = f"YAML syntax: {exc.problem or exc}"
+    if exc.context and exc.context_mark is not None:
+        message += f" ({exc.context} opened at line {exc.context_mark.line + 1})"
+    return Problem("", message, file=str(path), line=mark.line + 1 if mark else None)
