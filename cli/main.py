@@ -36,9 +36,8 @@ def validate(paths: List[Path] = typer.Argument(None, help="Spec folders or fami
         targets.extend(registry.family_files(path) if path.is_dir() else [path])
     failures, checked = 0, 0
     for path in targets:
-        folder = path.parent.parent if path.parent.name == "specs" else path.parent
         try:
-            for record in registry.scan_family(path, registry._search_roots(folder)):
+            for record in registry.scan_family(path, registry.search_roots(registry.folder_of(path))):
                 loaded = load_env_spec(record.family, (), dict(record.kwargs))
                 compile_blueprint(loaded, record.env_id, record.backend, record.goal_env)
                 checked += 1

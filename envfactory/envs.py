@@ -114,7 +114,7 @@ class RobotEnv(gym.Env):
             self._goal = np.asarray(options["goal"], float).reshape(3)
             self._goal_failed = False
         self._state = self._read_state(np.zeros(self.action_space.shape, dtype=np.float32))
-        info = self._info(out_of_bounds=False, rejection="")
+        info = self._info(self.achieved_goal(self._state), out_of_bounds=False, rejection="")
         return self._observe(self._state), info
 
     def step(self, action):
@@ -138,14 +138,13 @@ class RobotEnv(gym.Env):
         else:
             previous = np.zeros(self.action_space.shape, dtype=np.float32)
         self._state = self._read_state(previous)
-        info = self._info(command.out_of_bounds, rejection)
         achieved = self.achieved_goal(self._state)
+        info = self._info(achieved, command.out_of_bounds, rejection)
         reward = float(self.rewards.reward(achieved, self._goal, info))
         terminated = bool(self.rewards.terminated(achieved, self._goal, info))
         return self._observe(self._state), reward, terminated, False, info
 
-    def _info(self, out_of_bounds: bool, rejection: str) -> dict:
-        achieved = self.achieved_goal(self._state)
+    def _info(self, achieved: np.ndarray, out_of_bounds: bool, rejection: str) -> dict:
         distance = float(np.linalg.norm(achieved - self._goal))
         return {
             "action_out_of_bounds": float(out_of_bounds),

@@ -52,10 +52,15 @@ def family_files(folder: Path) -> list[Path]:
     return sorted(p for p in specs.glob("*.yaml") if not p.name.startswith("_"))
 
 
-def _search_roots(folder: Path) -> tuple[Path, ...]:
+def search_roots(folder: Path) -> tuple[Path, ...]:
+    """Where a folder's families look up robots/ and tasks/: itself, then the built-ins."""
     builtin = builtin_root()
-    own = folder if (folder / "specs").is_dir() else folder
-    return (builtin,) if own.resolve() == builtin.resolve() else (own, builtin)
+    return (builtin,) if folder.resolve() == builtin.resolve() else (folder, builtin)
+
+
+def folder_of(family_path: Path) -> Path:
+    """The spec folder a family file belongs to (the parent of a specs/ subfolder)."""
+    return family_path.parent.parent if family_path.parent.name == "specs" else family_path.parent
 
 
 def scan_family(path: Path, search_roots: tuple[Path, ...]) -> list[IdRecord]:
@@ -82,13 +87,14 @@ def scan_family(path: Path, search_roots: tuple[Path, ...]) -> list[IdRecord]:
     ]
 
 
-def _register(record: IdRecord) -> None:
+def _check_unique(record: IdRecord) -> None:
     existing = _records.get(record.env_id)
-    if existing is not None:
-        if existing.family.path.resolve() == record.family.path.resolve():
-            return
+    if existing is not None and existing.family.path.resolve() != record.family.path.resolve():
         raise SpecError([Problem("registration.ids", f"duplicate env ID {record.env_id!r}: also declared in "
                                  f"{existing.family.path}", str(record.family.path))], record.env_id)
+
+
+def _register(record: IdRecord) -> None:
     _records[record.env_id] = record
     gym.register(id=record.env_id, entry_point=ENTRY_POINT, kwargs={"env_id": record.env_id},
                  max_episode_steps=record.max_episode_steps)
@@ -109,16 +115,13 @@ def register_specs(folder: str | Path, validate: bool = True) -> tuple[list[str]
     if not folder.is_dir():
         error = SpecError([Problem("", "no such spec folder", str(folder))])
         return [], [error]
-    roots = _search_roots(folder)
+    roots = search_roots(folder)
     added, problems = [], []
     for path in family_files(folder):
         try:
             records = scan_family(path, roots)
             for record in records:
-                existing = _records.get(record.env_id)
-                if existing is not None and existing.family.path.resolve() != path.resolve():
-                    raise SpecError([Problem("registration.ids", f"duplicate env ID {record.env_id!r}: also "
-                                             f"declared in {existing.family.path}", str(path))], record.env_id)
+                _check_unique(record)
             if validate:
                 _check_family(records)
         except SpecError as exc:
