@@ -26,6 +26,7 @@ class ObservationSlot:
     name: str
     term: ObservationTerm
     params: BaseModel
+    bound: Any  # what the term function receives
     start: int
     size: int
     low: np.ndarray
@@ -47,6 +48,7 @@ class WeightedTerm:
     term: RewardTerm
     weight: float
     params: BaseModel
+    bound: Any
     active: bool = True  # terminations: whether this reward type uses it
 
 
@@ -127,8 +129,9 @@ class Blueprint:
             "rewards": [{"name": t.name, "term": t.term.name, "weight": t.weight,
                          "params": t.params.model_dump(by_alias=True)} for t in self.rewards],
             "terminations": [{"name": t.name, "term": t.term.name, "active": t.active} for t in self.terminations],
-            "goal": {"achieved": spec.task.goal.achieved, "tolerance": spec.task.goal.tolerance,
-                     "box": [list(spec.task.goal.box[0]), list(spec.task.goal.box[1])]},
+            "goal": spec.task.goal.model_dump(),
+            "objects": {name: obj.model_dump() for name, obj in spec.task.objects.items()},
+            "gripper": {"in_action": spec.task.gripper.in_action, "at_reset": spec.gripper_at_reset},
             "env": spec.env.model_dump(),
             "workspace": spec.workspace.model_dump(),
             "robot": {"name": spec.robot.name, "mount": list(spec.robot.mount), "home": spec.robot.home,
@@ -162,8 +165,8 @@ def _slot_json(slot: ObservationSlot) -> dict:
 def _reindex(slots) -> tuple[ObservationSlot, ...]:
     out, start = [], 0
     for slot in slots:
-        out.append(ObservationSlot(slot.name, slot.term, slot.params, start, slot.size, slot.low, slot.high,
-                                   slot.description))
+        out.append(ObservationSlot(slot.name, slot.term, slot.params, slot.bound, start, slot.size, slot.low,
+                                   slot.high, slot.description))
         start += slot.size
     return tuple(out)
 
@@ -213,6 +216,14 @@ def _lookup(table: dict, name: str, path: str, kind: str, loaded: LoadedSpec, pr
     return term
 
 
+def _bind(term, layout: Layout, params, path: str, loaded: LoadedSpec, problems: list[Problem]):
+    try:
+        return term.bind(layout, params)
+    except ValueError as exc:
+        problems.append(loaded.problem(path, str(exc)))
+        return None
+
+
 def _observation(spec: EnvSpec, layout: Layout, loaded: LoadedSpec, problems: list[Problem]):
     slots, start = [], 0
     for index, entry in enumerate(spec.task.observation):
@@ -224,22 +235,19 @@ def _observation(spec: EnvSpec, layout: Layout, loaded: LoadedSpec, problems: li
         params = _params(term, raw_params, f"{path}.{name}", loaded, problems)
         if params is None:
             continue
-        if term.check is not None:
-            try:
-                term.check(layout, params)
-            except ValueError as exc:
-                problems.append(loaded.problem(f"{path}.{name}", str(exc)))
-                continue
+        bound = _bind(term, layout, params, f"{path}.{name}", loaded, problems)
+        if bound is None:
+            continue
         size = term.size(layout, params)
         low, high = term.bounds(layout, params, size)
-        slots.append(ObservationSlot(name, term, params, start, size, np.asarray(low, float).reshape(size),
+        slots.append(ObservationSlot(name, term, params, bound, start, size, np.asarray(low, float).reshape(size),
                                      np.asarray(high, float).reshape(size), term.describe(layout, params)))
         start += size
     return tuple(slots)
 
 
-def _weighted(refs: dict, table: dict, path: str, kind: str, loaded: LoadedSpec, problems: list[Problem],
-              reward_type: str | None = None):
+def _weighted(refs: dict, table: dict, path: str, kind: str, layout: Layout, loaded: LoadedSpec,
+              problems: list[Problem], reward_type: str | None = None):
     out = []
     for name, ref in refs.items():
         term = _lookup(table, ref.term, f"{path}.{name}.term", kind, loaded, problems)
@@ -248,9 +256,12 @@ def _weighted(refs: dict, table: dict, path: str, kind: str, loaded: LoadedSpec,
         params = _params(term, ref.params, f"{path}.{name}.params", loaded, problems)
         if params is None:
             continue
+        bound = _bind(term, layout, params, f"{path}.{name}", loaded, problems)
+        if bound is None:
+            continue
         when = getattr(ref, "when", "always")
         active = when == "always" or (reward_type or "").lower() == when
-        out.append(WeightedTerm(name, term, getattr(ref, "weight", 1.0), params, active))
+        out.append(WeightedTerm(name, term, getattr(ref, "weight", 1.0), params, bound, active))
     return tuple(out)
 
 
@@ -261,6 +272,9 @@ def _achieved_from(spec: EnvSpec, loaded: LoadedSpec, problems: list[Problem]) -
         problems.append(loaded.problem("task.goal.achieved",
                                        f"unknown achieved goal {spec.task.goal.achieved!r}"
                                        f"{suggest(spec.task.goal.achieved, valid)}"))
+    elif spec.task.goal.lift is not None and source == "ee":
+        problems.append(loaded.problem("task.goal.lift", "the lift stage raises an object: the achieved goal "
+                                                         "must be an object's position, not 'ee.position'"))
     return source
 
 
@@ -272,12 +286,12 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
     observation = _observation(spec, layout, loaded, problems)
     reward_set = "sparse" if spec.env.reward_type == "Sparse" else "dense"
     rewards = _weighted(getattr(spec.task.reward, reward_set), REWARDS, f"task.reward.{reward_set}", "reward",
-                        loaded, problems)
+                        layout, loaded, problems)
     # the other set is compiled too, so a typo there is caught before anyone switches to it
     other = "dense" if reward_set == "sparse" else "sparse"
-    _weighted(getattr(spec.task.reward, other), REWARDS, f"task.reward.{other}", "reward", loaded, problems)
-    terminations = _weighted(spec.task.termination, TERMINATIONS, "task.termination", "termination", loaded,
-                             problems, reward_type=spec.env.reward_type)
+    _weighted(getattr(spec.task.reward, other), REWARDS, f"task.reward.{other}", "reward", layout, loaded, problems)
+    terminations = _weighted(spec.task.termination, TERMINATIONS, "task.termination", "termination", layout,
+                             loaded, problems, reward_type=spec.env.reward_type)
     achieved_from = _achieved_from(spec, loaded, problems)
     if problems:
         raise SpecError(problems, env_id)

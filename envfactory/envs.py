@@ -16,9 +16,10 @@ from gymnasium import spaces
 from envfactory.actions import ActionAdapter
 from envfactory.backends import backend_factory
 from envfactory.compiler import Blueprint
-from envfactory.goals import GoalSampler
+from envfactory.goals import GoalSampler, LiftCurriculum
 from envfactory.kinematics import Kinematics
 from envfactory.managers import ObservationManager, RewardManager
+from envfactory.objects import ObjectSpawner, ObjectTracker
 from envfactory.safety import SafetyCheck, Surfaces
 from envfactory.state import EnvState
 from envfactory.urdf_assembly import assemble
@@ -59,8 +60,12 @@ class RobotEnv(gym.Env):
         names = [entry.urdf_joint for entry in robot.joint_states]
         self._arm_in_states = np.array([names.index(j.name) for j in robot.arm_joints])
         self._gripper_in_states = names.index(robot.gripper.joint) if robot.gripper is not None else None
-        self._gripper_reset = {"open": getattr(robot.gripper, "open", None),
-                               "closed": getattr(robot.gripper, "closed", None)}.get(spec.task.gripper.at_reset)
+        self._gripper_reset = spec.gripper_at_reset
+        self.spawner = ObjectSpawner(spec.task.objects, spec.scene.table, self.task_origin)
+        self._trackers = {name: ObjectTracker() for name in spec.task.objects}
+        lift = spec.task.goal.lift
+        self.curriculum = (LiftCurriculum(lift.enabled, lift.height, spec.task.goal.tolerance)
+                           if lift is not None else None)
         self._timing = spec.env.timing
         self._verbose = spec.env.log_internal_state
         self._seed_pending = spec.env.seed
@@ -83,6 +88,7 @@ class RobotEnv(gym.Env):
         q_arm = reading.position[self._arm_in_states]
         gripper = float(reading.position[self._gripper_in_states]) if self._gripper_in_states is not None else 0.0
         ee_position, ee_rotation = self.kinematics.ee_pose(q_arm, gripper)
+        objects = {name: tracker.update(self.backend.read_object(name)) for name, tracker in self._trackers.items()}
         return EnvState(
             joint_positions=reading.position,
             joint_velocities=reading.velocity,
@@ -92,8 +98,15 @@ class RobotEnv(gym.Env):
             ee_rotation=ee_rotation,
             ee_rpy=pin.rpy.matrixToRpy(ee_rotation),
             desired_goal=self._goal,
+            current_goal=self._goal,
             previous_action=previous_action,
+            objects=objects,
         )
+
+    def _advance_curriculum(self, state: EnvState, achieved: np.ndarray) -> None:
+        if self.curriculum is not None:
+            self.curriculum.update(achieved)
+            state.current_goal = self.curriculum.current(self._goal)
 
     def achieved_goal(self, state: EnvState) -> np.ndarray:
         return state.position_of(self.blueprint.achieved_from)
@@ -108,13 +121,20 @@ class RobotEnv(gym.Env):
             seed = self._seed_pending
         self._seed_pending = None
         super().reset(seed=seed)
-        self.backend.reset(self.home, self._gripper_reset, {})
+        spawn = self.spawner.sample(self.np_random)
+        self.backend.reset(self.home, self._gripper_reset, spawn)
+        for tracker in self._trackers.values():
+            tracker.reset()
         self._goal, self._goal_failed = self.goals.sample(self.np_random)
         if options and "goal" in options:
             self._goal = np.asarray(options["goal"], float).reshape(3)
             self._goal_failed = False
         self._state = self._read_state(np.zeros(self.action_space.shape, dtype=np.float32))
-        info = self._info(self.achieved_goal(self._state), out_of_bounds=False, rejection="")
+        achieved = self.achieved_goal(self._state)
+        if self.curriculum is not None:
+            self.curriculum.reset(spawn[self.blueprint.achieved_from][0])
+        self._advance_curriculum(self._state, achieved)
+        info = self._info(self._state, achieved, out_of_bounds=False, rejection="")
         return self._observe(self._state), info
 
     def step(self, action):
@@ -139,14 +159,15 @@ class RobotEnv(gym.Env):
             previous = np.zeros(self.action_space.shape, dtype=np.float32)
         self._state = self._read_state(previous)
         achieved = self.achieved_goal(self._state)
-        info = self._info(achieved, command.out_of_bounds, rejection)
+        self._advance_curriculum(self._state, achieved)
+        info = self._info(self._state, achieved, command.out_of_bounds, rejection)
         reward = float(self.rewards.reward(achieved, self._goal, info))
         terminated = bool(self.rewards.terminated(achieved, self._goal, info))
         return self._observe(self._state), reward, terminated, False, info
 
-    def _info(self, achieved: np.ndarray, out_of_bounds: bool, rejection: str) -> dict:
+    def _info(self, state: EnvState, achieved: np.ndarray, out_of_bounds: bool, rejection: str) -> dict:
         distance = float(np.linalg.norm(achieved - self._goal))
-        return {
+        info = {
             "action_out_of_bounds": float(out_of_bounds),
             "action_rejected": float(bool(rejection)),
             "goal_sampling_failed": float(self._goal_failed),
@@ -154,6 +175,10 @@ class RobotEnv(gym.Env):
             "distance": distance,
             "is_success": distance < self.blueprint.spec.task.goal.tolerance,
         }
+        if self.curriculum is not None:
+            info.update(self.curriculum.info())
+        info.update(self.rewards.measure(state))
+        return info
 
     def render(self):
         if self.render_mode == "rgb_array":

@@ -1,4 +1,4 @@
-"""Goal sampling: uniform in the goal box, resampled until the arm can reach it safely."""
+"""Goals: sampling in the goal box, and the lift-then-place curriculum."""
 
 from __future__ import annotations
 
@@ -10,10 +10,15 @@ from envfactory.spec.schema import GoalSpec
 
 
 class GoalSampler:
+    """Uniform in the goal box, resampled until the arm can reach it safely (EE goals),
+    or the static goal when random goals are off."""
+
     def __init__(self, goal: GoalSpec, kinematics: Kinematics, safety: SafetyCheck, home: np.ndarray,
                  check_reach: bool):
         self.low = np.asarray(goal.box[0], float)
         self.high = np.asarray(goal.box[1], float)
+        self.random = goal.random
+        self.static = np.asarray(goal.static_goal, float)
         self.tries = goal.sampling_tries
         self.kinematics = kinematics
         self.safety = safety
@@ -26,11 +31,37 @@ class GoalSampler:
 
     def sample(self, rng: np.random.Generator) -> tuple[np.ndarray, bool]:
         """A goal and whether sampling failed (every try unreachable)."""
-        goal = rng.uniform(self.low, self.high)
-        if not self.check_reach:
+        goal = rng.uniform(self.low, self.high) if self.random else self.static.copy()
+        if not self.check_reach or self.reachable(goal):
             return goal, False
-        for _ in range(self.tries):
+        for _ in range(self.tries - 1 if self.random else 0):
+            goal = rng.uniform(self.low, self.high)
             if self.reachable(goal):
                 return goal, False
-            goal = rng.uniform(self.low, self.high)
         return goal, True
+
+
+class LiftCurriculum:
+    """multi_goal: the current goal is the spawn point raised by the lift height until the
+    object gets there within tolerance, then the desired goal."""
+
+    def __init__(self, enabled: bool, height: float, tolerance: float):
+        self.enabled = enabled
+        self.offset = np.array([0.0, 0.0, height])
+        self.tolerance = tolerance
+        self.goal = np.zeros(3)
+        self.active = False
+
+    def reset(self, spawn_position: np.ndarray) -> None:
+        self.goal = np.asarray(spawn_position, float) + self.offset
+        self.active = self.enabled
+
+    def update(self, achieved: np.ndarray) -> None:
+        if self.active and np.linalg.norm(achieved - self.goal) < self.tolerance:
+            self.active = False
+
+    def current(self, desired: np.ndarray) -> np.ndarray:
+        return self.goal if self.active else desired
+
+    def info(self) -> dict:
+        return {"intermediate_active": float(self.active), "intermediate_goal": self.goal.copy()}

@@ -16,7 +16,7 @@ class ObservationManager:
         self.size = sum(slot.size for slot in self.slots)
         self.low = np.concatenate([slot.low for slot in self.slots]).astype(np.float32)
         self.high = np.concatenate([slot.high for slot in self.slots]).astype(np.float32)
-        self._calls = [(slot.term.fn, slot.params, slice(slot.start, slot.stop)) for slot in self.slots]
+        self._calls = [(slot.term.fn, slot.bound, slice(slot.start, slot.stop)) for slot in self.slots]
 
     def compute(self, state: EnvState) -> np.ndarray:
         buffer = np.empty(self.size, dtype=np.float32)
@@ -33,14 +33,25 @@ class ObservationManager:
         return rows
 
 
-def info_columns(info: dict | Sequence[dict] | np.ndarray, keys: Iterable[str], batch: int) -> dict[str, np.ndarray]:
-    """Step-time flags as arrays: from one info dict, or from a batch of them (HER)."""
+def info_columns(info: dict | Sequence[dict] | np.ndarray, keys: Iterable[str], batch: tuple[int, ...]
+                 ) -> dict[str, np.ndarray]:
+    """Step-time records as arrays shaped batch + the record's own shape:
+    from one info dict (shared by the batch), or from one dict per goal (HER)."""
     if isinstance(info, dict):
-        return {key: np.full(batch, float(info.get(key, 0.0))) for key in keys}
-    infos = list(info)
-    if len(infos) != batch:
-        raise ValueError(f"got {len(infos)} info dicts for a batch of {batch} goals")
-    return {key: np.array([float(item.get(key, 0.0)) for item in infos]) for key in keys}
+        columns = {}
+        for key in keys:
+            value = np.asarray(info.get(key, 0.0), dtype=float)
+            columns[key] = np.broadcast_to(value, batch + value.shape)
+        return columns
+    infos = np.asarray(info, dtype=object).reshape(-1)
+    count = int(np.prod(batch)) if batch else 1
+    if infos.size != count:
+        raise ValueError(f"got {infos.size} info dicts for a batch of {count} goals")
+    columns = {}
+    for key in keys:
+        stacked = np.array([np.asarray(item.get(key, 0.0), dtype=float) for item in infos])
+        columns[key] = stacked.reshape(batch + stacked.shape[1:])
+    return columns
 
 
 class RewardManager:
@@ -50,25 +61,26 @@ class RewardManager:
         self.terminations = tuple(t for t in terminations if t.active)
         self.tolerance = tolerance
         self.info_keys = tuple(info_keys)
+        self._measured = [(t.term.info_keys[0], t.term.measure, t.bound) for t in self.terms if t.term.measure]
 
     def reward(self, achieved: np.ndarray, desired: np.ndarray, info) -> np.ndarray:
         achieved, desired = np.asarray(achieved, float), np.asarray(desired, float)
         batch = achieved.shape[:-1]
-        columns = info_columns(info, self.info_keys, int(np.prod(batch)) if batch else 1)
-        if not batch:
-            columns = {key: value[0] for key, value in columns.items()}
-        else:
-            columns = {key: value.reshape(batch) for key, value in columns.items()}
+        columns = info_columns(info, self.info_keys, batch)
         total = np.zeros(batch)
         for term in self.terms:
-            total = total + term.weight * term.term.fn(achieved, desired, columns, term.params, self.tolerance)
+            total = total + term.weight * term.term.fn(achieved, desired, columns, term.bound, self.tolerance)
         return total
+
+    def measure(self, state: EnvState) -> dict[str, float]:
+        """Values of the state-dependent terms, for the step to record in info."""
+        return {key: float(fn(state, bound)) for key, fn, bound in self._measured}
 
     def terminated(self, achieved: np.ndarray, desired: np.ndarray, info) -> np.ndarray:
         achieved, desired = np.asarray(achieved, float), np.asarray(desired, float)
         done = np.zeros(achieved.shape[:-1], dtype=bool)
         for term in self.terminations:
-            done |= term.term.fn(achieved, desired, None, term.params, self.tolerance)
+            done |= term.term.fn(achieved, desired, None, term.bound, self.tolerance)
         return done
 
     def table(self) -> list[tuple[str, str, str, str]]:

@@ -9,7 +9,8 @@ import numpy as np
 
 @dataclass
 class ObjectState:
-    position: np.ndarray
+    position: np.ndarray  # task frame
+    rotation: np.ndarray
     rpy: np.ndarray
     linear_velocity: np.ndarray
     angular_velocity: np.ndarray
@@ -25,6 +26,7 @@ class EnvState:
     ee_rotation: np.ndarray
     ee_rpy: np.ndarray
     desired_goal: np.ndarray
+    current_goal: np.ndarray  # the lift stage's goal while it lasts, else the desired goal
     previous_action: np.ndarray
     objects: dict[str, ObjectState] = field(default_factory=dict)
 

@@ -80,19 +80,37 @@ class JointStateEntry(Model):
         return self.urdf or self.name
 
 
+class ContactSpec(Model):
+    """Contact parameters of the links that touch a grasped object."""
+
+    links: list[str] = []
+    lateral_friction: float = Field(default=1.0, ge=0)
+    spinning_friction: float = Field(default=0.0, ge=0)
+    rolling_friction: float = Field(default=0.0, ge=0)
+
+
 class GripperSpec(Model):
     joint: str  # the driven URDF joint
     open: float
     closed: float
     mimic: dict[str, float] = {}  # URDF joint -> multiplier of the driven joint
     force: float = 100.0
+    max_velocity: float = Field(default=1.0, gt=0)  # of the driven joint, per second
+    grasp_threshold: float | None = None  # closed at least this far when holding something
+    pads: ContactSpec = ContactSpec()
     label: str = "gripper command (absolute)"
 
     @model_validator(mode="after")
     def _distinct(self) -> "GripperSpec":
         if self.open == self.closed:
             raise ValueError("open and closed must differ")
+        if self.grasp_threshold is not None and not self.low <= self.grasp_threshold <= self.high:
+            raise ValueError(f"grasp_threshold {self.grasp_threshold} lies outside [{self.low}, {self.high}]")
         return self
+
+    def closure(self, value):
+        """0 when open, 1 when closed, whichever way the joint runs."""
+        return (value - self.open) / (self.closed - self.open)
 
     @property
     def low(self) -> float:
@@ -160,24 +178,50 @@ class TermRef(Model):
     params: dict[str, Any] = {}
 
 
+class SpawnSpec(Model):
+    position: Vec3  # the object's centre at rest, task frame
+    random: bool = True  # random_cube_spawn
+    offset: tuple[float, float] = (0.05, 0.05)  # random_offset: ± metres in x and y
+
+    @field_validator("offset")
+    @classmethod
+    def _non_negative(cls, offset):
+        if min(offset) < 0:
+            raise ValueError(f"offset {list(offset)} must not be negative")
+        return offset
+
+
 class ObjectSpec(Model):
     shape: Literal["box"] = "box"
-    size: float = Field(gt=0)
+    size: float = Field(gt=0)  # edge length
     rgba: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 1.0)
     mass: float = Field(gt=0)
-    friction: float = 1.0
+    friction: float = Field(default=1.0, ge=0)
+    spinning_friction: float = Field(default=0.0, ge=0)
+    rolling_friction: float = Field(default=0.0, ge=0)
+    spawn: SpawnSpec
 
 
 class GripperUse(Model):
     in_action: bool = False
-    at_reset: Literal["open", "closed", "unchanged"] = "unchanged"
+    at_reset: Literal["open", "closed", "unchanged"] | float = "unchanged"  # or a joint value
+
+
+class LiftStage(Model):
+    """The multi_goal curriculum: lift the object above its spawn point, then go for the goal."""
+
+    enabled: bool = True  # multi_goal
+    height: float = Field(default=0.15, gt=0)  # lift_height
 
 
 class GoalSpec(Model):
     achieved: str  # "ee.position" or "<object>.position"
     tolerance: float = Field(gt=0)
     box: tuple[Vec3, Vec3]
+    random: bool = True  # random_goal; otherwise the static goal below
+    static: Vec3 | None = None  # the goal when random is false; the box centre if unset
     sampling_tries: int = Field(default=20, ge=1)
+    lift: LiftStage | None = None
 
     @field_validator("box")
     @classmethod
@@ -186,6 +230,20 @@ class GoalSpec(Model):
         if any(lo > hi for lo, hi in zip(low, high)):
             raise ValueError(f"box low {list(low)} exceeds high {list(high)}")
         return box
+
+    @model_validator(mode="after")
+    def _static_in_box(self) -> "GoalSpec":
+        low, high = self.box
+        if self.static is not None and not all(lo <= v <= hi for v, lo, hi in zip(self.static, low, high)):
+            raise ValueError(f"static goal {list(self.static)} lies outside the goal box")
+        return self
+
+    @property
+    def static_goal(self) -> Vec3:
+        if self.static is not None:
+            return self.static
+        low, high = self.box
+        return tuple((lo + hi) / 2 for lo, hi in zip(low, high))
 
 
 class RewardSets(Model):
@@ -324,7 +382,19 @@ class EnvSpec(Model):
         uses_gripper = self.task.gripper.in_action or self.task.gripper.at_reset != "unchanged"
         if uses_gripper and self.robot.gripper is None:
             raise ValueError(f"task {self.task.name!r} uses a gripper but robot {self.robot.name!r} declares none")
+        at_reset = self.task.gripper.at_reset
+        if isinstance(at_reset, float) and not self.robot.gripper.low <= at_reset <= self.robot.gripper.high:
+            raise ValueError(f"task.gripper.at_reset {at_reset} lies outside the gripper's range "
+                             f"[{self.robot.gripper.low}, {self.robot.gripper.high}]")
         return self
+
+    @property
+    def gripper_at_reset(self) -> float | None:
+        """The gripper joint value a reset commands, or None to leave it as it is."""
+        at_reset, gripper = self.task.gripper.at_reset, self.robot.gripper
+        if at_reset == "unchanged" or gripper is None:
+            return None
+        return {"open": gripper.open, "closed": gripper.closed}.get(at_reset, at_reset)
 
     def kwarg_aliases(self) -> dict[str, str]:
         return {**self.kwargs, **self.task.kwargs}

@@ -40,27 +40,40 @@ class Description:
     unit: str
 
 
+def unchanged(layout: "Layout", params: Any) -> Any:
+    return params
+
+
 @dataclass(frozen=True)
 class ObservationTerm:
     name: str
-    fn: Callable  # (state, params) -> array of `size`
+    fn: Callable  # (state, bound params) -> array of `size`
     size: Callable[[Layout, Any], int]
     bounds: Callable[[Layout, Any, int], tuple[np.ndarray, np.ndarray]]
     describe: Callable[[Layout, Any], Description]
     params: type[BaseModel] = NoParams
     goal_dependent: bool = False
-    check: Callable[[Layout, Any], None] | None = None  # raises ValueError on a layout it cannot serve
+    # Checks the params against the robot and task (ValueError names what is
+    # wrong) and returns what `fn` receives, with robot facts resolved once.
+    bind: Callable[[Layout, Any], Any] = unchanged
 
 
 @dataclass(frozen=True)
 class RewardTerm:
-    """Vectorised over a batch: fn(achieved, desired, info_columns, params, tolerance) -> (N,)."""
+    """Vectorised over a batch: fn(achieved, desired, info_columns, bound params, tolerance) -> (N,).
+
+    A term that depends on the env state rather than the goals has `measure`:
+    the step evaluates it on the state and records it in info under
+    `info_keys[0]`, so `fn` (reading info) stays exact when HER relabels goals.
+    """
 
     name: str
     fn: Callable
     description: str
     params: type[BaseModel] = NoParams
     info_keys: tuple[str, ...] = ()
+    bind: Callable[[Layout, Any], Any] = unchanged
+    measure: Callable[[Any, Any], float] | None = None
 
 
 OBSERVATIONS: dict[str, ObservationTerm] = {}

@@ -27,14 +27,21 @@ def _point_label(name: str) -> str:
     return "EE" if name == "ee" else name
 
 
+def _goal_label(layout) -> str:
+    # with a lift stage the columns follow the stage's goal, as the seeds name it
+    lift = layout.task.goal.lift
+    return "current goal" if lift is not None and lift.enabled else "goal"
+
+
 def _point_symbol(name: str) -> str:
     return "ee" if name == "ee" else name
 
 
-def _check_point(layout, params) -> None:
+def _bind_point(layout, params):
     if params.from_ != "ee" and params.from_ not in layout.task.objects:
         known = ["ee", *layout.task.objects]
         raise ValueError(f"'from: {params.from_}' names no object of the task (known: {known})")
+    return params
 
 
 def _joint_units(layout, per_second: bool) -> str:
@@ -65,14 +72,14 @@ def ee_rpy(state, params):
     size=fixed(3),
     bounds=constant_bounds(-1.0, 1.0),
     describe=lambda layout, params: Description(
-        f"Unit vector {_point_label(params.from_)} → goal", "normalized", "unitless"
+        f"Unit vector {_point_label(params.from_)} → {_goal_label(layout)}", "normalized", "unitless"
     ),
     params=FromPoint,
     goal_dependent=True,
-    check=_check_point,
+    bind=_bind_point,
 )
 def goal_direction(state, params):
-    offset = state.desired_goal - state.position_of(params.from_)
+    offset = state.current_goal - state.position_of(params.from_)
     norm = np.linalg.norm(offset)
     return offset / norm if norm > 1e-9 else np.zeros(3)
 
@@ -81,16 +88,16 @@ def goal_direction(state, params):
     size=fixed(1),
     bounds=constant_bounds(0.0, MAX_GOAL_DISTANCE),
     describe=lambda layout, params: Description(
-        f"Euclidean distance {_point_label(params.from_)} → goal",
+        f"Euclidean distance {_point_label(params.from_)} → {_goal_label(layout)}",
         f"‖goal − {_point_symbol(params.from_)}‖",
         "m",
     ),
     params=FromPoint,
     goal_dependent=True,
-    check=_check_point,
+    bind=_bind_point,
 )
 def goal_distance(state, params):
-    return np.linalg.norm(state.desired_goal - state.position_of(params.from_))
+    return np.linalg.norm(state.current_goal - state.position_of(params.from_))
 
 
 @observation_term(

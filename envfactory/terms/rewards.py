@@ -2,27 +2,55 @@
 
 Goal-derived terms compute from (achieved, desired) alone, so HER can
 relabel them; the others read flags that the step recorded in `info`.
+With a lift stage, the step also records the stage's goal while it lasts;
+it does not derive from the desired goal, so relabelled rewards stay exact.
 """
 
 from __future__ import annotations
 
+from typing import Literal
+
 import numpy as np
 
-from envfactory.terms.library import reward_term, termination_term
+from envfactory.terms.library import TermParams, reward_term, termination_term
+
+STAGE_KEYS = ("intermediate_active", "intermediate_goal")
+
+
+class GoalChoice(TermParams):
+    # current: the lift stage's goal while it lasts, then the desired goal
+    goal: Literal["current", "final"]
+
+
+class CurrentGoal(GoalChoice):
+    goal: Literal["current", "final"] = "current"
+
+
+class FinalGoal(GoalChoice):
+    goal: Literal["current", "final"] = "final"
+
+
+def _target(desired, info, params):
+    if params.goal == "final":
+        return desired
+    active = np.asarray(info["intermediate_active"]) > 0
+    if not np.any(active):
+        return desired
+    return np.where(active[..., None], info["intermediate_goal"], desired)
 
 
 def _distance(achieved, desired):
     return np.linalg.norm(achieved - desired, axis=-1)
 
 
-@reward_term(description="‖achieved − goal‖")
+@reward_term(description="‖achieved − goal‖", params=CurrentGoal, info_keys=STAGE_KEYS)
 def goal_distance(achieved, desired, info, params, tolerance):
-    return _distance(achieved, desired)
+    return _distance(achieved, _target(desired, info, params))
 
 
-@reward_term(description="1 if ‖achieved − goal‖ < tolerance")
+@reward_term(description="1 if ‖achieved − goal‖ < tolerance", params=FinalGoal, info_keys=STAGE_KEYS)
 def goal_reached(achieved, desired, info, params, tolerance):
-    return (_distance(achieved, desired) < tolerance).astype(float)
+    return (_distance(achieved, _target(desired, info, params)) < tolerance).astype(float)
 
 
 @reward_term(description="0 if ‖achieved − goal‖ < tolerance else -1")

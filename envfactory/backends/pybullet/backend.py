@@ -62,8 +62,9 @@ class PyBulletBackend:
         # Self-collision stays off: the gripper's linkage links overlap by design.
         self.body = p.loadURDF(str(urdf_path), basePosition=mount.tolist(), useFixedBase=True,
                                flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=c)
-        index = {p.getJointInfo(self.body, j, physicsClientId=c)[1].decode(): j
-                 for j in range(p.getNumJoints(self.body, physicsClientId=c))}
+        infos = [p.getJointInfo(self.body, j, physicsClientId=c) for j in range(p.getNumJoints(self.body, physicsClientId=c))]
+        index = {info[1].decode(): info[0] for info in infos}
+        link_index = {info[12].decode(): info[0] for info in infos}
         self._arm = [index[j.name] for j in self.robot.arm_joints]
         self._state_joints = [index[e.urdf_joint] for e in self.robot.joint_states]
         # Unactuated joints would otherwise hold still under PyBullet's default velocity motors.
@@ -79,6 +80,13 @@ class PyBulletBackend:
                                                 [1, 0, 0], [0, 0, 0], [0, 0, 0], physicsClientId=c)
                 p.changeConstraint(constraint, gearRatio=-1.0 / gain, maxForce=GEAR_MAX_FORCE, erp=0.8,
                                    physicsClientId=c)
+            pads = gripper.pads
+            for link in pads.links:
+                if link not in link_index:
+                    raise BackendError(f"robot {self.robot.name!r}: gripper.pads names no link {link!r}")
+                p.changeDynamics(self.body, link_index[link], lateralFriction=pads.lateral_friction,
+                                 spinningFriction=pads.spinning_friction, rollingFriction=pads.rolling_friction,
+                                 physicsClientId=c)
         self.objects = {
             name: scene.add_object(c, spec, self.task_origin + [0.0, 0.0, -10.0 - i])
             for i, (name, spec) in enumerate(self.spec.task.objects.items())
@@ -143,7 +151,8 @@ class PyBulletBackend:
             raise BackendError(f"robot {self.robot.name!r} has no gripper")
         with self._lock:
             p.setJointMotorControl2(self.body, self._gripper, p.POSITION_CONTROL, targetPosition=float(value),
-                                    force=self.robot.gripper.force, physicsClientId=self.client)
+                                    force=self.robot.gripper.force, maxVelocity=self.robot.gripper.max_velocity,
+                                    physicsClientId=self.client)
 
     def advance(self, seconds: float) -> None:
         if self.realtime:

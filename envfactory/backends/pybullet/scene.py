@@ -46,5 +46,6 @@ def add_pedestal(client: int, pedestal: PedestalSpec, mount: np.ndarray) -> list
 def add_object(client: int, spec: ObjectSpec, position) -> int:
     half = spec.size / 2
     body = _box(client, [half, half, half], position, spec.rgba, mass=spec.mass)
-    p.changeDynamics(body, -1, lateralFriction=spec.friction, physicsClientId=client)
+    p.changeDynamics(body, -1, lateralFriction=spec.friction, spinningFriction=spec.spinning_friction,
+                     rollingFriction=spec.rolling_friction, physicsClientId=client)
     return body

@@ -1,0 +1,63 @@
+"""The task's objects at run time: where they spawn, and their state from pose readings.
+
+Velocities are finite differences over the step between two pose readings,
+which the real robot's pose topic supports as well as the simulator does.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from envfactory.backends.base import ObjectReading
+from envfactory.spec.schema import ObjectSpec, TableSpec
+from envfactory.state import ObjectState
+
+IDENTITY_QUATERNION = np.array([0.0, 0.0, 0.0, 1.0])
+
+
+def quaternion_to_matrix(quaternion: np.ndarray) -> np.ndarray:
+    x, y, z, w = quaternion
+    return pin.Quaternion(w, x, y, z).normalized().toRotationMatrix()
+
+
+class ObjectSpawner:
+    """Spawn poses in the task frame: the declared position, or a random offset from it kept on the table."""
+
+    def __init__(self, objects: dict[str, ObjectSpec], table: TableSpec, task_origin_world: np.ndarray):
+        self.objects = objects
+        center = np.asarray(table.center) - task_origin_world[:2]
+        self.table_min = center - np.asarray(table.size) / 2
+        self.table_max = center + np.asarray(table.size) / 2
+
+    def sample(self, rng: np.random.Generator) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        poses = {}
+        for name, spec in self.objects.items():
+            position = np.array(spec.spawn.position, dtype=float)
+            if spec.spawn.random:
+                offset = np.asarray(spec.spawn.offset)
+                position[:2] += rng.uniform(-offset, offset)
+                half = spec.size / 2
+                position[:2] = np.clip(position[:2], self.table_min + half, self.table_max - half)
+            poses[name] = (position, IDENTITY_QUATERNION.copy())
+        return poses
+
+
+class ObjectTracker:
+    """Turns successive pose readings of one object into its full state."""
+
+    def __init__(self):
+        self._previous: ObjectReading | None = None
+
+    def reset(self) -> None:
+        self._previous = None
+
+    def update(self, reading: ObjectReading) -> ObjectState:
+        rotation = quaternion_to_matrix(reading.quaternion)
+        previous, self._previous = self._previous, reading
+        linear, angular = np.zeros(3), np.zeros(3)
+        if previous is not None and reading.stamp > previous.stamp:
+            dt = reading.stamp - previous.stamp
+            linear = (reading.position - previous.position) / dt
+            angular = pin.log3(rotation @ quaternion_to_matrix(previous.quaternion).T) / dt
+        return ObjectState(reading.position, rotation, pin.rpy.matrixToRpy(rotation), linear, angular)
