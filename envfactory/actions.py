@@ -39,6 +39,15 @@ class ActionAdapter:
         clipped = np.clip(action, self.low, self.high)
         return clipped, bool(np.any(clipped != action))
 
+    def hold_action(self, state: EnvState) -> np.ndarray:
+        """The action that keeps the robot where it is: the previous action a reset reports."""
+        if self.layout.delta:
+            arm = np.zeros(self.arm_size)
+        else:
+            arm = state.ee_position if self.layout.ee else state.q_arm
+        action = np.append(arm, state.gripper) if self.layout.gripper_in_action else arm
+        return np.clip(action, self.low, self.high).astype(np.float32)
+
     def translate(self, action: np.ndarray, state: EnvState) -> Command:
         action = np.asarray(action, dtype=float).reshape(-1)
         if action.shape != (self.layout.size,):

@@ -130,6 +130,7 @@ class RobotEnv(gym.Env):
             self._goal = np.asarray(options["goal"], float).reshape(3)
             self._goal_failed = False
         self._state = self._read_state(np.zeros(self.action_space.shape, dtype=np.float32))
+        self._state.previous_action = self.actions.hold_action(self._state)
         achieved = self.achieved_goal(self._state)
         if self.curriculum is not None:
             self.curriculum.reset(spawn[self.blueprint.achieved_from][0])
@@ -156,7 +157,7 @@ class RobotEnv(gym.Env):
         if np.all(np.isfinite(action)):
             previous = np.clip(np.asarray(action, dtype=np.float32), self.action_space.low, self.action_space.high)
         else:
-            previous = np.zeros(self.action_space.shape, dtype=np.float32)
+            previous = self.actions.hold_action(state)
         self._state = self._read_state(previous)
         achieved = self.achieved_goal(self._state)
         self._advance_curriculum(self._state, achieved)

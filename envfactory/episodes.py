@@ -26,6 +26,8 @@ def run_episodes(env, policy, episodes: int, seed: int, on_frame: Callable | Non
     for index in range(episodes):
         episode_seed = seed + index
         observation, info = env.reset(seed=episode_seed)
+        if hasattr(policy, "reset"):
+            policy.reset()
         if on_frame is not None:
             on_frame(env.render())
         total, length, rejected, success = 0.0, 0, 0, bool(info.get("is_success", False))

@@ -23,6 +23,13 @@ def test_blueprint_snapshot(env_id, snapshot_json):
     assert json.loads(envfactory.blueprint(env_id).to_json()) == snapshot_json
 
 
+def CUBE_ROWS(start):
+    """The five cube rows the Push and Pick-and-Place pages share, from index `start`."""
+    components = [("Cube position", "m"), ("Cube rpy", "rad"), ("Cube linear velocity (finite-diff)", "m/s"),
+                  ("Cube angular velocity (finite-diff)", "rad/s"), ("Cube position relative to EE", "m")]
+    return [(f"{start + 3 * i}–{start + 3 * i + 2}", "3", name, unit) for i, (name, unit) in enumerate(components)]
+
+
 # The seed pages' index tables (Idx, Dim, Component, Unit), row for row.
 SEED_TABLES = {
     "UR5eReacherSim-v0": [
@@ -41,6 +48,37 @@ SEED_TABLES = {
         ("16–21", "6", "Previous action", "matches action space"),
         ("22–30", "9", "Current joint velocities", "rad/s / m/s"),
     ],
+    "UR5ePushSim-v0": [
+        ("0–2", "3", "EE position", "m"),
+        ("3–5", "3", "EE rpy", "rad"),
+        ("6–8", "3", "Unit vector cube → goal", "unitless"),
+        ("9", "1", "Euclidean distance cube → goal", "m"),
+        ("10–16", "7", "Current joint positions", "rad"),
+        ("17–22", "6", "Previous action", "matches action space"),
+        ("23–29", "7", "Current joint velocities", "rad/s"),
+        *CUBE_ROWS(30),
+    ],
+    "UR5ePnPSim-v0": [
+        ("0–2", "3", "EE position", "m"),
+        ("3–5", "3", "EE rpy", "rad"),
+        ("6–8", "3", "Unit vector cube → current goal", "unitless"),
+        ("9", "1", "Euclidean distance cube → current goal", "m"),
+        ("10–16", "7", "Current joint positions", "rad"),
+        ("17–23", "7", "Previous action", "matches action space"),
+        ("24–30", "7", "Current joint velocities", "rad/s"),
+        *CUBE_ROWS(31),
+        ("46", "1", "is_grasped (derived binary)", "0.0 or 1.0"),
+    ],
+    "VX300SPushSim-v0": [
+        ("0–2", "3", "EE position", "m"),
+        ("3–5", "3", "EE rpy", "rad"),
+        ("6–8", "3", "Unit vector cube → goal", "unitless"),
+        ("9", "1", "Euclidean distance cube → goal", "m"),
+        ("10–18", "9", "Current joint positions", "rad / m"),
+        ("19–24", "6", "Previous action", "matches action space"),
+        ("25–33", "9", "Current joint velocities", "rad/s / m/s"),
+        *CUBE_ROWS(34),
+    ],
 }
 
 
@@ -55,6 +93,27 @@ def test_ee_mode_shrinks_previous_action():
     compiled = envfactory.blueprint("UR5eReacherSim-v0", ee_action_type=True)
     assert compiled.observation_size == 24
     assert compiled.action.size == 3
+
+
+@pytest.mark.parametrize("env_id, standard, ee_mode, goal_env", [
+    # the seeds' sizes; EE mode shrinks the previous action to 3 (+1 gripper), goal envs drop the 4 goal columns
+    ("UR5ePushSim-v0", 45, 42, 41),
+    ("UR5ePnPSim-v0", 47, 44, 43),
+    ("VX300SPushSim-v0", 49, 46, 45),
+    ("VX300SPnPSim-v0", 51, 48, 47),
+])
+def test_observation_sizes(env_id, standard, ee_mode, goal_env):
+    assert envfactory.blueprint(env_id).observation_size == standard
+    assert envfactory.blueprint(env_id, ee_action_type=True).observation_size == ee_mode
+    assert envfactory.blueprint(env_id.replace("Sim", "GoalSim")).observation_size == goal_env
+
+
+def test_pnp_gripper_is_the_last_action_row_in_both_modes():
+    for ee in (False, True):
+        action = envfactory.blueprint("UR5ePnPSim-v0", ee_action_type=ee).action
+        assert action.size == (4 if ee else 7)
+        last = action.rows[-1]
+        assert (last.low, last.high, last.joint) == (0.0, 0.8, "robotiq_85_left_knuckle_joint")
 
 
 def test_goal_env_drops_goal_columns():

@@ -97,6 +97,7 @@ class GripperSpec(Model):
     force: float = 100.0
     max_velocity: float = Field(default=1.0, gt=0)  # of the driven joint, per second
     grasp_threshold: float | None = None  # closed at least this far when holding something
+    closing_axis: Literal["x", "y", "z"] = "y"  # the EE frame axis along which the fingers close
     pads: ContactSpec = ContactSpec()
     label: str = "gripper command (absolute)"
 
@@ -146,6 +147,7 @@ class RobotSpec(Model):
     home: list[float]
     ee_frame: str
     ee_bounds: tuple[Vec3, Vec3]  # EE position bounds in the task frame (obs and absolute EE actions)
+    top_down_rpy: Vec3 | None = None  # task-frame EE orientation that points the gripper straight down
     joint_states: list[JointStateEntry] = Field(min_length=1)
     joint_states_topic: str
     gripper: GripperSpec | None = None
@@ -257,6 +259,18 @@ class TerminationRef(Model):
     when: Literal["always", "sparse", "dense"] = "always"
 
 
+class ExpertRef(Model):
+    """The scripted policy that solves the task, and its robot-specific params."""
+
+    policy: str
+    params: dict[str, Any] = {}
+
+    @model_validator(mode="before")
+    @classmethod
+    def _bare_name(cls, value):
+        return {"policy": value} if isinstance(value, str) else value
+
+
 class TaskSpec(Model):
     name: str
     label: str
@@ -266,7 +280,7 @@ class TaskSpec(Model):
     observation: list[dict[str, dict[str, Any]]] = Field(min_length=1)
     reward: RewardSets
     termination: dict[str, TerminationRef] = {}
-    expert: str | None = None
+    expert: ExpertRef | None = None
     kwargs: dict[str, str] = {}
 
     @field_validator("observation", mode="before")

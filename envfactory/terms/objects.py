@@ -45,12 +45,12 @@ def object_rpy(state, params):
     return state.objects[params.object].rpy
 
 
-@_object_term("{Name} linear velocity", FINITE_DIFFERENCE, "m/s", constant_bounds(-2.0, 2.0))
+@_object_term("{Name} linear velocity (finite-diff)", FINITE_DIFFERENCE, "m/s", constant_bounds(-2.0, 2.0))
 def object_linear_velocity(state, params):
     return state.objects[params.object].linear_velocity
 
 
-@_object_term("{Name} angular velocity", FINITE_DIFFERENCE, "rad/s", constant_bounds(-20.0, 20.0))
+@_object_term("{Name} angular velocity (finite-diff)", FINITE_DIFFERENCE, "rad/s", constant_bounds(-20.0, 20.0))
 def object_angular_velocity(state, params):
     return state.objects[params.object].angular_velocity
 

@@ -87,10 +87,7 @@ class PyBulletBackend:
                 p.changeDynamics(self.body, link_index[link], lateralFriction=pads.lateral_friction,
                                  spinningFriction=pads.spinning_friction, rollingFriction=pads.rolling_friction,
                                  physicsClientId=c)
-        self.objects = {
-            name: scene.add_object(c, spec, self.task_origin + [0.0, 0.0, -10.0 - i])
-            for i, (name, spec) in enumerate(self.spec.task.objects.items())
-        }
+        self.objects: dict[str, int] = {}  # spawned fresh at every reset
         self._set_joint_state(np.asarray(self.robot.home, float), self._gripper_reset_value(None))
         self._hold(np.asarray(self.robot.home, float), None)
         self._saved = p.saveState(physicsClientId=c)
@@ -124,15 +121,20 @@ class PyBulletBackend:
         c = self.client
         q_arm = np.asarray(q_arm, float)
         with self._lock:
+            # Objects are removed and spawned anew: moving them would keep their
+            # contact caches, and the next episode would not replay bit for bit.
+            for body in self.objects.values():
+                p.removeBody(body, physicsClientId=c)
+            self.objects = {}
             p.restoreState(self._saved, physicsClientId=c)
             gripper_value = self._gripper_reset_value(gripper)
             self._set_joint_state(q_arm, gripper_value)
             self._hold(q_arm, gripper_value)
             for name, (position, quaternion) in objects.items():
-                body = self.objects[name]
-                p.resetBasePositionAndOrientation(body, (self.task_origin + position).tolist(), list(quaternion),
-                                                  physicsClientId=c)
-                p.resetBaseVelocity(body, [0, 0, 0], [0, 0, 0], physicsClientId=c)
+                if name not in self.spec.task.objects:
+                    raise BackendError(f"reset places {name!r}, which the task does not declare")
+                self.objects[name] = scene.add_object(c, self.spec.task.objects[name], self.task_origin + position,
+                                                      quaternion)
             self._sim_time = 0.0
 
     def command_joints(self, q_arm_target, duration: float) -> None:

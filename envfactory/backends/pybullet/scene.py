@@ -11,10 +11,11 @@ TABLE_RGBA = (0.55, 0.42, 0.30, 1.0)
 FLOOR_RGBA = (0.85, 0.85, 0.85, 1.0)
 
 
-def _box(client: int, half_extents, position, rgba, mass: float = 0.0) -> int:
+def _box(client: int, half_extents, position, rgba, mass: float = 0.0, orientation=(0.0, 0.0, 0.0, 1.0)) -> int:
     collision = p.createCollisionShape(p.GEOM_BOX, halfExtents=half_extents, physicsClientId=client)
     visual = p.createVisualShape(p.GEOM_BOX, halfExtents=half_extents, rgbaColor=rgba, physicsClientId=client)
-    return p.createMultiBody(mass, collision, visual, basePosition=position, physicsClientId=client)
+    return p.createMultiBody(mass, collision, visual, basePosition=list(position), baseOrientation=list(orientation),
+                             physicsClientId=client)
 
 
 def add_floor(client: int, z: float) -> int:
@@ -43,9 +44,9 @@ def add_pedestal(client: int, pedestal: PedestalSpec, mount: np.ndarray) -> list
     return bodies
 
 
-def add_object(client: int, spec: ObjectSpec, position) -> int:
+def add_object(client: int, spec: ObjectSpec, position, orientation) -> int:
     half = spec.size / 2
-    body = _box(client, [half, half, half], position, spec.rgba, mass=spec.mass)
+    body = _box(client, [half, half, half], position, spec.rgba, mass=spec.mass, orientation=orientation)
     p.changeDynamics(body, -1, lateralFriction=spec.friction, spinningFriction=spec.spinning_friction,
                      rollingFriction=spec.rolling_friction, physicsClientId=client)
     return body

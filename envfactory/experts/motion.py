@@ -1,0 +1,95 @@
+"""From a wanted EE pose to the env's own action: the shared core of every scripted expert.
+
+Experts plan in Cartesian space and emit what a learner would: joint
+deltas from IK in joint mode, EE deltas in EE mode, always inside the
+action box and the per-step joint-change limit, so no expert action is
+clipped or rejected for size.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+AXES = {"x": 0, "y": 1, "z": 2}
+
+
+def shrink_into(vector: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """Scale a step down uniformly so it fits the box, keeping its direction."""
+    limit = np.where(vector >= 0, high, -low)
+    ratio = np.max(np.abs(vector) / np.maximum(limit, 1e-9))
+    return vector / ratio if ratio > 1.0 else vector
+
+
+def yaw_rotation(angle: float) -> np.ndarray:
+    return pin.rpy.rpyToMatrix(0.0, 0.0, angle)
+
+
+class ArmMotion:
+    def __init__(self, env):
+        self.env = env
+        spec = env.blueprint.spec
+        self.layout = env.blueprint.action
+        self.max_joint_delta = 0.9 * spec.env.safety.max_joint_delta
+        robot = spec.robot
+        self.gripper = robot.gripper
+        self.down = pin.rpy.rpyToMatrix(*robot.top_down_rpy) if robot.top_down_rpy is not None else None
+        self.closing_axis = AXES[robot.gripper.closing_axis] if robot.gripper is not None else 1
+
+    # ------------------------------------------------------------ orientation
+
+    def down_facing(self, direction_xy: np.ndarray) -> np.ndarray | None:
+        """Top-down orientation whose finger-closing axis lies along `direction_xy` (either sign),
+        turned as little as possible from the current orientation."""
+        if self.down is None:
+            return None
+        base_axis = self.down[:2, self.closing_axis]
+        wanted = np.arctan2(direction_xy[1], direction_xy[0]) - np.arctan2(base_axis[1], base_axis[0])
+        current = self.env.state.ee_rotation @ self.down.T
+        current_yaw = np.arctan2(current[1, 0], current[0, 0])
+        # the fingers are symmetric: a half turn gives the same grip
+        wanted = current_yaw + (wanted - current_yaw + np.pi / 2) % np.pi - np.pi / 2
+        return yaw_rotation(wanted) @ self.down
+
+    def square_to(self, yaw: float) -> np.ndarray | None:
+        """Top-down orientation that closes the fingers on two opposite faces of a box turned by `yaw`."""
+        if self.down is None:
+            return None
+        base_axis = self.down[:2, self.closing_axis]
+        base = np.arctan2(base_axis[1], base_axis[0])
+        current = self.env.state.ee_rotation @ self.down.T
+        current_yaw = np.arctan2(current[1, 0], current[0, 0])
+        wanted = yaw - base
+        wanted = current_yaw + (wanted - current_yaw + np.pi / 4) % (np.pi / 2) - np.pi / 4
+        return yaw_rotation(wanted) @ self.down
+
+    # ------------------------------------------------------------ actions
+
+    def toward(self, target: np.ndarray, rotation: np.ndarray | None = None, gripper: float | None = None,
+               max_step: float = 0.03) -> np.ndarray:
+        """One action moving the EE at most `max_step` along the straight line to `target`."""
+        env, layout = self.env, self.layout
+        state = env.state
+        offset = np.asarray(target, float) - state.ee_position
+        distance = np.linalg.norm(offset)
+        if distance > max_step:
+            offset *= max_step / distance
+        waypoint = state.ee_position + offset
+        arm_size = layout.size - (1 if layout.gripper_in_action else 0)
+        low, high = layout.low[:arm_size], layout.high[:arm_size]
+        if layout.ee:
+            wanted = offset / layout.delta_coeff if layout.delta else waypoint
+        else:
+            solution = env.kinematics.solve_ik(state.q_arm, waypoint, target_rotation=rotation,
+                                               gripper=state.gripper, rotation_weight=1.0)
+            step = solution.q_arm - state.q_arm
+            largest = np.max(np.abs(step))
+            if largest > self.max_joint_delta:
+                step *= self.max_joint_delta / largest
+            wanted = step / layout.delta_coeff if layout.delta else state.q_arm + step
+        if layout.delta:
+            wanted = shrink_into(wanted, low, high)
+        if layout.gripper_in_action:
+            value = state.gripper if gripper is None else gripper
+            wanted = np.append(wanted, value)
+        return np.clip(wanted, layout.low, layout.high).astype(np.float32)

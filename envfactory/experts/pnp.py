@@ -1,0 +1,95 @@
+"""Pick-and-place: open, come down over the cube, close, lift, carry, place.
+
+A small phase machine; each phase checks the physics it relies on (the cube
+between the fingers, the cube still held) and falls back to a fresh
+approach when it is not so.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydantic import Field
+
+from envfactory.experts.motion import ArmMotion
+from envfactory.terms.library import TermParams
+
+
+class PickPlaceParams(TermParams):
+    object: str = "cube"
+    grasp_height: float = 0.0  # EE height above the cube centre when closing, m
+    clearance: float = Field(default=0.08, gt=0)  # EE height above the cube centre on the way in, m
+    lift: float = Field(default=0.15, gt=0)  # carry height above the spawn point at least, m
+    step: float = Field(default=0.04, gt=0)  # EE travel per action, m
+    close_steps: int = Field(default=2, ge=1)  # actions spent closing before lifting
+
+
+class PickPlaceExpert:
+    Params = PickPlaceParams
+
+    def __init__(self, env, params: PickPlaceParams):
+        self.env = env
+        self.params = params
+        self.motion = ArmMotion(env)
+        self.reset()
+
+    def reset(self) -> None:
+        self.phase = "approach"
+        self.closing = 0
+        self.hold_offset = np.zeros(3)  # cube centre relative to the EE once grasped
+        self.floor_z = None
+
+    def __call__(self, observation):
+        env, p, motion = self.env, self.params, self.motion
+        state = env.state
+        cube_state = state.objects[p.object]
+        cube, ee = cube_state.position, state.ee_position
+        gripper = motion.gripper
+        if self.floor_z is None:
+            self.floor_z = cube[2]
+        rotation = motion.square_to(float(cube_state.rpy[2]))
+        above = np.append(cube[:2], cube[2] + p.clearance)
+        grasp = np.append(cube[:2], cube[2] + p.grasp_height)
+
+        if self.phase in ("carry", "place") and np.linalg.norm(cube - ee - self.hold_offset) > 0.03:
+            self.phase = "release"  # the cube slipped out: open, rise and start again
+        if self.phase == "release":
+            if gripper.closure(state.gripper) < 0.1 and ee[2] > cube[2] + p.clearance - 0.02:
+                self.phase = "approach"
+            else:
+                return motion.toward(np.append(ee[:2], cube[2] + p.clearance), gripper=gripper.open,
+                                     max_step=p.step)
+        if self.phase == "approach":
+            if np.linalg.norm(ee[:2] - cube[:2]) < 0.008 and abs(ee[2] - above[2]) < 0.03:
+                self.phase = "descend"
+            else:
+                if ee[2] < above[2] - 0.03 and np.linalg.norm(ee[:2] - cube[:2]) > 0.02:
+                    return motion.toward(np.append(ee[:2], above[2]), rotation, gripper.open, p.step)
+                return motion.toward(above, rotation, gripper.open, p.step)
+        if self.phase == "descend":
+            if np.linalg.norm(ee[:2] - cube[:2]) > 0.015:
+                self.phase = "approach"
+                return motion.toward(above, rotation, gripper.open, p.step)
+            if np.linalg.norm(ee - grasp) < 0.006:
+                self.phase, self.closing = "close", 0
+            else:
+                return motion.toward(grasp, rotation, gripper.open, p.step / 2)
+        if self.phase == "close":
+            self.closing += 1
+            if self.closing > p.close_steps:
+                self.phase = "carry"
+                self.hold_offset = cube - ee
+            else:
+                return motion.toward(grasp, rotation, gripper.closed, p.step / 2)
+        # carry: up to a safe height, across, then down onto the goal
+        goal = env.goal
+        ee_goal = goal - self.hold_offset
+        carry_z = max(ee_goal[2], self.floor_z - self.hold_offset[2] + p.lift)
+        if np.linalg.norm(ee[:2] - ee_goal[:2]) > 0.02:
+            if ee[2] < carry_z - 0.03:
+                target = np.append(ee[:2] + 0.2 * (ee_goal[:2] - ee[:2]), carry_z)
+            else:
+                target = np.append(ee_goal[:2], carry_z)
+        else:
+            self.phase = "place"
+            target = ee_goal
+        return motion.toward(target, state.ee_rotation, gripper.closed, p.step)

@@ -1,0 +1,66 @@
+"""Push: get behind the cube on the cube→goal line, low, then push along it.
+
+Closed loop: every step re-reads the cube, so a cube that turns or drifts
+off the line sends the paddle back behind it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydantic import Field
+
+from envfactory.experts.motion import ArmMotion
+from envfactory.terms.library import TermParams
+
+
+class PushParams(TermParams):
+    object: str = "cube"
+    offset: float = Field(default=0.04, gt=0)  # EE behind the cube centre while pushing, m
+    height: float = 0.0  # EE height above the cube centre while pushing, m
+    clearance: float = Field(default=0.08, gt=0)  # EE height above the cube centre when moving around it, m
+    step: float = Field(default=0.03, gt=0)  # EE travel per action, m
+    lateral_tolerance: float = Field(default=0.012, gt=0)  # off-line distance that calls for a re-approach, m
+
+
+class PushExpert:
+    Params = PushParams
+
+    def __init__(self, env, params: PushParams):
+        self.env = env
+        self.params = params
+        self.motion = ArmMotion(env)
+
+    def reset(self) -> None:
+        pass
+
+    def __call__(self, observation):
+        env, p = self.env, self.params
+        state = env.state
+        cube = state.objects[p.object].position
+        ee = state.ee_position
+        to_goal = env.goal[:2] - cube[:2]
+        remaining = np.linalg.norm(to_goal)
+        if remaining < 1e-3:
+            return self.motion.toward(ee)
+        direction = to_goal / remaining
+        rotation = self.motion.down_facing(direction)
+        push_z = cube[2] + p.height
+        clear_z = cube[2] + p.clearance
+        behind = cube[:2] - direction * p.offset
+        relative = ee[:2] - cube[:2]
+        along = float(relative @ direction)
+        across = float(np.linalg.norm(relative - along * direction))
+        low = ee[2] < push_z + 0.02
+        if low and along < -p.offset + 0.015 and across < p.lateral_tolerance:
+            # in contact range behind the cube and on the line: push, aiming the cube at the goal
+            target = np.append(env.goal[:2] - direction * p.offset, push_z)
+            return self.motion.toward(target, rotation, max_step=min(p.step, remaining + 0.005))
+        if low and along < -p.offset + 0.005:
+            # still behind the cube: slide sideways onto the line without touching it
+            return self.motion.toward(np.append(behind, push_z), rotation, max_step=p.step)
+        if np.linalg.norm(ee[:2] - behind) < 0.01:
+            return self.motion.toward(np.append(behind, push_z), rotation, max_step=p.step)
+        if ee[2] < clear_z - 0.01 and np.linalg.norm(ee[:2] - behind) > 0.02:
+            # beside or ahead of the cube: rise before moving over it
+            return self.motion.toward(np.append(ee[:2], clear_z), rotation, max_step=p.step)
+        return self.motion.toward(np.append(behind, clear_z), rotation, max_step=2 * p.step)
