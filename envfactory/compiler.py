@@ -14,11 +14,12 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, ValidationError
 
+from envfactory.experts import EXPERTS
 from envfactory.spec.compose import LoadedSpec, validation_problems
 from envfactory.spec.errors import Problem, SpecError, suggest
 from envfactory.spec.schema import EnvSpec
-from envfactory.terms import OBSERVATIONS, REWARDS, TERMINATIONS, Layout
-from envfactory.terms.library import Description, ObservationTerm, RewardTerm
+from envfactory.terms import IMAGES, OBSERVATIONS, REWARDS, TERMINATIONS, Layout
+from envfactory.terms.library import Description, ImageTerm, ObservationTerm, RewardTerm
 
 
 @dataclass(frozen=True)
@@ -40,6 +41,15 @@ class ObservationSlot:
     @property
     def goal_dependent(self) -> bool:
         return self.term.goal_dependent
+
+
+@dataclass(frozen=True)
+class ImageSlot:
+    name: str
+    term: ImageTerm
+    shape: tuple[int, ...]
+    low: float
+    high: float
 
 
 @dataclass(frozen=True)
@@ -97,6 +107,7 @@ class Blueprint:
     terminations: tuple[WeightedTerm, ...]
     achieved_from: str  # "ee" or an object name
     info_keys: tuple[str, ...] = field(default=())
+    images: tuple[ImageSlot, ...] = field(default=())  # use_kinect: camera terms, Dict keys beside the vector
 
     @property
     def policy_observation(self) -> tuple[ObservationSlot, ...]:
@@ -119,6 +130,8 @@ class Blueprint:
             "goal_env": self.goal_env,
             "max_episode_steps": self.max_episode_steps,
             "observation": [_slot_json(slot) for slot in self.policy_observation],
+            "images": [{"key": image.name, "shape": list(image.shape), "dtype": image.term.dtype.__name__,
+                        "low": image.low, "high": image.high} for image in self.images],
             "action": {
                 "ee": self.action.ee,
                 "delta": self.action.delta,
@@ -200,11 +213,11 @@ def _action_layout(spec: EnvSpec) -> ActionLayout:
     return ActionLayout(settings.ee, settings.delta, settings.delta_coeff, tuple(rows), spec.task.gripper.in_action)
 
 
-def _params(term, raw: dict, path: str, loaded: LoadedSpec, problems: list[Problem]):
+def _params(model: type[BaseModel], raw: dict, path: str, loaded: LoadedSpec, problems: list[Problem]):
     try:
-        return term.params.model_validate(raw)
+        return model.model_validate(raw)
     except ValidationError as exc:
-        for problem in validation_problems(exc, loaded.sources, term.params):
+        for problem in validation_problems(exc, loaded.sources, model):
             problems.append(loaded.problem(f"{path}.{problem.path}" if problem.path else path, problem.message))
         return None
 
@@ -232,7 +245,7 @@ def _observation(spec: EnvSpec, layout: Layout, loaded: LoadedSpec, problems: li
         term = _lookup(OBSERVATIONS, name, path, "observation", loaded, problems)
         if term is None:
             continue
-        params = _params(term, raw_params, f"{path}.{name}", loaded, problems)
+        params = _params(term.params, raw_params, f"{path}.{name}", loaded, problems)
         if params is None:
             continue
         bound = _bind(term, layout, params, f"{path}.{name}", loaded, problems)
@@ -253,7 +266,7 @@ def _weighted(refs: dict, table: dict, path: str, kind: str, layout: Layout, loa
         term = _lookup(table, ref.term, f"{path}.{name}.term", kind, loaded, problems)
         if term is None:
             continue
-        params = _params(term, ref.params, f"{path}.{name}.params", loaded, problems)
+        params = _params(term.params, ref.params, f"{path}.{name}.params", loaded, problems)
         if params is None:
             continue
         bound = _bind(term, layout, params, f"{path}.{name}", loaded, problems)
@@ -278,6 +291,38 @@ def _achieved_from(spec: EnvSpec, loaded: LoadedSpec, problems: list[Problem]) -
     return source
 
 
+def _images(spec: EnvSpec, loaded: LoadedSpec, problems: list[Problem]) -> tuple[ImageSlot, ...]:
+    if not spec.env.use_kinect:
+        return ()
+    camera = spec.scene.camera
+    if camera is None:
+        problems.append(loaded.problem("env.use_kinect", "use_kinect needs a camera: declare scene.camera"))
+        return ()
+    slots = []
+    for index, name in enumerate(camera.terms):
+        term = _lookup(IMAGES, name, f"scene.camera.terms.{index}", "image", loaded, problems)
+        if term is not None:
+            low, high = term.bounds(camera)
+            slots.append(ImageSlot(name, term, term.shape(camera), low, high))
+    return tuple(slots)
+
+
+def _check_expert(spec: EnvSpec, loaded: LoadedSpec, problems: list[Problem]) -> None:
+    ref = spec.task.expert
+    if ref is None:
+        return
+    expert = EXPERTS.get(ref.policy)
+    if expert is None:
+        problems.append(loaded.problem("task.expert.policy",
+                                       f"unknown expert {ref.policy!r}{suggest(ref.policy, EXPERTS)}"))
+        return
+    params = _params(expert.Params, ref.params, "task.expert.params", loaded, problems)
+    if params is not None and getattr(params, "object", None) not in (None, *spec.task.objects):
+        problems.append(loaded.problem("task.expert.params.object",
+                                       f"'object: {params.object}' names no object of the task "
+                                       f"(known: {list(spec.task.objects) or 'none'})"))
+
+
 def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: bool) -> Blueprint:
     spec = loaded.spec
     problems: list[Problem] = []
@@ -293,6 +338,8 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
     terminations = _weighted(spec.task.termination, TERMINATIONS, "task.termination", "termination", layout,
                              loaded, problems, reward_type=spec.env.reward_type)
     achieved_from = _achieved_from(spec, loaded, problems)
+    _check_expert(spec, loaded, problems)
+    images = _images(spec, loaded, problems)
     if problems:
         raise SpecError(problems, env_id)
     info_keys = tuple(sorted({key for t in rewards for key in t.term.info_keys}))
@@ -310,4 +357,5 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
         terminations=terminations,
         achieved_from=achieved_from,
         info_keys=info_keys,
+        images=images,
     )

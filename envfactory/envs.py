@@ -18,7 +18,7 @@ from envfactory.backends import backend_factory
 from envfactory.compiler import Blueprint
 from envfactory.goals import GoalSampler, LiftCurriculum
 from envfactory.kinematics import Kinematics
-from envfactory.managers import ObservationManager, RewardManager
+from envfactory.managers import ImageManager, ObservationManager, RewardManager
 from envfactory.objects import ObjectSpawner, ObjectTracker
 from envfactory.safety import SafetyCheck, Surfaces
 from envfactory.state import EnvState
@@ -53,6 +53,7 @@ class RobotEnv(gym.Env):
         self.rewards = RewardManager(blueprint.rewards, blueprint.terminations, spec.task.goal.tolerance,
                                      blueprint.info_keys)
         self.observations = ObservationManager(blueprint.policy_observation)
+        self.images = ImageManager(blueprint.images, spec.scene.camera)
         self.action_space = spaces.Box(blueprint.action.low.astype(np.float32),
                                        blueprint.action.high.astype(np.float32), dtype=np.float32)
         self.observation_space = self._observation_space()
@@ -79,7 +80,10 @@ class RobotEnv(gym.Env):
     # ------------------------------------------------------------ spaces
 
     def _observation_space(self) -> spaces.Space:
-        return spaces.Box(self.observations.low, self.observations.high, dtype=np.float32)
+        vector = spaces.Box(self.observations.low, self.observations.high, dtype=np.float32)
+        if not self.images:
+            return vector
+        return spaces.Dict({"observation": vector, **self.images.spaces()})
 
     # ------------------------------------------------------------ state
 
@@ -112,7 +116,10 @@ class RobotEnv(gym.Env):
         return state.position_of(self.blueprint.achieved_from)
 
     def _observe(self, state: EnvState):
-        return self.observations.compute(state)
+        vector = self.observations.compute(state)
+        if not self.images:
+            return vector
+        return {"observation": vector, **self.images.capture(self.backend)}
 
     # ------------------------------------------------------------ gym API
 
@@ -214,6 +221,7 @@ class GoalRobotEnv(RobotEnv):
             "observation": spaces.Box(self.observations.low, self.observations.high, dtype=np.float32),
             "achieved_goal": spaces.Box(achieved_low, achieved_high, dtype=np.float32),
             "desired_goal": spaces.Box(goal_low, goal_high, dtype=np.float32),
+            **self.images.spaces(),
         })
 
     def _observe(self, state: EnvState):
@@ -221,6 +229,7 @@ class GoalRobotEnv(RobotEnv):
             "observation": self.observations.compute(state),
             "achieved_goal": self.achieved_goal(state).astype(np.float32),
             "desired_goal": self._goal.astype(np.float32),
+            **self.images.capture(self.backend),
         }
 
     def compute_reward(self, achieved_goal, desired_goal, info):

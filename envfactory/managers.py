@@ -5,8 +5,9 @@ from __future__ import annotations
 from typing import Iterable, Sequence
 
 import numpy as np
+from gymnasium import spaces
 
-from envfactory.compiler import ObservationSlot, WeightedTerm
+from envfactory.compiler import ImageSlot, ObservationSlot, WeightedTerm
 from envfactory.state import EnvState
 
 
@@ -31,6 +32,27 @@ class ObservationManager:
             d = slot.description
             rows.append((index, str(slot.size), d.component, d.source, d.unit))
         return rows
+
+
+class ImageManager:
+    """The camera terms: one Dict observation key each, captured once per observation."""
+
+    def __init__(self, slots: Sequence[ImageSlot], camera):
+        self.slots = tuple(slots)
+        self.camera = camera
+
+    def __bool__(self) -> bool:
+        return bool(self.slots)
+
+    def spaces(self) -> dict[str, spaces.Box]:
+        return {slot.name: spaces.Box(slot.low, slot.high, shape=slot.shape, dtype=slot.term.dtype)
+                for slot in self.slots}
+
+    def capture(self, backend) -> dict[str, np.ndarray]:
+        if not self.slots:
+            return {}
+        frame = backend.capture(self.camera)
+        return {slot.name: slot.term.fn(frame) for slot in self.slots}
 
 
 def info_columns(info: dict | Sequence[dict] | np.ndarray, keys: Iterable[str], batch: tuple[int, ...]

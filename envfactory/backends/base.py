@@ -10,6 +10,8 @@ from typing import Callable, Protocol
 
 import numpy as np
 
+from envfactory.spec.schema import CameraSpec
+
 
 @dataclass(frozen=True)
 class JointReading:
@@ -23,6 +25,12 @@ class ObjectReading:
     position: np.ndarray
     quaternion: np.ndarray  # x, y, z, w
     stamp: float
+
+
+@dataclass(frozen=True)
+class CameraFrame:
+    rgb: np.ndarray  # (height, width, 3) uint8
+    depth: np.ndarray  # (height, width) float32, metres along the view axis
 
 
 class BackendError(RuntimeError):
@@ -50,6 +58,9 @@ class Backend(Protocol):
 
     def render(self, width: int, height: int) -> np.ndarray:
         ...
+
+    def capture(self, camera: CameraSpec) -> CameraFrame:
+        """One frame of a fixed scene camera, for image observation terms."""
 
     def close(self) -> None:
         ...

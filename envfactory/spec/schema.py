@@ -337,7 +337,7 @@ class EnvSettings(Model):
     action: ActionSettings = ActionSettings()
     timing: TimingSettings = TimingSettings()
     safety: SafetySettings = SafetySettings()
-    use_kinect: bool = False
+    use_kinect: bool = False  # adds the scene camera's image terms to the observation
     log_internal_state: bool = False
 
     @field_validator("reward_type", mode="before")
@@ -354,8 +354,28 @@ class TableSpec(Model):
     thickness: float = 0.04
 
 
+class CameraSpec(Model):
+    """A fixed camera over the table: the use_kinect image terms render from it."""
+
+    eye: Vec3  # world frame
+    target: Vec3
+    fov: float = Field(default=60.0, gt=0, lt=180)  # vertical, degrees
+    width: int = Field(default=128, ge=8)
+    height: int = Field(default=96, ge=8)
+    near: float = Field(default=0.1, gt=0)
+    far: float = Field(default=3.0, gt=0)
+    terms: list[str] = ["rgb", "depth"]  # image terms, each a key of the Dict observation
+
+    @model_validator(mode="after")
+    def _clipping_ordered(self) -> "CameraSpec":
+        if self.near >= self.far:
+            raise ValueError(f"near ({self.near}) must be below far ({self.far})")
+        return self
+
+
 class SceneSpec(Model):
     table: TableSpec
+    camera: CameraSpec | None = None
 
 
 class SimSettings(Model):

@@ -76,7 +76,20 @@ class RewardTerm:
     measure: Callable[[Any, Any], float] | None = None
 
 
+@dataclass(frozen=True)
+class ImageTerm:
+    """fn(camera frame) -> array of `shape(camera)`; one Dict observation key per term."""
+
+    name: str
+    fn: Callable
+    shape: Callable[[Any], tuple[int, ...]]
+    dtype: type
+    bounds: Callable[[Any], tuple[float, float]]
+    description: str
+
+
 OBSERVATIONS: dict[str, ObservationTerm] = {}
+IMAGES: dict[str, ImageTerm] = {}
 REWARDS: dict[str, RewardTerm] = {}
 TERMINATIONS: dict[str, RewardTerm] = {}
 
@@ -90,6 +103,14 @@ def _register(table: dict, term) -> None:
 def observation_term(**spec) -> Callable:
     def wrap(fn):
         _register(OBSERVATIONS, ObservationTerm(name=spec.pop("name", fn.__name__), fn=fn, **spec))
+        return fn
+
+    return wrap
+
+
+def image_term(**spec) -> Callable:
+    def wrap(fn):
+        _register(IMAGES, ImageTerm(name=spec.pop("name", fn.__name__), fn=fn, **spec))
         return fn
 
     return wrap

@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pybullet as p
 
-from envfactory.backends.base import BackendError, JointReading, ObjectReading
+from envfactory.backends.base import BackendError, CameraFrame, JointReading, ObjectReading
 from envfactory.backends.pybullet import scene
-from envfactory.spec.schema import EnvSpec
+from envfactory.spec.schema import CameraSpec, EnvSpec
 
 # Followers of a mimic joint track their driver through gear constraints;
 # PyBullet ignores URDF <mimic> tags.
@@ -210,6 +210,22 @@ class PyBulletBackend:
             _, _, rgba, _, _ = p.getCameraImage(width, height, view, projection, renderer=p.ER_TINY_RENDERER,
                                                physicsClientId=self.client)
         return np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
+
+    def capture(self, camera: CameraSpec) -> CameraFrame:
+        width, height = camera.width, camera.height
+        view = p.computeViewMatrix(cameraEyePosition=list(camera.eye), cameraTargetPosition=list(camera.target),
+                                   cameraUpVector=[0, 0, 1])
+        projection = p.computeProjectionMatrixFOV(fov=camera.fov, aspect=width / height, nearVal=camera.near,
+                                                  farVal=camera.far)
+        with self._lock:
+            _, _, rgba, depth_buffer, _ = p.getCameraImage(width, height, view, projection,
+                                                           renderer=p.ER_TINY_RENDERER, physicsClientId=self.client)
+        rgb = np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
+        # the buffer holds OpenGL depth in [0, 1]; turn it back into metres
+        buffer = np.asarray(depth_buffer, dtype=np.float32).reshape(height, width)
+        near, far = camera.near, camera.far
+        depth = far * near / (far - (far - near) * buffer)
+        return CameraFrame(rgb, depth.astype(np.float32))
 
     def close(self) -> None:
         if self._closed:
