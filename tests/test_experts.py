@@ -1,4 +1,4 @@
-"""The scripted Reach expert solves every Reacher ID through the env's own action space."""
+"""The scripted experts solve their tasks through the env's own action space."""
 
 import pytest
 
@@ -22,3 +22,31 @@ def test_scripted_reach_in_ee_mode(env_id, make):
     env.reset(seed=0)
     results = run_episodes(env, make_policy("scripted", env), episodes=10, seed=2000)
     assert success_rate(results) >= 0.9
+
+
+MANIPULATION_IDS = ["UR5ePushSim-v0", "VX300SPushSim-v0", "UR5ePnPSim-v0", "VX300SPnPSim-v0"]
+
+
+@pytest.mark.parametrize("env_id", MANIPULATION_IDS)
+def test_scripted_manipulation_succeeds(env_id, make):
+    """A quick sample in the default run; the 50-seed figures are the slow test below."""
+    env = make(env_id)
+    results = run_episodes(env, make_policy("scripted", env), episodes=6, seed=500)
+    assert success_rate(results) >= 5 / 6, [(r.seed, r.length, r.success) for r in results]
+    assert sum(r.rejected for r in results) == 0  # the expert never asks for an unsafe motion
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("env_id, bar", [("UR5ePushSim-v0", 0.9), ("VX300SPushSim-v0", 0.9),
+                                         ("UR5ePnPSim-v0", 0.8), ("VX300SPnPSim-v0", 0.8)])
+def test_scripted_manipulation_over_50_seeds(env_id, bar, make):
+    env = make(env_id)
+    results = run_episodes(env, make_policy("scripted", env), episodes=50, seed=0)
+    assert success_rate(results) >= bar, [(r.seed, r.length) for r in results if not r.success]
+
+
+@pytest.mark.parametrize("env_id", ["UR5ePushSim-v0", "UR5ePnPSim-v0"])
+def test_scripted_manipulation_in_ee_mode(env_id, make):
+    env = make(env_id, ee_action_type=True)
+    results = run_episodes(env, make_policy("scripted", env), episodes=4, seed=700)
+    assert success_rate(results) >= 0.75, [(r.seed, r.length, r.success) for r in results]

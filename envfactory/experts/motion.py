@@ -66,8 +66,9 @@ class ArmMotion:
     # ------------------------------------------------------------ actions
 
     def toward(self, target: np.ndarray, rotation: np.ndarray | None = None, gripper: float | None = None,
-               max_step: float = 0.03) -> np.ndarray:
-        """One action moving the EE at most `max_step` along the straight line to `target`."""
+               max_step: float = 0.03, max_turn: float = 0.3) -> np.ndarray:
+        """One action moving the EE at most `max_step` along the straight line to `target`,
+        turning it at most `max_turn` rad toward `rotation`."""
         env, layout = self.env, self.layout
         state = env.state
         offset = np.asarray(target, float) - state.ee_position
@@ -75,6 +76,12 @@ class ArmMotion:
         if distance > max_step:
             offset *= max_step / distance
         waypoint = state.ee_position + offset
+        if rotation is not None:
+            # small turns keep each IK solve near the current pose, so the path stays straight
+            turn = pin.log3(rotation @ state.ee_rotation.T)
+            angle = np.linalg.norm(turn)
+            if angle > max_turn:
+                rotation = pin.exp3(turn * (max_turn / angle)) @ state.ee_rotation
         arm_size = layout.size - (1 if layout.gripper_in_action else 0)
         low, high = layout.low[:arm_size], layout.high[:arm_size]
         if layout.ee:

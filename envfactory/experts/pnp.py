@@ -20,7 +20,7 @@ class PickPlaceParams(TermParams):
     clearance: float = Field(default=0.08, gt=0)  # EE height above the cube centre on the way in, m
     lift: float = Field(default=0.15, gt=0)  # carry height above the spawn point at least, m
     step: float = Field(default=0.04, gt=0)  # EE travel per action, m
-    close_steps: int = Field(default=2, ge=1)  # actions spent closing before lifting
+    close_steps: int = Field(default=3, ge=1)  # actions spent closing before lifting
 
 
 class PickPlaceExpert:
@@ -50,7 +50,7 @@ class PickPlaceExpert:
         above = np.append(cube[:2], cube[2] + p.clearance)
         grasp = np.append(cube[:2], cube[2] + p.grasp_height)
 
-        if self.phase in ("carry", "place") and np.linalg.norm(cube - ee - self.hold_offset) > 0.03:
+        if self.phase in ("lift", "carry", "place") and np.linalg.norm(cube - ee - self.hold_offset) > 0.03:
             self.phase = "release"  # the cube slipped out: open, rise and start again
         if self.phase == "release":
             if gripper.closure(state.gripper) < 0.1 and ee[2] > cube[2] + p.clearance - 0.02:
@@ -76,20 +76,19 @@ class PickPlaceExpert:
         if self.phase == "close":
             self.closing += 1
             if self.closing > p.close_steps:
-                self.phase = "carry"
+                self.phase = "lift"
                 self.hold_offset = cube - ee
             else:
                 return motion.toward(grasp, rotation, gripper.closed, p.step / 2)
-        # carry: up to a safe height, across, then down onto the goal
         goal = env.goal
         ee_goal = goal - self.hold_offset
         carry_z = max(ee_goal[2], self.floor_z - self.hold_offset[2] + p.lift)
-        if np.linalg.norm(ee[:2] - ee_goal[:2]) > 0.02:
-            if ee[2] < carry_z - 0.03:
-                target = np.append(ee[:2] + 0.2 * (ee_goal[:2] - ee[:2]), carry_z)
-            else:
-                target = np.append(ee_goal[:2], carry_z)
-        else:
-            self.phase = "place"
-            target = ee_goal
-        return motion.toward(target, state.ee_rotation, gripper.closed, p.step)
+        if self.phase == "lift":
+            # straight up first: the lift stage of the curriculum, and clear of the table
+            if ee[2] < carry_z - 0.01:
+                return motion.toward(np.append(ee[:2], carry_z), state.ee_rotation, gripper.closed, p.step)
+            self.phase = "carry"
+        if self.phase == "carry" and np.linalg.norm(ee[:2] - ee_goal[:2]) > 0.01:
+            return motion.toward(np.append(ee_goal[:2], carry_z), state.ee_rotation, gripper.closed, p.step)
+        self.phase = "place"
+        return motion.toward(ee_goal, state.ee_rotation, gripper.closed, p.step)
