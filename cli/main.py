@@ -68,15 +68,35 @@ def list_ids():
     console.print(table)
 
 
+def _parse_kwargs(items: List[str] | None) -> dict:
+    import yaml
+
+    kwargs = {}
+    for item in items or []:
+        name, sep, value = item.partition("=")
+        if not sep:
+            _fail(f"--kwarg {item!r}: write name=value")
+        kwargs[name] = yaml.safe_load(value)
+    return kwargs
+
+
+KWARG_HELP = "gym.make kwarg as name=value, repeatable"
+
+
 @app.command()
-def describe(env_id: str, overrides: List[str] = typer.Argument(None, help="Hydra overrides, e.g. env.action.ee=true")):
+def describe(
+    env_id: str,
+    overrides: List[str] = typer.Argument(None, help="Hydra overrides, e.g. env.action.ee=true"),
+    kwarg: List[str] = typer.Option(None, "--kwarg", "-k", help=KWARG_HELP),
+):
     """The observation index table, action table, reward terms and goal box of an ID."""
     import envfactory
     from envfactory.describe import render_description
     from envfactory.spec.errors import SpecError
 
+    kwargs = _parse_kwargs(kwarg)
     try:
-        compiled = envfactory.blueprint(env_id, overrides or ())
+        compiled = envfactory.blueprint(env_id, overrides or (), **kwargs)
     except (SpecError, KeyError) as exc:
         _fail(str(exc).strip("'\""))
     render_description(compiled, console)
@@ -117,11 +137,10 @@ def run(
     seed: int = typer.Option(0, help="Seed of the first episode; episode i uses seed + i"),
     video: Optional[Path] = typer.Option(None, help="Record the episodes to this video file (e.g. out.mp4)"),
     override: List[str] = typer.Option(None, "--override", "-o", help="Hydra override, repeatable"),
-    kwarg: List[str] = typer.Option(None, "--kwarg", "-k", help="gym.make kwarg as name=value, repeatable"),
+    kwarg: List[str] = typer.Option(None, "--kwarg", "-k", help=KWARG_HELP),
 ):
     """The main job: run episodes and print a per-episode table."""
     import gymnasium as gym
-    import yaml
     from rich.progress import Progress
 
     import envfactory  # noqa: F401  (registers the IDs)
@@ -129,12 +148,7 @@ def run(
     from envfactory.experts import make_policy
     from envfactory.spec.errors import SpecError
 
-    kwargs = {}
-    for item in kwarg or []:
-        name, sep, value = item.partition("=")
-        if not sep:
-            _fail(f"--kwarg {item!r}: write name=value")
-        kwargs[name] = yaml.safe_load(value)
+    kwargs = _parse_kwargs(kwarg)
     try:
         env = gym.make(env_id, overrides=override or [], render_mode="rgb_array" if video else None, **kwargs)
     except (SpecError, KeyError, gym.error.Error) as exc:

@@ -45,10 +45,42 @@ def action_table(compiled: Blueprint) -> Table:
 def reward_table(compiled: Blueprint) -> Table:
     spec = compiled.spec
     table = _table(f"Reward ({spec.env.reward_type}), tolerance {spec.task.goal.tolerance:g} m", "Name", "Term",
-                   "Weight", "Meaning")
+                   "Params", "Weight", "Meaning")
     for term in compiled.rewards:
-        table.add_row(term.name, term.term.name, f"{term.weight:g}", term.term.description)
+        params = ", ".join(f"{key}={value}" for key, value in term.params.model_dump(by_alias=True).items()
+                           if value is not None)
+        table.add_row(term.name, term.term.name, params, f"{term.weight:g}", term.term.description)
     return table
+
+
+def image_table(compiled: Blueprint) -> Table:
+    camera = compiled.spec.scene.camera
+    table = _table(f"Camera images (use_kinect): eye {list(camera.eye)} → target {list(camera.target)}, "
+                   f"fov {camera.fov:g}°", "Key", "Shape", "Dtype", "Low", "High", "Meaning")
+    for image in compiled.images:
+        table.add_row(image.name, str(image.shape), image.term.dtype.__name__, f"{image.low:g}", f"{image.high:g}",
+                      image.term.description)
+    return table
+
+
+def task_lines(compiled: Blueprint) -> list[str]:
+    """Objects, gripper use and the lift stage: what the reset sets up."""
+    task, spec = compiled.spec.task, compiled.spec
+    lines = []
+    for name, obj in task.objects.items():
+        spawn = obj.spawn
+        where = f"± {list(spawn.offset)} in x, y" if spawn.random else "fixed"
+        lines.append(f"Object {name}: {obj.shape} {obj.size:g} m, {obj.mass:g} kg, spawns at {list(spawn.position)} "
+                     f"({where})")
+    if spec.gripper_at_reset is not None or task.gripper.in_action:
+        use = "action[-1], absolute" if task.gripper.in_action else "not in the action"
+        lines.append(f"Gripper: {spec.gripper_at_reset} at reset, {use}")
+    lift = task.goal.lift
+    if lift is not None:
+        state = "on" if lift.enabled else "off"
+        lines.append(f"Lift stage (multi_goal {state}): current goal = spawn + [0, 0, {lift.height:g}] until reached "
+                     f"within tolerance, then the goal")
+    return lines
 
 
 def render_description(compiled: Blueprint, console: Console) -> None:
@@ -65,6 +97,10 @@ def render_description(compiled: Blueprint, console: Console) -> None:
     else:
         goal = spec.task.goal
         console.print(f"Goal box: min {list(goal.box[0])}, max {list(goal.box[1])}\n")
+    if compiled.images:
+        console.print(image_table(compiled))
+    for line in task_lines(compiled):
+        console.print(line)
     console.print(action_table(compiled))
     console.print(reward_table(compiled))
     active = [f"{t.name} ({t.term.name})" for t in compiled.terminations if t.active]
