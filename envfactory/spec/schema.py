@@ -87,6 +87,7 @@ class ContactSpec(Model):
     lateral_friction: float = Field(default=1.0, ge=0)
     spinning_friction: float = Field(default=0.0, ge=0)
     rolling_friction: float = Field(default=0.0, ge=0)
+    friction_anchor: bool = True  # pins static friction in place: without it a held object creeps out
 
 
 class GripperSpec(Model):

@@ -86,7 +86,7 @@ class PyBulletBackend:
                     raise BackendError(f"robot {self.robot.name!r}: gripper.pads names no link {link!r}")
                 p.changeDynamics(self.body, link_index[link], lateralFriction=pads.lateral_friction,
                                  spinningFriction=pads.spinning_friction, rollingFriction=pads.rolling_friction,
-                                 physicsClientId=c)
+                                 frictionAnchor=int(pads.friction_anchor), physicsClientId=c)
         self.objects: dict[str, int] = {}  # spawned fresh at every reset
         self._set_joint_state(np.asarray(self.robot.home, float), self._gripper_reset_value(None))
         self._hold(np.asarray(self.robot.home, float), None)
