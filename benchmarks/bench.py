@@ -1,6 +1,6 @@
 """Throughput and overhead of the envs, against raw physics stepping in the same run.
 
-    python benchmarks/bench.py [--steps N] [--ids ID ...]
+    python benchmarks/bench.py [--steps N] [--ids ID ...] [--policy random|scripted]
 
 Prints, per ID: steps/s, reset time, and the share and absolute time of
 env.step spent outside physics stepping (the same backend stepping the same
@@ -22,8 +22,10 @@ def import_time() -> float:
     return float(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout)
 
 
-def measure(env_id: str, steps: int) -> dict:
+def measure(env_id: str, steps: int, policy: str) -> dict:
     import gymnasium as gym
+
+    from envfactory.experts import make_policy
 
     start = time.perf_counter()
     env = gym.make(env_id)
@@ -32,7 +34,10 @@ def measure(env_id: str, steps: int) -> dict:
     backend = unwrapped.backend
     env.reset(seed=0)
     env.action_space.seed(0)
-    actions = [env.action_space.sample() * 0.3 for _ in range(steps)]  # moderate random motion
+    if policy == "scripted":  # contact-rich stepping: the expert pushes and carries the cube
+        actor = make_policy("scripted", env)
+    else:
+        actor = lambda observation: env.action_space.sample() * 0.3  # noqa: E731  (moderate random motion)
 
     resets = []
     for i in range(20):
@@ -51,13 +56,18 @@ def measure(env_id: str, steps: int) -> dict:
         inside[0] += time.perf_counter() - t0
 
     backend.advance = timed_advance
-    env.reset(seed=0)
-    t = time.perf_counter()
-    for action in actions:
-        _, _, terminated, truncated, _ = env.step(action)
+    observation, _ = env.reset(seed=0)
+    getattr(actor, "reset", lambda: None)()
+    step_total = 0.0  # env.step alone: the policy's own time is left out
+    for _ in range(steps):
+        action = actor(observation)
+        t = time.perf_counter()
+        observation, _, terminated, truncated, _ = env.step(action)
+        step_total += time.perf_counter() - t
         if terminated or truncated:
-            env.reset()
-    step_time = (time.perf_counter() - t) / steps
+            observation, _ = env.reset()
+            getattr(actor, "reset", lambda: None)()
+    step_time = step_total / steps
     in_step_physics = inside[0] / steps
     backend.advance = advance
 
@@ -87,18 +97,20 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--steps", type=int, default=300)
     parser.add_argument("--ids", nargs="*")
+    parser.add_argument("--policy", choices=["random", "scripted"], default="random",
+                        help="random: moderate random actions; scripted: the task's expert (contacts with the cube)")
     args = parser.parse_args()
 
     seconds = import_time()
     import envfactory
 
     ids = args.ids or sorted(i for i, r in envfactory.records().items() if r.backend == "pybullet")
-    print(f"import envfactory: {seconds * 1e3:.0f} ms (budget 500 ms)")
+    print(f"import envfactory: {seconds * 1e3:.0f} ms (budget 500 ms); policy: {args.policy}")
     header = (f"{'ID':26} {'make s':>7} {'steps/s':>8} {'reset ms':>9} {'step ms':>8} {'physics ms':>10} "
               f"{'outside µs':>10} {'outside %':>9} {'substeps':>8} {'non-physics µs':>14} {'non-physics %':>13}")
     print(header)
     for env_id in ids:
-        r = measure(env_id, args.steps)
+        r = measure(env_id, args.steps, args.policy)
         print(f"{r['id']:26} {r['make_s']:7.2f} {r['steps_per_s']:8.1f} {r['reset_ms']:9.2f} {r['step_ms']:8.2f} "
               f"{r['physics_ms']:10.2f} {r['outside_us']:10.0f} {100 * r['outside_share']:8.1f}% {r['substeps']:8d} "
               f"{r['python_us']:14.0f} {100 * r['python_share']:12.1f}%")

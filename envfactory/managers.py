@@ -57,14 +57,11 @@ class ImageManager:
 
 def info_columns(info: dict | Sequence[dict] | np.ndarray, keys: Iterable[str], batch: tuple[int, ...]
                  ) -> dict[str, np.ndarray]:
-    """Step-time records as arrays shaped batch + the record's own shape:
-    from one info dict (shared by the batch), or from one dict per goal (HER)."""
+    """Step-time records as arrays: from one info dict (shared by the batch, left to
+    broadcast), or from one dict per goal (HER), shaped batch + the record's own shape."""
     if isinstance(info, dict):
-        columns = {}
-        for key in keys:
-            value = np.asarray(info.get(key, 0.0), dtype=float)
-            columns[key] = np.broadcast_to(value, batch + value.shape)
-        return columns
+        # one record for the whole batch: numpy broadcasting spreads it, no copies needed
+        return {key: np.asarray(info.get(key, 0.0), dtype=float) for key in keys}
     infos = np.asarray(info, dtype=object).reshape(-1)
     count = int(np.prod(batch)) if batch else 1
     if infos.size != count:
