@@ -136,6 +136,7 @@ class RobotEnv(gym.Env):
         if options and "goal" in options:
             self._goal = np.asarray(options["goal"], float).reshape(3)
             self._goal_failed = False
+        self.backend.mark_goal(self._goal)
         self._state = self._read_state(np.zeros(self.action_space.shape, dtype=np.float32))
         self._state.previous_action = self.actions.hold_action(self._state)
         achieved = self.achieved_goal(self._state)

@@ -56,6 +56,9 @@ class Backend(Protocol):
     def read_object(self, name: str) -> ObjectReading:
         ...
 
+    def mark_goal(self, position: np.ndarray) -> None:
+        """Show the goal to people watching (a marker in sim); never part of an observation."""
+
     def render(self, width: int, height: int) -> np.ndarray:
         ...
 

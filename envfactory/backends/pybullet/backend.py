@@ -88,6 +88,7 @@ class PyBulletBackend:
                                  spinningFriction=pads.spinning_friction, rollingFriction=pads.rolling_friction,
                                  frictionAnchor=int(pads.friction_anchor), physicsClientId=c)
         self.objects: dict[str, int] = {}  # spawned fresh at every reset
+        self._goal_marker = scene.add_marker(c, self.task_origin + [0.0, 0.0, -10.0])
         self._set_joint_state(np.asarray(self.robot.home, float), self._gripper_reset_value(None))
         self._hold(np.asarray(self.robot.home, float), None)
         self._saved = p.saveState(physicsClientId=c)
@@ -200,11 +201,16 @@ class PyBulletBackend:
             stamp = self._sim_time
         return ObjectReading(np.array(position) - self.task_origin, np.array(quaternion), stamp)
 
+    def mark_goal(self, position: np.ndarray) -> None:
+        with self._lock:
+            p.resetBasePositionAndOrientation(self._goal_marker, (self.task_origin + position).tolist(), [0, 0, 0, 1],
+                                              physicsClientId=self.client)
+
     def render(self, width: int = 480, height: int = 360) -> np.ndarray:
         table = self.spec.scene.table
         view = p.computeViewMatrixFromYawPitchRoll(
-            cameraTargetPosition=[table.center[0] - 0.2, table.center[1], table.top_z], distance=1.7, yaw=50,
-            pitch=-28, roll=0, upAxisIndex=2)
+            cameraTargetPosition=[table.center[0] - 0.15, table.center[1], table.top_z + 0.1], distance=1.25, yaw=50,
+            pitch=-30, roll=0, upAxisIndex=2)
         projection = p.computeProjectionMatrixFOV(fov=55, aspect=width / height, nearVal=0.05, farVal=6.0)
         with self._lock:
             _, _, rgba, _, _ = p.getCameraImage(width, height, view, projection, renderer=p.ER_TINY_RENDERER,
@@ -218,8 +224,11 @@ class PyBulletBackend:
         projection = p.computeProjectionMatrixFOV(fov=camera.fov, aspect=width / height, nearVal=camera.near,
                                                   farVal=camera.far)
         with self._lock:
+            # the goal marker is for people watching; the policy's camera must not see the goal
+            p.changeVisualShape(self._goal_marker, -1, rgbaColor=[0, 0, 0, 0], physicsClientId=self.client)
             _, _, rgba, depth_buffer, _ = p.getCameraImage(width, height, view, projection,
                                                            renderer=p.ER_TINY_RENDERER, physicsClientId=self.client)
+            p.changeVisualShape(self._goal_marker, -1, rgbaColor=scene.MARKER_RGBA, physicsClientId=self.client)
         rgb = np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
         # the buffer holds OpenGL depth in [0, 1]; turn it back into metres
         buffer = np.asarray(depth_buffer, dtype=np.float32).reshape(height, width)

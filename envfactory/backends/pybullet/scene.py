@@ -9,6 +9,7 @@ from envfactory.spec.schema import ObjectSpec, PedestalSpec, TableSpec
 
 TABLE_RGBA = (0.55, 0.42, 0.30, 1.0)
 FLOOR_RGBA = (0.85, 0.85, 0.85, 1.0)
+MARKER_RGBA = (0.1, 0.8, 0.2, 0.6)
 
 
 def _box(client: int, half_extents, position, rgba, mass: float = 0.0, orientation=(0.0, 0.0, 0.0, 1.0)) -> int:
@@ -50,3 +51,9 @@ def add_object(client: int, spec: ObjectSpec, position, orientation) -> int:
     p.changeDynamics(body, -1, lateralFriction=spec.friction, spinningFriction=spec.spinning_friction,
                      rollingFriction=spec.rolling_friction, physicsClientId=client)
     return body
+
+
+def add_marker(client: int, position, radius: float = 0.025) -> int:
+    """A see-through sphere with no collision shape: shows the goal, touches nothing."""
+    visual = p.createVisualShape(p.GEOM_SPHERE, radius=radius, rgbaColor=MARKER_RGBA, physicsClientId=client)
+    return p.createMultiBody(0.0, -1, visual, basePosition=list(position), physicsClientId=client)
