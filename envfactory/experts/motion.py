@@ -100,3 +100,18 @@ class ArmMotion:
             value = state.gripper if gripper is None else gripper
             wanted = np.append(wanted, value)
         return np.clip(wanted, layout.low, layout.high).astype(np.float32)
+
+
+class Expert:
+    """A scripted policy: `Params` validates its YAML params; `reset` runs after every env reset."""
+
+    Params: type = None
+
+    def __init__(self, env, params):
+        self.env = env
+        self.params = params
+        self.motion = ArmMotion(env)
+        self.reset()
+
+    def reset(self) -> None:
+        pass

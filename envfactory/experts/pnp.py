@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from pydantic import Field
 
-from envfactory.experts.motion import ArmMotion
+from envfactory.experts.motion import Expert
 from envfactory.terms.library import TermParams
 
 
@@ -23,14 +23,8 @@ class PickPlaceParams(TermParams):
     close_steps: int = Field(default=3, ge=1)  # actions spent closing before lifting
 
 
-class PickPlaceExpert:
+class PickPlaceExpert(Expert):
     Params = PickPlaceParams
-
-    def __init__(self, env, params: PickPlaceParams):
-        self.env = env
-        self.params = params
-        self.motion = ArmMotion(env)
-        self.reset()
 
     def reset(self) -> None:
         self.phase = "approach"

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from pydantic import Field
 
-from envfactory.experts.motion import ArmMotion
+from envfactory.experts.motion import Expert
 from envfactory.terms.library import TermParams
 
 
@@ -22,16 +22,8 @@ class PushParams(TermParams):
     lateral_tolerance: float = Field(default=0.012, gt=0)  # off-line distance that calls for a re-approach, m
 
 
-class PushExpert:
+class PushExpert(Expert):
     Params = PushParams
-
-    def __init__(self, env, params: PushParams):
-        self.env = env
-        self.params = params
-        self.motion = ArmMotion(env)
-
-    def reset(self) -> None:
-        pass
 
     def __call__(self, observation):
         env, p = self.env, self.params

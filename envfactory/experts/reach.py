@@ -2,19 +2,12 @@
 
 from __future__ import annotations
 
-from envfactory.experts.motion import ArmMotion
+from envfactory.experts.motion import Expert
 from envfactory.terms.library import NoParams
 
 
-class ReachExpert:
+class ReachExpert(Expert):
     Params = NoParams
-
-    def __init__(self, env, params: NoParams):
-        self.env = env
-        self.motion = ArmMotion(env)
-
-    def reset(self) -> None:
-        pass
 
     def __call__(self, observation):
         # the whole way in one step when the action box allows it
