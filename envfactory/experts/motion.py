@@ -43,24 +43,32 @@ class ArmMotion:
         turned as little as possible from the current orientation."""
         if self.down is None:
             return None
-        base_axis = self.down[:2, self.closing_axis]
-        wanted = np.arctan2(direction_xy[1], direction_xy[0]) - np.arctan2(base_axis[1], base_axis[0])
-        current = self.env.state.ee_rotation @ self.down.T
-        current_yaw = np.arctan2(current[1, 0], current[0, 0])
+        wanted = np.arctan2(direction_xy[1], direction_xy[0]) - self._base_yaw()
+        current = self._current_yaw()
         # the fingers are symmetric: a half turn gives the same grip
-        wanted = current_yaw + (wanted - current_yaw + np.pi / 2) % np.pi - np.pi / 2
+        wanted = current + (wanted - current + np.pi / 2) % np.pi - np.pi / 2
         return yaw_rotation(wanted) @ self.down
+
+    def _base_yaw(self) -> float:
+        axis = self.down[:2, self.closing_axis]
+        return float(np.arctan2(axis[1], axis[0]))
+
+    def _current_yaw(self) -> float:
+        """How far the closing axis, seen from above, is turned from the top-down orientation's.
+        Read from the axis itself, so it means the same whether or not the gripper points down yet."""
+        axis = self.env.state.ee_rotation[:2, self.closing_axis]
+        if np.linalg.norm(axis) < 1e-6:
+            return 0.0
+        return float(np.arctan2(axis[1], axis[0])) - self._base_yaw()
 
     def square_to(self, yaw: float) -> np.ndarray | None:
         """Top-down orientation that closes the fingers on two opposite faces of a box turned by `yaw`."""
         if self.down is None:
             return None
-        base_axis = self.down[:2, self.closing_axis]
-        base = np.arctan2(base_axis[1], base_axis[0])
-        current = self.env.state.ee_rotation @ self.down.T
-        current_yaw = np.arctan2(current[1, 0], current[0, 0])
-        wanted = yaw - base
-        wanted = current_yaw + (wanted - current_yaw + np.pi / 4) % (np.pi / 2) - np.pi / 4
+        wanted = yaw - self._base_yaw()
+        current = self._current_yaw()
+        # a box has four faces to close on: a quarter turn gives the same grip
+        wanted = current + (wanted - current + np.pi / 4) % (np.pi / 2) - np.pi / 4
         return yaw_rotation(wanted) @ self.down
 
     # ------------------------------------------------------------ actions
