@@ -15,7 +15,7 @@ from envfactory.terms.library import TermParams
 
 class PushParams(TermParams):
     object: str = "cube"
-    offset: float = Field(default=0.04, gt=0)  # EE behind the cube centre while pushing, m
+    paddle: float = Field(default=0.02, gt=0)  # from the EE to the pushing face of the gripper, plus a margin, m
     height: float = 0.0  # EE height above the cube centre while pushing, m
     clearance: float = Field(default=0.08, gt=0)  # EE height above the cube centre when moving around it, m
     step: float = Field(default=0.03, gt=0)  # EE travel per action, m
@@ -38,16 +38,22 @@ class PushExpert(Expert):
         rotation = self.motion.down_facing(direction)
         push_z = cube[2] + p.height
         clear_z = cube[2] + p.clearance
-        behind = cube[:2] - direction * p.offset
+        # the cube reaches further along a diagonal than across a face
+        yaw = state.objects[p.object].rpy[2]
+        half = env.blueprint.spec.task.objects[p.object].size / 2
+        reach = half * (abs(np.cos(yaw) * direction[0] + np.sin(yaw) * direction[1])
+                        + abs(-np.sin(yaw) * direction[0] + np.cos(yaw) * direction[1]))
+        offset = reach + p.paddle
+        behind = cube[:2] - direction * offset
         relative = ee[:2] - cube[:2]
         along = float(relative @ direction)
         across = float(np.linalg.norm(relative - along * direction))
         low = ee[2] < push_z + 0.02
-        if low and along < -p.offset + 0.015 and across < p.lateral_tolerance:
+        if low and along < -offset + 0.015 and across < p.lateral_tolerance:
             # in contact range behind the cube and on the line: push, aiming the cube at the goal
-            target = np.append(env.goal[:2] - direction * p.offset, push_z)
+            target = np.append(env.goal[:2] - direction * offset, push_z)
             return self.motion.toward(target, rotation, max_step=min(p.step, remaining + 0.005))
-        if low and along < -p.offset + 0.005:
+        if low and along < -offset + 0.005:
             # still behind the cube: slide sideways onto the line without touching it
             return self.motion.toward(np.append(behind, push_z), rotation, max_step=p.step)
         if np.linalg.norm(ee[:2] - behind) < 0.01:
