@@ -15,6 +15,7 @@ from gymnasium import spaces
 
 from envfactory.actions import ActionAdapter
 from envfactory.backends import backend_factory
+from envfactory.backends.base import BackendError, EpisodeAbort
 from envfactory.compiler import Blueprint
 from envfactory.goals import GoalSampler, LiftCurriculum
 from envfactory.kinematics import Kinematics
@@ -129,6 +130,12 @@ class RobotEnv(gym.Env):
         self._seed_pending = None
         super().reset(seed=seed)
         spawn = self.spawner.sample(self.np_random)
+        if not getattr(self.backend, "teleports_on_reset", False):
+            # a real arm drives home: the whole way there must clear the table and floor
+            here = self.backend.read_joints().position[self._arm_in_states]
+            verdict = self.safety.path_is_clear(here, self.home)
+            if not verdict.accepted:
+                raise BackendError(f"the move home is unsafe ({verdict.reason}); bring the arm clear by hand")
         self.backend.reset(self.home, self._gripper_reset, spawn)
         for tracker in self._trackers.values():
             tracker.reset()
@@ -155,24 +162,35 @@ class RobotEnv(gym.Env):
         if not rejection:
             verdict = self.safety.check(state.q_arm, command.q_arm, state.gripper)
             rejection = verdict.reason
-        if not rejection:
-            self.backend.command_joints(command.q_arm, self._timing.action_speed)
-            if command.gripper is not None:
-                self.backend.command_gripper(command.gripper)
-        elif self._verbose:
+        if rejection and self._verbose:
             log.info("%s: action rejected: %s", self.blueprint.env_id, rejection)
-        self.backend.advance(self._timing.action_cycle_time)
         if np.all(np.isfinite(action)):
             previous = np.clip(np.asarray(action, dtype=np.float32), self.action_space.low, self.action_space.high)
         else:
             previous = self.actions.hold_action(state)
-        self._state = self._read_state(previous)
-        achieved = self.achieved_goal(self._state)
-        self._advance_curriculum(self._state, achieved)
-        info = self._info(self._state, achieved, command.out_of_bounds, rejection)
+        try:
+            if not rejection:
+                self.backend.command_joints(command.q_arm, self._timing.action_speed)
+                if command.gripper is not None:
+                    self.backend.command_gripper(command.gripper)
+            self.backend.advance(self._timing.action_cycle_time)
+            self._state = self._read_state(previous)
+        except EpisodeAbort as exc:
+            # stale or malformed readings: the backend stopped the arm; the episode ends here
+            log.warning("%s: episode aborted: %s", self.blueprint.env_id, exc)
+            return self._finish(state, command.out_of_bounds, rejection, truncated=True, abort=str(exc))
+        return self._finish(self._state, command.out_of_bounds, rejection)
+
+    def _finish(self, state: EnvState, out_of_bounds: bool, rejection: str, truncated: bool = False,
+                abort: str = ""):
+        achieved = self.achieved_goal(state)
+        self._advance_curriculum(state, achieved)
+        info = self._info(state, achieved, out_of_bounds, rejection)
+        if abort:
+            info["abort_reason"] = abort
         reward = float(self.rewards.reward(achieved, self._goal, info))
         terminated = bool(self.rewards.terminated(achieved, self._goal, info))
-        return self._observe(self._state), reward, terminated, False, info
+        return self._observe(state), reward, terminated, truncated, info
 
     def _info(self, state: EnvState, achieved: np.ndarray, out_of_bounds: bool, rejection: str) -> dict:
         distance = float(np.linalg.norm(achieved - self._goal))

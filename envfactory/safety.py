@@ -71,6 +71,19 @@ class SafetyCheck:
     def pose_is_clear(self, q_arm: np.ndarray, gripper: float = 0.0) -> bool:
         return bool(np.all(self.link_clearance(q_arm, gripper) >= self.settings.surface_margin))
 
+    def path_is_clear(self, q_from: np.ndarray, q_to: np.ndarray, step: float = 0.05) -> Verdict:
+        """Clearance along a long joint-space move (a real arm driving home), sampled every `step` rad."""
+        q_from, q_to = np.asarray(q_from, float), np.asarray(q_to, float)
+        samples = max(2, int(np.ceil(np.max(np.abs(q_to - q_from)) / step)) + 1)
+        for fraction in np.linspace(0.0, 1.0, samples):
+            clearance = self.link_clearance(q_from + fraction * (q_to - q_from))
+            lowest = int(np.argmin(clearance))
+            if clearance[lowest] < self.settings.surface_margin:
+                link = self.kinematics.frame_names([self.kinematics.checked_frames[lowest]])[0]
+                return Verdict(False, f"link {link} would come within {clearance[lowest]:.3f} m of a surface "
+                                      f"at {fraction:.0%} of the way")
+        return ACCEPTED
+
     def check(self, q_arm_now: np.ndarray, q_arm_target: np.ndarray, gripper: float = 0.0) -> Verdict:
         if not np.all(np.isfinite(q_arm_target)):
             return Verdict(False, "non-finite joint target")

@@ -37,6 +37,15 @@ class BackendError(RuntimeError):
     """The backend cannot go on: the arm is stopped and the step fails."""
 
 
+class EpisodeAbort(BackendError):
+    """This episode cannot safely go on (stale or malformed readings): nothing was
+    commanded, the arm is stopped, and the env ends the episode with the reason."""
+
+
+class MotionRefused(BackendError):
+    """The real-robot motion gate is closed."""
+
+
 class Backend(Protocol):
     def reset(self, q_arm: np.ndarray, gripper: float | None, objects: dict[str, tuple[np.ndarray, np.ndarray]]) -> None:
         ...

@@ -137,6 +137,45 @@ class PedestalSpec(Model):
     rgba: tuple[float, float, float, float] = (0.3, 0.3, 0.32, 1.0)
 
 
+class RosTopic(Model):
+    topic: str
+    type: str
+
+
+class ArmCommand(RosTopic):
+    # joint_trajectory: trajectory_msgs/JointTrajectory, one point at time_from_start (ur_robot_driver)
+    # joint_group: interbotix_xs_msgs/JointGroupCommand {name: group, cmd: positions} (xs_sdk)
+    encoding: Literal["joint_trajectory", "joint_group"]
+    group: str = "arm"
+
+
+class GripperCommand(RosTopic):
+    # float64_array: std_msgs/Float64MultiArray with the one driven value (the Robotiq knuckle)
+    # joint_single: interbotix_xs_msgs/JointSingleCommand {name, cmd} (xs_sdk gripper in linear_position mode)
+    encoding: Literal["float64_array", "joint_single"]
+    name: str = "gripper"
+
+
+class StaticTransform(Model):
+    """Where a frame sits in its parent: lets object poses from a camera reach the task frame."""
+
+    parent: str
+    xyz: Vec3 = (0.0, 0.0, 0.0)
+    rpy: Vec3 = (0.0, 0.0, 0.0)
+
+
+class RosSpec(Model):
+    """The robot's topics under rosbridge; every one can be overridden in YAML or by kwarg."""
+
+    joint_states: RosTopic
+    arm_command: ArmCommand
+    gripper_command: GripperCommand | None = None
+    object_poses: dict[str, RosTopic] = {}  # object name -> geometry_msgs/PoseStamped topic
+    task_frame_id: str  # the ROS frame of the task frame (goals and observations)
+    static_transforms: dict[str, StaticTransform] = {}  # frame -> its pose in the parent frame
+    use_tf: bool = False  # also learn transforms from /tf and /tf_static
+
+
 class RobotSpec(Model):
     name: str
     label: str
@@ -155,6 +194,7 @@ class RobotSpec(Model):
     arm_force: float = 150.0
     arm_max_velocity: float = 3.15
     safety_links: SafetyLinks = SafetyLinks()
+    ros: RosSpec | None = None
 
     @model_validator(mode="after")
     def _consistent(self) -> "RobotSpec":
@@ -331,6 +371,25 @@ class SafetySettings(Model):
     max_joint_delta: float = Field(default=0.5, gt=0)
 
 
+class RealSettings(Model):
+    """The real robot over rosbridge: connection, gates and limits. Sim ignores these."""
+
+    host: str = "localhost"
+    port: int = Field(default=9090, ge=1, le=65535)
+    allow_motion: bool = False  # allow_real_robot_motion; ALLOW_REAL_ROBOT_MOTION=1 also allows
+    connect_timeout_s: float = Field(default=5.0, gt=0)
+    reconnect_tries: int = Field(default=3, ge=0)  # bounded, with exponential backoff
+    joint_state_timeout_s: float = Field(default=0.5, gt=0)
+    cube_pose_timeout_s: float = Field(default=1.0, gt=0)
+    deadman_s: float = Field(default=1.5, gt=0)  # no command for this long: the arm is stopped
+    reset_speed: float = Field(default=0.3, gt=0)  # rad/s of the slowest-allowed move home at reset
+    reset_timeout_s: float = Field(default=30.0, gt=0)
+    reset_tolerance: float = Field(default=0.02, gt=0)  # rad: home counts as reached
+    auto_launch_cube_tracker: bool = False  # True is refused: the user starts the tracker
+    cube_tracker_camera: Literal["kinect2", "zed2", "d405"] = "kinect2"
+    cube_tracker_target_frame: str = ""  # if set, object poses must be given in (or transform to) this frame
+
+
 class EnvSettings(Model):
     seed: int | None = None
     gui: bool = False
@@ -340,6 +399,7 @@ class EnvSettings(Model):
     safety: SafetySettings = SafetySettings()
     use_kinect: bool = False  # adds the scene camera's image terms to the observation
     log_internal_state: bool = False
+    real: RealSettings = RealSettings()
 
     @field_validator("reward_type", mode="before")
     @classmethod

@@ -19,6 +19,7 @@ GEAR_MAX_FORCE = 1000.0
 
 
 class PyBulletBackend:
+    teleports_on_reset = True  # reset sets the joints directly; no path is driven
     def __init__(self, spec: EnvSpec, urdf_path: Path, task_origin_world: np.ndarray, render_mode: str | None = None):
         self.spec = spec
         self.robot = spec.robot

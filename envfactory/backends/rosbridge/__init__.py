@@ -1,0 +1,3 @@
+from envfactory.backends.rosbridge.backend import RosbridgeBackend
+
+__all__ = ["RosbridgeBackend"]

@@ -1,0 +1,155 @@
+"""The digital twin: a PyBullet robot and cube behind a rosbridge-protocol server.
+
+It publishes the robot's joint states and the cube pose on the real topic
+names with the real message types, and executes the arm and gripper commands
+it receives, so a Real ID runs against it unchanged. Users rehearse on it
+before touching hardware; the tests run the real client against it over a
+loopback socket.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+import time
+
+import numpy as np
+
+from envfactory.backends.rosbridge import messages
+from envfactory.twin.server import Faults, Received, RosbridgeServer
+
+__all__ = ["Faults", "Received", "Twin"]
+
+JOINT_STATE_HZ = 50.0
+POSE_HZ = 30.0
+
+
+def _sim_id(robot: str, task: str) -> str:
+    import envfactory
+
+    candidates = [env_id for env_id, record in sorted(envfactory.records().items())
+                  if record.backend == "pybullet" and not record.goal_env]
+    for env_id in candidates:
+        spec = envfactory.blueprint(env_id).spec
+        if spec.robot.name == robot and spec.task.name == task:
+            return env_id
+    raise ValueError(f"no Sim ID pairs robot {robot!r} with task {task!r}")
+
+
+class Twin:
+    def __init__(self, robot: str, task: str = "push", host: str = "127.0.0.1", port: int = 0):
+        import envfactory
+        from envfactory.backends.pybullet import PyBulletBackend
+        from envfactory.urdf_assembly import assemble
+
+        blueprint = envfactory.blueprint(_sim_id(robot, task), ["env.timing.realtime=true"])
+        spec = blueprint.spec
+        self.spec = spec
+        self.ros = spec.robot.ros
+        if self.ros is None:
+            raise ValueError(f"robot {robot!r} declares no 'ros:' topic map")
+        mount = np.asarray(spec.robot.mount, float)
+        task_origin = mount if spec.robot.task_frame == "base" else np.zeros(3)
+        self.sim = PyBulletBackend(spec, assemble(spec.robot.model, blueprint.asset_root, spec.robot.name),
+                                   task_origin)
+        spawn = {name: (np.asarray(obj.spawn.position, float), np.array([0.0, 0.0, 0.0, 1.0]))
+                 for name, obj in spec.task.objects.items()}
+        self.sim.reset(np.asarray(spec.robot.home, float), spec.gripper_at_reset, spawn)
+        urdf_to_ros = {entry.urdf_joint: entry.name for entry in spec.robot.joint_states}
+        self.state_names = [entry.name for entry in spec.robot.joint_states]
+        self.arm_names = [urdf_to_ros[j.name] for j in spec.robot.arm_joints]
+        self.server = RosbridgeServer(self._on_publish, host, port)
+        self._loop = asyncio.new_event_loop()
+        self._thread = threading.Thread(target=self._loop.run_forever, name="envfactory-twin", daemon=True)
+        self._publishers = []
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def start(self) -> "Twin":
+        self._thread.start()
+        asyncio.run_coroutine_threadsafe(self.server.start(), self._loop).result(timeout=10)
+        self._publishers = [
+            asyncio.run_coroutine_threadsafe(self._every(1.0 / JOINT_STATE_HZ, self._publish_joint_state), self._loop),
+            asyncio.run_coroutine_threadsafe(self._every(1.0 / POSE_HZ, self._publish_poses), self._loop),
+        ]
+        return self
+
+    def stop(self) -> None:
+        if not self._thread.is_alive():
+            return
+        for publisher in self._publishers:
+            publisher.cancel()
+        asyncio.run_coroutine_threadsafe(self.server.close(), self._loop).result(timeout=10)
+        self._loop.call_soon_threadsafe(self._loop.stop)
+        self._thread.join(timeout=5)
+        self.sim.close()
+
+    def __enter__(self) -> "Twin":
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    @property
+    def port(self) -> int:
+        return self.server.port
+
+    @property
+    def faults(self) -> Faults:
+        return self.server.faults
+
+    @property
+    def received(self) -> list[Received]:
+        return list(self.server.received)
+
+    def drop_connections(self) -> None:
+        asyncio.run_coroutine_threadsafe(self.server.drop_connections(), self._loop).result(timeout=5)
+
+    def wait_for_subscribers(self, timeout: float = 5.0) -> None:
+        deadline = time.monotonic() + timeout
+        while not self.server.subscribed(self.ros.joint_states.topic):
+            if time.monotonic() > deadline:
+                raise TimeoutError("no client subscribed to the joint states")
+            time.sleep(0.02)
+
+    # ------------------------------------------------------------------ what it publishes
+
+    async def _every(self, period: float, publish) -> None:
+        while True:
+            await publish()
+            await asyncio.sleep(period)
+
+    async def _publish_joint_state(self) -> None:
+        topic = self.ros.joint_states.topic
+        reading = self.sim.read_joints()
+        position, velocity = reading.position, reading.velocity
+        if topic in self.faults.malformed:
+            position = position[:-1]  # one joint short of the names it claims
+        await self.server.publish(topic, messages.encode_joint_state(self.state_names, position, velocity,
+                                                                     time.time()))
+
+    async def _publish_poses(self) -> None:
+        for name, topic_spec in self.ros.object_poses.items():
+            if name not in self.sim.objects:
+                continue
+            reading = self.sim.read_object(name)
+            quaternion = reading.quaternion * (3.0 if topic_spec.topic in self.faults.malformed else 1.0)
+            await self.server.publish(topic_spec.topic, messages.encode_pose(self.ros.task_frame_id, reading.position,
+                                                                             quaternion, time.time()))
+
+    # ------------------------------------------------------------------ what it executes
+
+    def _on_publish(self, topic: str, msg: dict) -> None:
+        ros = self.ros
+        if topic == ros.arm_command.topic:
+            target, duration = messages.decode_arm(ros.arm_command, self.arm_names, msg,
+                                                   self.spec.env.timing.action_speed)
+            if target is None:  # the stop: hold where the arm is now
+                position = self.sim.read_joints().position
+                target = np.array([position[self.state_names.index(n)] for n in self.arm_names])
+                duration = 0.05
+            self.sim.command_joints(target, max(duration, 0.05))
+        elif ros.gripper_command is not None and topic == ros.gripper_command.topic:
+            self.sim.command_gripper(messages.decode_gripper(ros.gripper_command, msg))
+        else:
+            raise ValueError(f"no handler for topic {topic!r}")
