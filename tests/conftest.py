@@ -3,7 +3,9 @@ import pytest
 
 import envfactory
 
+ALL_IDS = sorted(envfactory.records())
 SIM_IDS = sorted(env_id for env_id, record in envfactory.records().items() if record.backend == "pybullet")
+REAL_IDS = sorted(env_id for env_id, record in envfactory.records().items() if record.backend == "rosbridge")
 
 
 @pytest.fixture

@@ -9,7 +9,7 @@ import pytest
 from syrupy.extensions.json import JSONSnapshotExtension
 
 import envfactory
-from conftest import SIM_IDS
+from conftest import ALL_IDS
 from envfactory.managers import ObservationManager
 
 
@@ -18,7 +18,7 @@ def snapshot_json(snapshot):
     return snapshot.use_extension(JSONSnapshotExtension)
 
 
-@pytest.mark.parametrize("env_id", SIM_IDS)
+@pytest.mark.parametrize("env_id", ALL_IDS)
 def test_blueprint_snapshot(env_id, snapshot_json):
     assert json.loads(envfactory.blueprint(env_id).to_json()) == snapshot_json
 
