@@ -138,20 +138,25 @@ def run(
     video: Optional[Path] = typer.Option(None, help="Record the episodes to this video file (e.g. out.mp4)"),
     override: List[str] = typer.Option(None, "--override", "-o", help="Hydra override, repeatable"),
     kwarg: List[str] = typer.Option(None, "--kwarg", "-k", help=KWARG_HELP),
+    allow_real_robot_motion: bool = typer.Option(
+        False, "--allow-real-robot-motion", help="Let a Real ID move the arm (the motion gate); clear the workspace first"),
 ):
     """The main job: run episodes and print a per-episode table."""
     import gymnasium as gym
     from rich.progress import Progress
 
     import envfactory  # noqa: F401  (registers the IDs)
+    from envfactory.backends.base import BackendError
     from envfactory.episodes import run_episodes, success_rate
     from envfactory.experts import make_policy
     from envfactory.spec.errors import SpecError
 
     kwargs = _parse_kwargs(kwarg)
+    if allow_real_robot_motion:
+        kwargs["allow_real_robot_motion"] = True
     try:
         env = gym.make(env_id, overrides=override or [], render_mode="rgb_array" if video else None, **kwargs)
-    except (SpecError, KeyError, gym.error.Error) as exc:
+    except (SpecError, KeyError, gym.error.Error, BackendError) as exc:
         _fail(str(exc).strip("'\""))
     frames = []
     try:
@@ -162,7 +167,11 @@ def run(
             task = progress.add_task(f"{env_id} ({policy})", total=episodes * limit)
             results = run_episodes(env, actor, episodes, seed, on_frame=frames.append if video else None,
                                    on_step=lambda: progress.advance(task))
-    except ValueError as exc:
+    except KeyboardInterrupt:
+        env.close()  # before the message: on a real robot this sends the stop
+        errors.print("interrupted: the env is closed and the arm stopped")
+        raise typer.Exit(130)
+    except (ValueError, BackendError) as exc:
         _fail(str(exc))
     finally:
         env.close()
@@ -178,6 +187,51 @@ def run(
         fps = env.unwrapped.metadata.get("render_fps", 2)
         imageio.mimsave(video, frames, fps=max(1, int(round(fps))) * 2, macro_block_size=8)
         console.print(f"video: {video} ({len(frames)} frames)")
+
+
+@app.command()
+def twin(
+    robot: str = typer.Argument(..., help="Robot name: ur5e or vx300s"),
+    task: str = typer.Option("push", help="The task whose objects it simulates (push has the cube)"),
+    port: int = typer.Option(9090, help="Port of the rosbridge websocket; 0 picks a free one"),
+    host: str = typer.Option("127.0.0.1", help="Interface to listen on (loopback by default)"),
+    delay: float = typer.Option(0.0, help="Fault: latency added to every published message, s"),
+    stop_joint_states_after: Optional[float] = typer.Option(None, help="Fault: stop publishing joint states after S s"),
+    stop_object_poses_after: Optional[float] = typer.Option(None, help="Fault: stop publishing the cube pose after S s"),
+    malformed_after: Optional[float] = typer.Option(None, help="Fault: publish malformed joint states after S s"),
+    drop_after: Optional[float] = typer.Option(None, help="Fault: drop every connection after S s"),
+):
+    """A rosbridge stand-in serving a PyBullet robot and cube on the real topics: rehearse Real IDs on it."""
+    import time
+
+    from envfactory.twin import Twin
+
+    try:
+        stand_in = Twin(robot, task, host=host, port=port).start()
+    except (ValueError, OSError) as exc:
+        _fail(str(exc))
+    ros = stand_in.ros
+    stand_in.faults.delay_s = delay
+    console.print(f"twin of {robot} ({task}) at ws://{host}:{stand_in.port}; "
+                  f"publishing {ros.joint_states.topic} and {[t.topic for t in ros.object_poses.values()]}, "
+                  f"executing {ros.arm_command.topic}"
+                  f"{' and ' + ros.gripper_command.topic if ros.gripper_command else ''}. Ctrl-C stops it.")
+    schedule = [(stop_joint_states_after, lambda: stand_in.faults.silenced.add(ros.joint_states.topic)),
+                (stop_object_poses_after, lambda: stand_in.faults.silenced.update(
+                    t.topic for t in ros.object_poses.values())),
+                (malformed_after, lambda: stand_in.faults.malformed.add(ros.joint_states.topic)),
+                (drop_after, stand_in.drop_connections)]
+    start = time.monotonic()
+    pending = sorted(((after, act) for after, act in schedule if after is not None), key=lambda item: item[0])
+    try:
+        while True:
+            while pending and time.monotonic() - start >= pending[0][0]:
+                pending.pop(0)[1]()
+            time.sleep(0.05)
+    except KeyboardInterrupt:
+        console.print(f"twin stopped; it received {len(stand_in.received)} commands")
+    finally:
+        stand_in.stop()
 
 
 def main() -> None:  # pragma: no cover

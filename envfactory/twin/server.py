@@ -12,6 +12,7 @@ import json
 import logging
 import time
 from dataclasses import dataclass, field
+from http import HTTPStatus
 from typing import Callable
 
 from websockets.asyncio.server import ServerConnection, serve
@@ -49,7 +50,7 @@ class RosbridgeServer:
         self._server = None
 
     async def start(self) -> None:
-        self._server = await serve(self._serve, self.host, self.port)
+        self._server = await serve(self._serve, self.host, self.port, process_request=self._admit)
         self.port = self._server.sockets[0].getsockname()[1]
 
     async def close(self) -> None:
@@ -85,10 +86,12 @@ class RosbridgeServer:
         for subscribers in self._subscribers.values():
             subscribers.discard(connection)
 
+    def _admit(self, connection: ServerConnection, request):
+        if self.faults.refuse_connections:  # turned away at the handshake, as an unreachable robot would be
+            return connection.respond(HTTPStatus.SERVICE_UNAVAILABLE, "twin: refusing connections\n")
+        return None
+
     async def _serve(self, connection: ServerConnection) -> None:
-        if self.faults.refuse_connections:
-            await connection.close(code=1013, reason="twin: refusing connections")
-            return
         self._connections.add(connection)
         try:
             async for raw in connection:

@@ -1,0 +1,237 @@
+"""Real IDs over rosbridge, against the digital twin on a loopback socket.
+
+Every gate is proven by what the twin received on the wire: the exact
+commands, and that no motion command followed a gate.
+"""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from envfactory.backends.base import BackendError, MotionRefused
+from envfactory.experts import make_policy
+from envfactory.twin import Twin
+
+# wall-clock steps of 0.1 s, each command's trajectory done in 0.05 s
+FAST = {"action_cycle_time": 0.1, "environment_loop_rate": 10.0, "action_speed": 0.05}
+UR5E_ARM = "/scaled_pos_joint_traj_controller/command"
+UR5E_JOINTS = "/ur5e/joint_states"
+
+
+@pytest.fixture
+def twin():
+    started = []
+
+    def start(robot="ur5e", task="push"):
+        stand_in = Twin(robot, task).start()
+        started.append(stand_in)
+        return stand_in
+
+    yield start
+    for stand_in in started:
+        stand_in.stop()
+
+
+def make_real(make, env_id, stand_in, **kwargs):
+    return make(env_id, rosbridge_port=stand_in.port, **{"allow_real_robot_motion": True, **FAST, **kwargs})
+
+
+def on(stand_in, topic):
+    return [r.msg for r in stand_in.received if r.topic == topic]
+
+
+def is_stop(msg):
+    return msg.get("points") == []
+
+
+def settled(stand_in, quiet=0.3):
+    """How many messages the twin has once nothing new arrived for `quiet` seconds."""
+    count = len(stand_in.received)
+    while True:
+        time.sleep(quiet)
+        if len(stand_in.received) == count:
+            return count
+        count = len(stand_in.received)
+
+
+def wait_for(predicate, timeout=3.0):
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.02)
+    return True
+
+
+def test_reacher_real_full_episode(twin, make):
+    stand_in = twin(task="reach")
+    env = make_real(make, "UR5eReacherReal-v0", stand_in, max_episode_steps=8)
+    observation, _ = env.reset(seed=0)
+    assert wait_for(lambda: len(on(stand_in, UR5E_ARM)) == 1)  # the move home
+    after_reset = 1
+    policy = make_policy("scripted", env)
+    steps, done = 0, False
+    while not done:
+        observation, reward, terminated, truncated, info = env.step(policy(observation))
+        steps += 1
+        done = terminated or truncated or info["is_success"]
+        assert "abort_reason" not in info
+    assert wait_for(lambda: len(on(stand_in, UR5E_ARM)) == after_reset + steps)  # one trajectory per step
+    commands = on(stand_in, UR5E_ARM)[after_reset:]
+    sent = np.array(commands[-1]["points"][0]["positions"])
+    # the twin executed it: its arm comes to rest where the last command sent it
+    twin_arm = lambda: stand_in.sim.read_joints().position[env.unwrapped._arm_in_states]  # noqa: E731
+    assert wait_for(lambda: np.allclose(twin_arm(), sent, atol=5e-3)), (twin_arm(), sent)
+    np.testing.assert_allclose(env.unwrapped.state.q_arm, sent, atol=0.05)  # and the env read it on the way
+    assert commands[-1]["joint_names"] == ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint",
+                                           "wrist_1_joint", "wrist_2_joint", "wrist_3_joint"]
+    env.close()
+    assert wait_for(lambda: is_stop(on(stand_in, UR5E_ARM)[-1]))  # close sends the stop
+
+
+def test_push_goal_real_episode_reads_the_cube(twin, make):
+    stand_in = twin()
+    env = make_real(make, "UR5ePushGoalReal-v0", stand_in, max_episode_steps=6)
+    observation, _ = env.reset(seed=2)
+    np.testing.assert_allclose(observation["achieved_goal"], [0.5, -0.15, 0.795], atol=2e-3)  # the twin's cube
+    policy = make_policy("scripted", env)
+    for step in range(6):
+        observation, reward, terminated, truncated, info = env.step(policy(observation))
+        assert "abort_reason" not in info
+        assert reward == env.unwrapped.compute_reward(observation["achieved_goal"], observation["desired_goal"], info)
+    assert truncated  # the registered time limit ended it
+    cube = stand_in.sim.read_object("cube").position
+    np.testing.assert_allclose(observation["achieved_goal"], cube, atol=5e-3)
+
+
+def test_vx300s_group_commands_on_the_wire(twin, make):
+    stand_in = twin("vx300s")
+    env = make_real(make, "VX300SPnPReal-v0", stand_in, max_episode_steps=3)
+    env.reset(seed=0)
+    action = np.zeros(7, dtype=np.float32)
+    action[0], action[-1] = 1.0, 0.03
+    env.step(action)
+    arm = on(stand_in, "/vx300s/commands/joint_group")
+    gripper = on(stand_in, "/vx300s/commands/joint_single")
+    assert arm[-1]["name"] == "arm" and len(arm[-1]["cmd"]) == 6
+    assert arm[-1]["cmd"][0] == pytest.approx(0.05, abs=1e-3)  # waist: delta 1.0 × delta_coeff 0.05 from home 0
+    assert gripper[-1] == {"name": "gripper", "cmd": pytest.approx(0.03)}
+
+
+def test_motion_gate_refuses_construction_and_every_publish(twin, make, monkeypatch):
+    stand_in = twin()
+    monkeypatch.delenv("ALLOW_REAL_ROBOT_MOTION", raising=False)
+    with pytest.raises(MotionRefused, match="allow_real_robot_motion"):
+        gym.make("UR5eReacherReal-v0", rosbridge_port=stand_in.port)
+    time.sleep(0.2)
+    assert stand_in.server.client_count == 0 and stand_in.received == []  # it never even connected
+
+    monkeypatch.setenv("ALLOW_REAL_ROBOT_MOTION", "1")  # the environment variable opens the gate too
+    env = make(f"UR5eReacherReal-v0", rosbridge_port=stand_in.port, **FAST)
+    env.reset(seed=0)
+    sent = settled(stand_in)
+    monkeypatch.delenv("ALLOW_REAL_ROBOT_MOTION")  # the gate closes mid-run: checked again at every publish
+    with pytest.raises(MotionRefused):
+        env.step(np.zeros(6, dtype=np.float32))
+    time.sleep(0.2)
+    assert not [m for m in on(stand_in, UR5E_ARM)[sent:] if not is_stop(m)]
+
+
+@pytest.mark.parametrize("topic, limit", [(UR5E_JOINTS, 0.5), ("/cube_pose", 1.0)])
+def test_stale_feed_skips_the_command_and_ends_the_episode(twin, make, topic, limit):
+    stand_in = twin()
+    env = make_real(make, "UR5ePushReal-v0", stand_in)
+    env.reset(seed=0)
+    env.step(np.zeros(6, dtype=np.float32))
+    stand_in.faults.silenced.add(topic)
+    time.sleep(limit + 0.3)
+    settled(stand_in, quiet=0.05)
+    sent = len(on(stand_in, UR5E_ARM))
+    _, _, terminated, truncated, info = env.step(np.ones(6, dtype=np.float32))
+    assert truncated and not terminated
+    assert "stale" in info["abort_reason"] and topic in info["abort_reason"]
+    assert wait_for(lambda: len(on(stand_in, UR5E_ARM)) > sent)
+    after = on(stand_in, UR5E_ARM)[sent:]
+    assert all(is_stop(m) for m in after), "nothing but the stop follows a stale feed"
+
+
+def test_malformed_joint_state_ends_the_episode(twin, make):
+    stand_in = twin()
+    env = make_real(make, "UR5ePushReal-v0", stand_in)
+    env.reset(seed=0)
+    stand_in.faults.malformed.add(UR5E_JOINTS)
+    settled(stand_in, quiet=0.1)
+    sent = len(on(stand_in, UR5E_ARM))
+    _, _, _, truncated, info = env.step(np.ones(6, dtype=np.float32))
+    assert truncated and "malformed" in info["abort_reason"] and "position" in info["abort_reason"]
+    time.sleep(0.2)
+    assert all(is_stop(m) for m in on(stand_in, UR5E_ARM)[sent:])
+
+
+def test_connection_drop_fails_the_step_without_hanging(twin, make):
+    stand_in = twin()
+    env = make_real(make, "UR5eReacherReal-v0", stand_in)
+    env.reset(seed=0)
+    stand_in.faults.refuse_connections = True  # the robot stays gone: reconnect cannot succeed
+    stand_in.drop_connections()
+    start = time.monotonic()
+    with pytest.raises(BackendError, match="rosbridge connection"):
+        for _ in range(5):
+            env.step(np.zeros(6, dtype=np.float32))
+    with pytest.raises(BackendError, match="reconnect"):
+        env.reset(seed=1)  # bounded reconnect with backoff, then a clear failure
+    assert time.monotonic() - start < 10.0
+
+
+def test_unsafe_and_nan_actions_publish_nothing(twin, make):
+    stand_in = twin()
+    env = make_real(make, "UR5eReacherReal-v0", stand_in, delta_action=False, max_joint_delta=3.2)
+    env.reset(seed=0)
+    sent = settled(stand_in)
+    target = env.unwrapped.state.q_arm.copy()
+    target[1] = 0.6  # swings the upper arm down through the table
+    _, _, _, _, info = env.step(target.astype(np.float32))
+    assert info["action_rejected"] == 1.0 and "link" in info["rejection_reason"]
+    _, _, _, _, info = env.step(np.full(6, np.nan, dtype=np.float32))
+    assert info["action_rejected"] == 1.0 and "non-finite" in info["rejection_reason"]
+    time.sleep(0.2)
+    assert len(stand_in.received) == sent
+
+
+def test_deadman_stops_the_arm_when_commands_cease(twin, make):
+    stand_in = twin()
+    env = make_real(make, "UR5eReacherReal-v0", stand_in, deadman_s=0.3)
+    env.reset(seed=0)
+    env.step(np.ones(6, dtype=np.float32) * 0.5)
+    last_step = len(on(stand_in, UR5E_ARM))
+    assert wait_for(lambda: len(on(stand_in, UR5E_ARM)) > last_step, timeout=2.0)
+    assert is_stop(on(stand_in, UR5E_ARM)[-1])
+
+
+def test_auto_launch_cube_tracker_is_refused_clearly(make):
+    with pytest.raises(BackendError, match="Start the kinect2 cube tracker yourself"):
+        make("UR5ePushReal-v0", allow_real_robot_motion=True, auto_launch_cube_tracker=True)
+
+
+def test_ctrl_c_during_run_sends_the_stop(twin):
+    stand_in = twin(task="reach")
+    command = [sys.executable, "-m", "envfactory.cli.main", "run", "UR5eReacherReal-v0", "-n", "50",
+               "--policy", "random", "--allow-real-robot-motion", "-k", f"rosbridge_port={stand_in.port}",
+               "-k", "action_cycle_time=0.1"]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    try:
+        assert wait_for(lambda: len(on(stand_in, UR5E_ARM)) >= 4, timeout=30.0), process.stderr.read()
+        process.send_signal(signal.SIGINT)
+        _, stderr = process.communicate(timeout=15)
+    finally:
+        process.kill()
+    assert process.returncode == 130, stderr
+    assert "arm stopped" in stderr
+    assert wait_for(lambda: is_stop(on(stand_in, UR5E_ARM)[-1]))
