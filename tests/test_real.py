@@ -235,3 +235,15 @@ def test_ctrl_c_during_run_sends_the_stop(twin):
     assert process.returncode == 130, stderr
     assert "arm stopped" in stderr
     assert wait_for(lambda: is_stop(on(stand_in, UR5E_ARM)[-1]))
+
+
+def test_topics_are_overridable_by_kwarg(twin, make):
+    stand_in = twin()
+    with pytest.raises(BackendError, match=r"nothing arrived on \['/elsewhere/joint_states'\]"):
+        make("UR5ePushReal-v0", rosbridge_port=stand_in.port, allow_real_robot_motion=True,
+             joint_states_topic="/elsewhere/joint_states", overrides=["env.real.connect_timeout_s=1.0"])
+    env = make_real(make, "UR5ePushReal-v0", stand_in, arm_command_topic="/my_arm/command")
+    env.reset(seed=0)
+    env.step(np.zeros(6, dtype=np.float32))
+    assert wait_for(lambda: len(on(stand_in, "/my_arm/command")) >= 2)
+    assert on(stand_in, UR5E_ARM) == []

@@ -1,0 +1,81 @@
+"""The ROS message codecs and frame lookups the rosbridge backend and the twin share."""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from envfactory.backends.rosbridge import messages
+from envfactory.backends.rosbridge.messages import MalformedMessage
+from envfactory.backends.rosbridge.transforms import FrameGraph
+from envfactory.spec.schema import ArmCommand, GripperCommand, StaticTransform
+
+NAMES = ["elbow", "shoulder", "waist"]
+
+
+def test_joint_state_is_matched_by_name_not_order():
+    msg = messages.encode_joint_state(["waist", "elbow", "shoulder", "extra"], [3, 1, 2, 9], [0.3, 0.1, 0.2, 0], 5.0)
+    position, velocity = messages.decode_joint_state(msg, NAMES)
+    np.testing.assert_array_equal(position, [1, 2, 3])
+    np.testing.assert_array_equal(velocity, [0.1, 0.2, 0.3])
+
+
+@pytest.mark.parametrize("msg, reason", [
+    ({"position": [1, 2, 3]}, "without a 'name' list"),
+    ({"name": NAMES, "position": [1, 2]}, "has 2 values, expected 3"),
+    ({"name": NAMES, "position": [1, float("nan"), 3]}, "non-finite"),
+    ({"name": NAMES, "position": ["a", 2, 3]}, "not a list of numbers"),
+    ({"name": ["elbow", "shoulder", "wrist"], "position": [1, 2, 3]}, "lacks joints ['waist']"),
+])
+def test_malformed_joint_states_are_rejected_with_the_reason(msg, reason):
+    with pytest.raises(MalformedMessage, match=reason.replace("[", r"\[").replace("]", r"\]")):
+        messages.decode_joint_state(msg, NAMES)
+
+
+def test_pose_round_trip_and_bad_quaternion():
+    msg = messages.encode_pose("world", [1, 2, 3], [0, 0, 0, 1], 1.5)
+    frame, position, quaternion = messages.decode_pose(msg)
+    assert frame == "world" and list(position) == [1, 2, 3] and list(quaternion) == [0, 0, 0, 1]
+    with pytest.raises(MalformedMessage, match="unit quaternion"):
+        messages.decode_pose(messages.encode_pose("world", [1, 2, 3], [0, 0, 0, 3], 0))
+    with pytest.raises(MalformedMessage, match="lacks"):
+        messages.decode_pose({"header": {}})
+
+
+@pytest.mark.parametrize("encoding", ["joint_trajectory", "joint_group"])
+def test_arm_command_round_trip_and_stop(encoding):
+    command = ArmCommand(topic="/arm", type="t", encoding=encoding)
+    msg = messages.encode_arm(command, NAMES, [0.1, 0.2, 0.3], 0.25)
+    target, duration = messages.decode_arm(command, NAMES, msg, default_duration=0.4)
+    np.testing.assert_allclose(target, [0.1, 0.2, 0.3])
+    assert duration == pytest.approx(0.25 if encoding == "joint_trajectory" else 0.4)
+    stop = messages.encode_arm_stop(command, NAMES, np.array([1.0, 2.0, 3.0]))
+    target, _ = messages.decode_arm(command, NAMES, stop, 0.4)
+    if encoding == "joint_trajectory":
+        assert target is None  # the empty trajectory: the controller holds
+    else:
+        np.testing.assert_allclose(target, [1, 2, 3])  # hold the last known position
+        assert messages.encode_arm_stop(command, NAMES, None) is None  # nothing to hold: nothing sent
+
+
+@pytest.mark.parametrize("encoding, expected", [("float64_array", {"layout": {"dim": [], "data_offset": 0},
+                                                                   "data": [0.7]}),
+                                                ("joint_single", {"name": "gripper", "cmd": 0.7})])
+def test_gripper_command_encodings(encoding, expected):
+    command = GripperCommand(topic="/g", type="t", encoding=encoding)
+    assert messages.encode_gripper(command, 0.7) == expected
+    assert messages.decode_gripper(command, expected) == 0.7
+
+
+def test_camera_pose_reaches_the_task_frame_through_static_and_tf_transforms():
+    graph = FrameGraph("world", {"base_link": StaticTransform(parent="world", xyz=(0, 0, 0.59))})
+    # a camera above the table looking straight down, announced on /tf
+    down = pin.rpy.rpyToMatrix(np.pi, 0, 0)
+    x, y, z, w = pin.Quaternion(down).coeffs()
+    graph.learn({"transforms": [{"header": {"frame_id": "base_link"}, "child_frame_id": "camera",
+                                 "transform": {"translation": {"x": 0.5, "y": 0.0, "z": 0.8},
+                                               "rotation": {"x": x, "y": y, "z": z, "w": w}}}]})
+    position, quaternion = graph.to_task("camera", np.array([0.0, 0.1, 0.6]), np.array([0, 0, 0, 1.0]))
+    np.testing.assert_allclose(position, [0.5, -0.1, 0.59 + 0.8 - 0.6], atol=1e-9)
+    assert np.allclose(np.abs(quaternion), np.abs([x, y, z, w]))
+    with pytest.raises(KeyError, match="no transform from frame 'kinect2_link'"):
+        graph.to_task("kinect2_link", np.zeros(3), np.array([0, 0, 0, 1.0]))
