@@ -104,7 +104,7 @@ def describe(
 
 @app.command()
 def register(paths: List[Path] = typer.Argument(..., help="Folders of user specs")):
-    """Register user spec folders and smoke-build each new ID (reset plus one step)."""
+    """Register user spec folders and smoke-build each new simulated ID (reset plus one step)."""
     import gymnasium as gym
 
     import envfactory
@@ -116,6 +116,10 @@ def register(paths: List[Path] = typer.Argument(..., help="Folders of user specs
             failed = True
             errors.print(str(problem), highlight=False, markup=False)
         for env_id in added:
+            if envfactory.records()[env_id].backend != "pybullet":
+                console.print(f"registered {env_id} (backend {envfactory.records()[env_id].backend}: not smoke-built, "
+                              f"it would need the robot)")
+                continue
             try:
                 env = gym.make(env_id)
                 env.reset(seed=0)
