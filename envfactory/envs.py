@@ -179,7 +179,18 @@ class RobotEnv(gym.Env):
             # stale or malformed readings: the backend stopped the arm; the episode ends here
             log.warning("%s: episode aborted: %s", self.blueprint.env_id, exc)
             return self._finish(state, command.out_of_bounds, rejection, truncated=True, abort=str(exc))
+        except BaseException:
+            self._stop_backend()  # any failure mid-step stops a real arm before it propagates
+            raise
         return self._finish(self._state, command.out_of_bounds, rejection)
+
+    def _stop_backend(self) -> None:
+        stop = getattr(self.backend, "stop", None)  # simulators have nothing to stop
+        if stop is not None:
+            try:
+                stop()
+            except Exception as exc:  # the original failure matters more; say this one too
+                log.error("%s: could not send the stop: %s", self.blueprint.env_id, exc)
 
     def _finish(self, state: EnvState, out_of_bounds: bool, rejection: str, truncated: bool = False,
                 abort: str = ""):
