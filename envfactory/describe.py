@@ -63,6 +63,21 @@ def image_table(compiled: Blueprint) -> Table:
     return table
 
 
+def ros_table(compiled: Blueprint) -> Table:
+    """A Real ID's wiring: where it reads and what it publishes."""
+    ros, real = compiled.spec.robot.ros, compiled.spec.env.real
+    table = _table(f"rosbridge ws://{real.host}:{real.port}, task frame {ros.task_frame_id}", "Direction", "Topic",
+                   "Type")
+    table.add_row("in", ros.joint_states.topic, ros.joint_states.type)
+    for name in compiled.spec.task.objects:
+        table.add_row(f"in ({name})", ros.object_poses[name].topic, ros.object_poses[name].type)
+    table.add_row("out (arm)", ros.arm_command.topic, ros.arm_command.type)
+    uses_gripper = compiled.action.gripper_in_action or compiled.spec.gripper_at_reset is not None
+    if ros.gripper_command is not None and uses_gripper:
+        table.add_row("out (gripper)", ros.gripper_command.topic, ros.gripper_command.type)
+    return table
+
+
 def task_lines(compiled: Blueprint) -> list[str]:
     """Objects, gripper use and the lift stage: what the reset sets up."""
     task, spec = compiled.spec.task, compiled.spec
@@ -101,6 +116,12 @@ def render_description(compiled: Blueprint, console: Console) -> None:
         console.print(image_table(compiled))
     for line in task_lines(compiled):
         console.print(line)
+    if compiled.backend == "rosbridge" and compiled.spec.robot.ros is not None:
+        console.print(ros_table(compiled))
+        real = compiled.spec.env.real
+        console.print(f"Gates: motion {'allowed' if real.allow_motion else 'closed'} (allow_real_robot_motion), "
+                      f"joint states ≤ {real.joint_state_timeout_s:g} s old, object poses ≤ "
+                      f"{real.cube_pose_timeout_s:g} s old, deadman {real.deadman_s:g} s\n")
     console.print(action_table(compiled))
     console.print(reward_table(compiled))
     active = [f"{t.name} ({t.term.name})" for t in compiled.terminations if t.active]

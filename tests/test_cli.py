@@ -40,3 +40,29 @@ def test_run_prints_a_table_and_writes_video(tmp_path):
     assert result.exit_code == 0, result.output
     assert "success rate" in result.output and "Return" in result.output
     assert video.stat().st_size > 1000
+
+
+def test_describe_real_id_prints_topics_and_gates():
+    result = runner.invoke(app, ["describe", "UR5ePushGoalReal-v0", "-k", "cube_pose_topic=/tracker/cube"])
+    assert result.exit_code == 0, result.output
+    assert "/scaled_pos_joint_traj_controller/command" in result.output and "/tracker/cube" in result.output
+    assert "motion closed" in result.output
+
+
+def test_list_shows_real_ids():
+    result = runner.invoke(app, ["list"])
+    for env_id in ("UR5ePushReal-v0", "UR5ePnPGoalReal-v0", "VX300SReacherReal-v0", "VX300SPnPGoalReal-v0"):
+        assert env_id in result.output
+
+
+def test_twin_of_an_unknown_robot_fails_clearly():
+    result = runner.invoke(app, ["twin", "ur10", "--port", "0"])
+    assert result.exit_code == 1
+    assert "no Sim ID pairs robot 'ur10' with task 'push'" in result.output
+
+
+def test_run_real_id_without_the_gate_is_refused(monkeypatch):
+    monkeypatch.delenv("ALLOW_REAL_ROBOT_MOTION", raising=False)
+    result = runner.invoke(app, ["run", "VX300SReacherReal-v0", "-n", "1"])
+    assert result.exit_code == 1
+    assert "real-robot motion is not allowed" in result.output
