@@ -77,7 +77,22 @@ class Kinematics:
                 chosen[key] = frame_id
         ids = sorted(chosen.values())
         radii = np.array([self.robot.safety_links.radius.get(self.model.frames[i].name, 0.0) for i in ids])
+        self.lever_arm = self._longest_chain(first_arm_joint, ids)
         return ids, radii
+
+    def _longest_chain(self, first_joint: int, frame_ids: list[int]) -> float:
+        """An upper bound on the distance from any arm joint axis to any checked point, in any pose:
+        the summed lengths of the links between them. A joint change Δq moves no point farther
+        than lever_arm · Σ|Δq|."""
+        longest = 0.0
+        for frame_id in frame_ids:
+            frame = self.model.frames[frame_id]
+            length, joint = float(np.linalg.norm(frame.placement.translation)), frame.parentJoint
+            while joint > first_joint:
+                length += float(np.linalg.norm(self.model.jointPlacements[joint].translation))
+                joint = self.model.parents[joint]
+            longest = max(longest, length)
+        return longest
 
     def frame_names(self, ids: list[int]) -> list[str]:
         return [self.model.frames[i].name for i in ids]

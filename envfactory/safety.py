@@ -94,10 +94,22 @@ class SafetyCheck:
         largest = float(np.max(np.abs(delta)))
         if largest > self.settings.max_joint_delta + 1e-12:
             return Verdict(False, f"joint change {largest:.3f} rad exceeds max_joint_delta {self.settings.max_joint_delta}")
-        for fraction in self.PATH_SAMPLES:
-            clearance = self.link_clearance(q_arm_now + fraction * delta, gripper)
+        # the end pose first: when it clears the highest surface by more than any point can move in
+        # half the motion, the midpoint is clear too and needs no second FK pass
+        for fraction in sorted(self.PATH_SAMPLES, reverse=True):
+            points = kin.checked_link_positions(q_arm_now + fraction * delta, gripper)
+            clearance = self.surfaces.clearance(points, kin.checked_radii, self.settings.table_footprint_margin)
             lowest = int(np.argmin(clearance))
             if clearance[lowest] < self.settings.surface_margin:
                 link = kin.frame_names([kin.checked_frames[lowest]])[0]
                 return Verdict(False, f"link {link} would come within {clearance[lowest]:.3f} m of a surface")
+            if fraction == 1.0 and self._rest_is_clear(points, delta, 1.0 - min(self.PATH_SAMPLES)):
+                break
         return ACCEPTED
+
+    def _rest_is_clear(self, points: np.ndarray, delta: np.ndarray, span: float) -> bool:
+        """Whether poses within `span` of this motion from `points` must clear every surface."""
+        highest_surface = max(self.surfaces.table_top_z, self.surfaces.floor_z)
+        worst = float(np.min(points[:, 2] - self.kinematics.checked_radii)) - highest_surface
+        reach = self.kinematics.lever_arm * float(np.sum(np.abs(delta))) * span
+        return worst - reach >= self.settings.surface_margin

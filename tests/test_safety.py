@@ -33,6 +33,31 @@ def test_accepted_targets_keep_every_link_clear(env, data):
         assert np.all(points[:, 2] - kin.checked_radii >= safety.surfaces.floor_z)
 
 
+@settings(max_examples=300, deadline=None)
+@given(data=st.data())
+def test_accepted_motions_keep_the_midpoint_clear(env, data):
+    """The check may skip the midpoint when the end pose is high enough; the skip must never hide a dip."""
+    kin, safety = env.kinematics, env.safety
+    now = np.array([data.draw(st.floats(lo, hi)) for lo, hi in zip(kin.arm_lower, kin.arm_upper)])
+    step = np.array([data.draw(st.floats(-0.5, 0.5)) for _ in now])
+    target = np.clip(now + step, kin.arm_lower, kin.arm_upper)
+    if not safety.pose_is_clear(now):
+        return
+    if safety.check(now, target).accepted:
+        for fraction in (0.25, 0.5, 0.75):
+            assert safety.link_clearance(now + fraction * (target - now)).min() >= safety.settings.surface_margin - 1e-9
+
+
+def test_lever_arm_bounds_every_point_move(env):
+    kin = env.kinematics
+    rng = np.random.default_rng(1)
+    for _ in range(200):
+        q = rng.uniform(kin.arm_lower, kin.arm_upper)
+        dq = rng.uniform(-0.05, 0.05, q.size)
+        moved = np.linalg.norm(kin.checked_link_positions(q + dq) - kin.checked_link_positions(q), axis=1)
+        assert moved.max() <= kin.lever_arm * np.abs(dq).sum() + 1e-12
+
+
 def test_check_rejects_known_collision(env):
     kin, safety = env.kinematics, env.safety
     lowest = safety.surfaces.table_top_z
