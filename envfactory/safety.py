@@ -47,10 +47,10 @@ class Surfaces:
 
     def clearance(self, points: np.ndarray, radii: np.ndarray, footprint_margin: float) -> np.ndarray:
         """Height of each sphere's bottom above the surface below it."""
-        reach = footprint_margin + radii[:, None]
-        over_table = np.all(
-            (points[:, :2] >= self.table_min_xy - reach) & (points[:, :2] <= self.table_max_xy + reach), axis=1
-        )
+        reach = footprint_margin + radii
+        x, y = points[:, 0], points[:, 1]
+        (x_min, y_min), (x_max, y_max) = self.table_min_xy, self.table_max_xy
+        over_table = (x >= x_min - reach) & (x <= x_max + reach) & (y >= y_min - reach) & (y <= y_max + reach)
         surface = np.where(over_table, self.table_top_z, self.floor_z)
         return points[:, 2] - radii - surface
 
@@ -88,7 +88,7 @@ class SafetyCheck:
         if not np.all(np.isfinite(q_arm_target)):
             return Verdict(False, "non-finite joint target")
         kin = self.kinematics
-        if np.any(q_arm_target < kin.arm_lower) or np.any(q_arm_target > kin.arm_upper):
+        if ((q_arm_target < kin.arm_lower) | (q_arm_target > kin.arm_upper)).any():
             return Verdict(False, "joint target outside the joint bounds")
         delta = q_arm_target - q_arm_now
         largest = float(np.max(np.abs(delta)))
@@ -108,8 +108,11 @@ class SafetyCheck:
         return ACCEPTED
 
     def _rest_is_clear(self, points: np.ndarray, delta: np.ndarray, span: float) -> bool:
-        """Whether poses within `span` of this motion from `points` must clear every surface."""
-        highest_surface = max(self.surfaces.table_top_z, self.surfaces.floor_z)
-        worst = float(np.min(points[:, 2] - self.kinematics.checked_radii)) - highest_surface
-        reach = self.kinematics.lever_arm * float(np.sum(np.abs(delta))) * span
-        return worst - reach >= self.settings.surface_margin
+        """Whether poses within `span` of this motion from `points` must clear every surface.
+
+        No point moves farther than `travel`: it drops at most that much, and it can only come
+        over the table if it is within that much of the table's footprint already."""
+        travel = self.kinematics.lever_arm * float(np.sum(np.abs(delta))) * span
+        clearance = self.surfaces.clearance(points, self.kinematics.checked_radii,
+                                            self.settings.table_footprint_margin + travel)
+        return float(np.min(clearance)) - travel >= self.settings.surface_margin
