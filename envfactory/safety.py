@@ -2,8 +2,9 @@
 
 One check serves sim and real: finite values, joint bounds, the largest joint
 change allowed in one action, and per-link FK clearance above the floor and
-the table top. The motion between the current pose and the target is sampled
-too, because two safe end poses can sweep a link through the table.
+the table top. The motion between the current pose and the target is proven
+clear as a whole, not sampled, because two safe end poses can sweep a link
+through the table between any two samples.
 """
 
 from __future__ import annotations
@@ -56,8 +57,9 @@ class Surfaces:
 
 
 class SafetyCheck:
-    # Fractions of the commanded motion at which link clearance is checked.
-    PATH_SAMPLES = (0.5, 1.0)
+    # Bisection of the commanded motion stops at pieces this small; a piece that still cannot be
+    # proven clear is refused: a doubt stops the arm.
+    FINEST_PIECE = 1.0 / 64
 
     def __init__(self, kinematics: Kinematics, surfaces: Surfaces, settings: SafetySettings):
         self.kinematics = kinematics
@@ -71,18 +73,13 @@ class SafetyCheck:
     def pose_is_clear(self, q_arm: np.ndarray, gripper: float = 0.0) -> bool:
         return bool(np.all(self.link_clearance(q_arm, gripper) >= self.settings.surface_margin))
 
-    def path_is_clear(self, q_from: np.ndarray, q_to: np.ndarray, step: float = 0.05) -> Verdict:
-        """Clearance along a long joint-space move (a real arm driving home), sampled every `step` rad."""
+    def path_is_clear(self, q_from: np.ndarray, q_to: np.ndarray) -> Verdict:
+        """Clearance along a long joint-space move (a real arm driving home), with no joint-change limit."""
         q_from, q_to = np.asarray(q_from, float), np.asarray(q_to, float)
-        samples = max(2, int(np.ceil(np.max(np.abs(q_to - q_from)) / step)) + 1)
-        for fraction in np.linspace(0.0, 1.0, samples):
-            clearance = self.link_clearance(q_from + fraction * (q_to - q_from))
-            lowest = int(np.argmin(clearance))
-            if clearance[lowest] < self.settings.surface_margin:
-                link = self.kinematics.frame_names([self.kinematics.checked_frames[lowest]])[0]
-                return Verdict(False, f"link {link} would come within {clearance[lowest]:.3f} m of a surface "
-                                      f"at {fraction:.0%} of the way")
-        return ACCEPTED
+        verdict = self._pose_verdict(q_to, 0.0, " at the end of the way")
+        if not verdict.accepted:
+            return verdict
+        return self._motion_verdict(q_from, q_to - q_from, 0.0, finest=self.FINEST_PIECE / 16)
 
     def check(self, q_arm_now: np.ndarray, q_arm_target: np.ndarray, gripper: float = 0.0) -> Verdict:
         if not np.all(np.isfinite(q_arm_target)):
@@ -94,25 +91,56 @@ class SafetyCheck:
         largest = float(np.max(np.abs(delta)))
         if largest > self.settings.max_joint_delta + 1e-12:
             return Verdict(False, f"joint change {largest:.3f} rad exceeds max_joint_delta {self.settings.max_joint_delta}")
-        # the end pose first: when it clears the highest surface by more than any point can move in
-        # half the motion, the midpoint is clear too and needs no second FK pass
-        for fraction in sorted(self.PATH_SAMPLES, reverse=True):
-            points = kin.checked_link_positions(q_arm_now + fraction * delta, gripper)
-            clearance = self.surfaces.clearance(points, kin.checked_radii, self.settings.table_footprint_margin)
-            lowest = int(np.argmin(clearance))
-            if clearance[lowest] < self.settings.surface_margin:
-                link = kin.frame_names([kin.checked_frames[lowest]])[0]
-                return Verdict(False, f"link {link} would come within {clearance[lowest]:.3f} m of a surface")
-            if fraction == 1.0 and self._rest_is_clear(points, delta, 1.0 - min(self.PATH_SAMPLES)):
-                break
+        end = self.kinematics.checked_link_positions(q_arm_target, gripper)
+        verdict = self._points_verdict(end)
+        if not verdict.accepted:
+            return verdict
+        travel = self.kinematics.lever_arm * float(np.sum(np.abs(delta)))
+        if self._vouches(end, travel):  # well clear of everything: the end vouches for the whole motion
+            return ACCEPTED
+        return self._motion_verdict(q_arm_now, delta, gripper)
+
+    def _pose_verdict(self, q_arm: np.ndarray, gripper: float, where: str = "") -> Verdict:
+        """Whether one pose clears the surfaces, naming the offending link if not."""
+        return self._points_verdict(self.kinematics.checked_link_positions(q_arm, gripper), where)
+
+    def _points_verdict(self, points: np.ndarray, where: str = "") -> Verdict:
+        clearance = self.surfaces.clearance(points, self.kinematics.checked_radii, self.settings.table_footprint_margin)
+        lowest = int(np.argmin(clearance))
+        if clearance[lowest] < self.settings.surface_margin:
+            link = self.kinematics.frame_names([self.kinematics.checked_frames[lowest]])[0]
+            return Verdict(False, f"link {link} would come within {clearance[lowest]:.3f} m of a surface{where}")
         return ACCEPTED
 
-    def _rest_is_clear(self, points: np.ndarray, delta: np.ndarray, span: float) -> bool:
-        """Whether poses within `span` of this motion from `points` must clear every surface.
-
-        No point moves farther than `travel`: it drops at most that much, and it can only come
-        over the table if it is within that much of the table's footprint already."""
-        travel = self.kinematics.lever_arm * float(np.sum(np.abs(delta))) * span
+    def _vouches(self, points: np.ndarray, travel: float) -> bool:
+        """Whether every pose whose points lie within `travel` of these clears the surfaces:
+        a point drops at most `travel`, and comes over the table only from within `travel` of it."""
         clearance = self.surfaces.clearance(points, self.kinematics.checked_radii,
                                             self.settings.table_footprint_margin + travel)
         return float(np.min(clearance)) - travel >= self.settings.surface_margin
+
+    def _motion_verdict(self, q_start: np.ndarray, delta: np.ndarray, gripper: float,
+                        finest: float = FINEST_PIECE) -> Verdict:
+        """Prove every pose between start and target clear, not just sampled ones.
+
+        No checked point moves farther than lever_arm · Σ|Δq| · (fraction of the motion), so a
+        pose whose clearance beats the margin by that travel (against a table footprint widened
+        by the same travel) vouches for its whole neighbourhood. Pieces it cannot vouch for are
+        halved until they are proven, found unsafe, or too small: then the motion is refused."""
+        per_fraction = self.kinematics.lever_arm * float(np.sum(np.abs(delta)))
+        pieces = [(0.0, 1.0)]
+        while pieces:
+            low, high = pieces.pop()
+            middle, half = (low + high) / 2, (high - low) / 2
+            points = self.kinematics.checked_link_positions(q_start + middle * delta, gripper)
+            if self._vouches(points, per_fraction * half):
+                continue
+            verdict = self._points_verdict(points, f" at {middle:.0%} of the motion")
+            if not verdict.accepted:
+                return verdict
+            if half * 2 <= finest:
+                if low == 0.0 and not self.pose_is_clear(q_start, gripper):
+                    continue  # already inside the margin (contact, tracking error): a way out is not refused
+                return Verdict(False, f"cannot prove the motion clears the surfaces near {middle:.0%} of the way")
+            pieces += [(low, middle), (middle, high)]
+        return ACCEPTED
