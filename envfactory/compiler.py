@@ -206,10 +206,8 @@ def _action_layout(spec: EnvSpec) -> ActionLayout:
         for joint in robot.arm_joints:
             rows.append(ActionRow(f"{joint.label or joint.name} {kind}", joint.lower, joint.upper, joint.name, "rad"))
     if spec.task.gripper.in_action:
-        gripper = robot.gripper
-        state_name = next(e.name for e in robot.joint_states if e.urdf_joint == gripper.joint)
-        unit = next(e.unit for e in robot.joint_states if e.urdf_joint == gripper.joint)
-        rows.append(ActionRow(gripper.label, gripper.low, gripper.high, state_name, unit))
+        gripper, entry = robot.gripper, robot.joint_states[robot.gripper_state_index]
+        rows.append(ActionRow(gripper.label, gripper.low, gripper.high, entry.name, entry.unit))
     return ActionLayout(settings.ee, settings.delta, settings.delta_coeff, tuple(rows), spec.task.gripper.in_action)
 
 

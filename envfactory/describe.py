@@ -7,7 +7,7 @@ from rich.console import Console
 from rich.table import Table
 
 from envfactory.compiler import Blueprint
-from envfactory.managers import ObservationManager
+from envfactory.managers import ObservationManager, RewardManager
 
 
 def _table(title: str, *columns: str) -> Table:
@@ -46,10 +46,9 @@ def reward_table(compiled: Blueprint) -> Table:
     spec = compiled.spec
     table = _table(f"Reward ({spec.env.reward_type}), tolerance {spec.task.goal.tolerance:g} m", "Name", "Term",
                    "Params", "Weight", "Meaning")
-    for term in compiled.rewards:
-        params = ", ".join(f"{key}={value}" for key, value in term.params.model_dump(by_alias=True).items()
-                           if value is not None)
-        table.add_row(term.name, term.term.name, params, f"{term.weight:g}", term.term.description)
+    manager = RewardManager(compiled.rewards, compiled.terminations, spec.task.goal.tolerance, compiled.info_keys)
+    for row in manager.table():
+        table.add_row(*row)
     return table
 
 

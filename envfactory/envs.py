@@ -42,7 +42,7 @@ class RobotEnv(gym.Env):
         robot = spec.robot
         self.metadata = {**self.metadata, "render_fps": 1.0 / spec.env.timing.action_cycle_time}
         mount = np.asarray(robot.mount, float)
-        self.task_origin = mount if robot.task_frame == "base" else np.zeros(3)
+        self.task_origin = np.asarray(robot.task_origin_world, float)
         urdf = assemble(robot.model, blueprint.asset_root, robot.name)
         self.kinematics = Kinematics(urdf, robot, mount - self.task_origin)
         surfaces = Surfaces.from_scene(spec.scene.table, spec.env.safety.floor_z, self.task_origin)
@@ -59,11 +59,10 @@ class RobotEnv(gym.Env):
                                        blueprint.action.high.astype(np.float32), dtype=np.float32)
         self.observation_space = self._observation_space()
 
-        names = [entry.urdf_joint for entry in robot.joint_states]
-        self._arm_in_states = np.array([names.index(j.name) for j in robot.arm_joints])
-        self._gripper_in_states = names.index(robot.gripper.joint) if robot.gripper is not None else None
+        self._arm_in_states = np.array(robot.arm_state_indices)
+        self._gripper_in_states = robot.gripper_state_index
         self._gripper_reset = spec.gripper_at_reset
-        self.spawner = ObjectSpawner(spec.task.objects, spec.scene.table, self.task_origin)
+        self.spawner = ObjectSpawner(spec.task.objects, surfaces)
         self._trackers = {name: ObjectTracker() for name in spec.task.objects}
         lift = spec.task.goal.lift
         self.curriculum = (LiftCurriculum(lift.enabled, lift.height, spec.task.goal.tolerance)
@@ -80,11 +79,13 @@ class RobotEnv(gym.Env):
 
     # ------------------------------------------------------------ spaces
 
+    def _vector_space(self) -> spaces.Box:
+        return spaces.Box(self.observations.low, self.observations.high, dtype=np.float32)
+
     def _observation_space(self) -> spaces.Space:
-        vector = spaces.Box(self.observations.low, self.observations.high, dtype=np.float32)
         if not self.images:
-            return vector
-        return spaces.Dict({"observation": vector, **self.images.spaces()})
+            return self._vector_space()
+        return spaces.Dict({"observation": self._vector_space(), **self.images.spaces()})
 
     # ------------------------------------------------------------ state
 
@@ -130,7 +131,7 @@ class RobotEnv(gym.Env):
         self._seed_pending = None
         super().reset(seed=seed)
         spawn = self.spawner.sample(self.np_random)
-        if not getattr(self.backend, "teleports_on_reset", False):
+        if not self.backend.teleports_on_reset:
             # a real arm drives home: the whole way there must clear the table and floor
             here = self.backend.read_joints().position[self._arm_in_states]
             verdict = self.safety.path_is_clear(here, self.home)
@@ -185,12 +186,10 @@ class RobotEnv(gym.Env):
         return self._finish(self._state, command.out_of_bounds, rejection)
 
     def _stop_backend(self) -> None:
-        stop = getattr(self.backend, "stop", None)  # simulators have nothing to stop
-        if stop is not None:
-            try:
-                stop()
-            except Exception as exc:  # the original failure matters more; say this one too
-                log.error("%s: could not send the stop: %s", self.blueprint.env_id, exc)
+        try:
+            self.backend.stop()
+        except Exception as exc:  # the original failure matters more; say this one too
+            log.error("%s: could not send the stop: %s", self.blueprint.env_id, exc)
 
     def _finish(self, state: EnvState, out_of_bounds: bool, rejection: str, truncated: bool = False,
                 abort: str = ""):
@@ -248,7 +247,7 @@ class GoalRobotEnv(RobotEnv):
         goal_low, goal_high = (np.asarray(b, np.float32) for b in spec.task.goal.box)
         achieved_low, achieved_high = (np.asarray(b, np.float32) for b in spec.robot.ee_bounds)
         return spaces.Dict({
-            "observation": spaces.Box(self.observations.low, self.observations.high, dtype=np.float32),
+            "observation": self._vector_space(),
             "achieved_goal": spaces.Box(achieved_low, achieved_high, dtype=np.float32),
             "desired_goal": spaces.Box(goal_low, goal_high, dtype=np.float32),
             **self.images.spaces(),

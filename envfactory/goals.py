@@ -31,12 +31,11 @@ class GoalSampler:
 
     def sample(self, rng: np.random.Generator) -> tuple[np.ndarray, bool]:
         """A goal and whether sampling failed (every try unreachable)."""
-        goal = rng.uniform(self.low, self.high) if self.random else self.static.copy()
-        if not self.check_reach or self.reachable(goal):
-            return goal, False
-        for _ in range(self.tries - 1 if self.random else 0):
+        if not self.random:
+            return self.static.copy(), self.check_reach and not self.reachable(self.static)
+        for _ in range(self.tries):
             goal = rng.uniform(self.low, self.high)
-            if self.reachable(goal):
+            if not self.check_reach or self.reachable(goal):
                 return goal, False
         return goal, True
 

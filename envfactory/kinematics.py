@@ -16,6 +16,12 @@ import pinocchio as pin
 from envfactory.spec.schema import RobotSpec
 
 
+def quaternion_to_matrix(quaternion) -> np.ndarray:
+    """Rotation matrix of an (x, y, z, w) quaternion, the order PyBullet and ROS use."""
+    x, y, z, w = quaternion
+    return pin.Quaternion(w, x, y, z).normalized().toRotationMatrix()
+
+
 @dataclass(frozen=True)
 class IkResult:
     q_arm: np.ndarray

@@ -102,5 +102,11 @@ class RewardManager:
             done |= term.term.fn(achieved, desired, None, term.bound, self.tolerance)
         return done
 
-    def table(self) -> list[tuple[str, str, str, str]]:
-        return [(t.name, t.term.name, f"{t.weight:g}", t.term.description) for t in self.terms]
+    def table(self) -> list[tuple[str, str, str, str, str]]:
+        """(name, term, params, weight, meaning) of each active term."""
+        rows = []
+        for t in self.terms:
+            params = ", ".join(f"{key}={value}" for key, value in t.params.model_dump(by_alias=True).items()
+                               if value is not None)
+            rows.append((t.name, t.term.name, params, f"{t.weight:g}", t.term.description))
+        return rows

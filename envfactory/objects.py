@@ -10,25 +10,20 @@ import numpy as np
 import pinocchio as pin
 
 from envfactory.backends.base import ObjectReading
-from envfactory.spec.schema import ObjectSpec, TableSpec
+from envfactory.kinematics import quaternion_to_matrix
+from envfactory.safety import Surfaces
+from envfactory.spec.schema import ObjectSpec
 from envfactory.state import ObjectState
 
 IDENTITY_QUATERNION = np.array([0.0, 0.0, 0.0, 1.0])
 
 
-def quaternion_to_matrix(quaternion: np.ndarray) -> np.ndarray:
-    x, y, z, w = quaternion
-    return pin.Quaternion(w, x, y, z).normalized().toRotationMatrix()
-
-
 class ObjectSpawner:
     """Spawn poses in the task frame: the declared position, or a random offset from it kept on the table."""
 
-    def __init__(self, objects: dict[str, ObjectSpec], table: TableSpec, task_origin_world: np.ndarray):
+    def __init__(self, objects: dict[str, ObjectSpec], surfaces: Surfaces):
         self.objects = objects
-        center = np.asarray(table.center) - task_origin_world[:2]
-        self.table_min = center - np.asarray(table.size) / 2
-        self.table_max = center + np.asarray(table.size) / 2
+        self.table_min, self.table_max = surfaces.table_min_xy, surfaces.table_max_xy
 
     def sample(self, rng: np.random.Generator) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         poses = {}
@@ -47,17 +42,17 @@ class ObjectTracker:
     """Turns successive pose readings of one object into its full state."""
 
     def __init__(self):
-        self._previous: ObjectReading | None = None
+        self._previous: tuple[ObjectReading, np.ndarray] | None = None  # the last reading and its rotation
 
     def reset(self) -> None:
         self._previous = None
 
     def update(self, reading: ObjectReading) -> ObjectState:
         rotation = quaternion_to_matrix(reading.quaternion)
-        previous, self._previous = self._previous, reading
+        previous, self._previous = self._previous, (reading, rotation)
         linear, angular = np.zeros(3), np.zeros(3)
-        if previous is not None and reading.stamp > previous.stamp:
-            dt = reading.stamp - previous.stamp
-            linear = (reading.position - previous.position) / dt
-            angular = pin.log3(rotation @ quaternion_to_matrix(previous.quaternion).T) / dt
+        if previous is not None and reading.stamp > previous[0].stamp:
+            dt = reading.stamp - previous[0].stamp
+            linear = (reading.position - previous[0].position) / dt
+            angular = pin.log3(rotation @ previous[1].T) / dt
         return ObjectState(reading.position, rotation, pin.rpy.matrixToRpy(rotation), linear, angular)

@@ -16,13 +16,19 @@ def env(request):
     environment.close()
 
 
+def draw_motion(env, data):
+    """A start pose anywhere in the joint bounds and a target up to 0.5 rad per joint away."""
+    kin = env.kinematics
+    now = np.array([data.draw(st.floats(lo, hi)) for lo, hi in zip(kin.arm_lower, kin.arm_upper)])
+    step = np.array([data.draw(st.floats(-0.5, 0.5)) for _ in now])
+    return now, np.clip(now + step, kin.arm_lower, kin.arm_upper)
+
+
 @settings(max_examples=300, deadline=None)
 @given(data=st.data())
 def test_accepted_targets_keep_every_link_clear(env, data):
     kin, safety = env.kinematics, env.safety
-    now = np.array([data.draw(st.floats(lo, hi)) for lo, hi in zip(kin.arm_lower, kin.arm_upper)])
-    step = np.array([data.draw(st.floats(-0.5, 0.5)) for _ in now])
-    target = np.clip(now + step, kin.arm_lower, kin.arm_upper)
+    now, target = draw_motion(env, data)
     if not safety.pose_is_clear(now):
         return  # the check judges motions that start from a safe pose
     verdict = safety.check(now, target)
@@ -37,10 +43,8 @@ def test_accepted_targets_keep_every_link_clear(env, data):
 @given(data=st.data())
 def test_accepted_motions_keep_the_midpoint_clear(env, data):
     """The check may skip the midpoint when the end pose is high enough; the skip must never hide a dip."""
-    kin, safety = env.kinematics, env.safety
-    now = np.array([data.draw(st.floats(lo, hi)) for lo, hi in zip(kin.arm_lower, kin.arm_upper)])
-    step = np.array([data.draw(st.floats(-0.5, 0.5)) for _ in now])
-    target = np.clip(now + step, kin.arm_lower, kin.arm_upper)
+    safety = env.safety
+    now, target = draw_motion(env, data)
     if not safety.pose_is_clear(now):
         return
     if safety.check(now, target).accepted:

@@ -47,6 +47,10 @@ class MotionRefused(BackendError):
 
 
 class Backend(Protocol):
+    # True when reset sets the joints directly (a simulator); False when the arm drives
+    # home, so the env proves that path clear first
+    teleports_on_reset: bool
+
     def reset(self, q_arm: np.ndarray, gripper: float | None, objects: dict[str, tuple[np.ndarray, np.ndarray]]) -> None:
         ...
 
@@ -55,6 +59,9 @@ class Backend(Protocol):
 
     def command_gripper(self, value: float) -> None:
         ...
+
+    def stop(self) -> None:
+        """Hold the arm where it is. Always allowed: stopping is not motion."""
 
     def advance(self, seconds: float) -> None:
         """Let `seconds` pass: simulated time in sim, wall time on hardware."""

@@ -39,14 +39,22 @@ class ArmMotion:
     # ------------------------------------------------------------ orientation
 
     def down_facing(self, direction_xy: np.ndarray) -> np.ndarray | None:
-        """Top-down orientation whose finger-closing axis lies along `direction_xy` (either sign),
-        turned as little as possible from the current orientation."""
+        """Top-down orientation whose finger-closing axis lies along `direction_xy` (either sign):
+        the fingers are symmetric, so a half turn gives the same grip."""
+        return self._closing_axis_at(np.arctan2(direction_xy[1], direction_xy[0]), period=np.pi)
+
+    def square_to(self, yaw: float) -> np.ndarray | None:
+        """Top-down orientation that closes the fingers on two opposite faces of a box turned by
+        `yaw`: a box has four faces to close on, so a quarter turn gives the same grip."""
+        return self._closing_axis_at(yaw, period=np.pi / 2)
+
+    def _closing_axis_at(self, yaw: float, period: float) -> np.ndarray | None:
+        """Top-down orientation with the closing axis at `yaw` (modulo `period`), turned as
+        little as possible from the current orientation; None if the robot declares no top-down pose."""
         if self.down is None:
             return None
-        wanted = np.arctan2(direction_xy[1], direction_xy[0]) - self._base_yaw()
-        current = self._current_yaw()
-        # the fingers are symmetric: a half turn gives the same grip
-        wanted = current + (wanted - current + np.pi / 2) % np.pi - np.pi / 2
+        wanted, current = yaw - self._base_yaw(), self._current_yaw()
+        wanted = current + (wanted - current + period / 2) % period - period / 2
         return yaw_rotation(wanted) @ self.down
 
     def _base_yaw(self) -> float:
@@ -60,16 +68,6 @@ class ArmMotion:
         if np.linalg.norm(axis) < 1e-6:
             return 0.0
         return float(np.arctan2(axis[1], axis[0])) - self._base_yaw()
-
-    def square_to(self, yaw: float) -> np.ndarray | None:
-        """Top-down orientation that closes the fingers on two opposite faces of a box turned by `yaw`."""
-        if self.down is None:
-            return None
-        wanted = yaw - self._base_yaw()
-        current = self._current_yaw()
-        # a box has four faces to close on: a quarter turn gives the same grip
-        wanted = current + (wanted - current + np.pi / 4) % (np.pi / 2) - np.pi / 4
-        return yaw_rotation(wanted) @ self.down
 
     # ------------------------------------------------------------ actions
 

@@ -196,6 +196,34 @@ class RobotSpec(Model):
     safety_links: SafetyLinks = SafetyLinks()
     ros: RosSpec | None = None
 
+    @property
+    def task_origin_world(self) -> Vec3:
+        """Where the task frame sits in the world: the robot base, or the world origin."""
+        return self.mount if self.task_frame == "base" else (0.0, 0.0, 0.0)
+
+    @property
+    def state_names(self) -> list[str]:
+        """The /joint_states names, in message order."""
+        return [entry.name for entry in self.joint_states]
+
+    @property
+    def arm_state_indices(self) -> list[int]:
+        """Where each arm joint (action order) sits in /joint_states."""
+        urdf_names = [entry.urdf_joint for entry in self.joint_states]
+        return [urdf_names.index(joint.name) for joint in self.arm_joints]
+
+    @property
+    def gripper_state_index(self) -> int | None:
+        """Where the driven gripper joint sits in /joint_states, if there is a gripper."""
+        if self.gripper is None:
+            return None
+        return [entry.urdf_joint for entry in self.joint_states].index(self.gripper.joint)
+
+    @property
+    def arm_state_names(self) -> list[str]:
+        """The arm joints' /joint_states names, in action order: what arm commands carry."""
+        return [self.joint_states[i].name for i in self.arm_state_indices]
+
     @model_validator(mode="after")
     def _consistent(self) -> "RobotSpec":
         if len(self.home) != len(self.arm_joints):

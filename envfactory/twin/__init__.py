@@ -48,16 +48,14 @@ class Twin:
         self.ros = spec.robot.ros
         if self.ros is None:
             raise ValueError(f"robot {robot!r} declares no 'ros:' topic map")
-        mount = np.asarray(spec.robot.mount, float)
-        task_origin = mount if spec.robot.task_frame == "base" else np.zeros(3)
         self.sim = PyBulletBackend(spec, assemble(spec.robot.model, blueprint.asset_root, spec.robot.name),
-                                   task_origin)
+                                   np.asarray(spec.robot.task_origin_world, float))
         spawn = {name: (np.asarray(obj.spawn.position, float), np.array([0.0, 0.0, 0.0, 1.0]))
                  for name, obj in spec.task.objects.items()}
         self.sim.reset(np.asarray(spec.robot.home, float), spec.gripper_at_reset, spawn)
-        urdf_to_ros = {entry.urdf_joint: entry.name for entry in spec.robot.joint_states}
-        self.state_names = [entry.name for entry in spec.robot.joint_states]
-        self.arm_names = [urdf_to_ros[j.name] for j in spec.robot.arm_joints]
+        self.state_names = spec.robot.state_names
+        self.arm_names = spec.robot.arm_state_names
+        self._arm_in_states = spec.robot.arm_state_indices
         self.server = RosbridgeServer(self._on_publish, host, port)
         self._loop = asyncio.new_event_loop()
         self._thread = threading.Thread(target=self._loop.run_forever, name="envfactory-twin", daemon=True)
@@ -145,8 +143,7 @@ class Twin:
             target, duration = messages.decode_arm(ros.arm_command, self.arm_names, msg,
                                                    self.spec.env.timing.action_speed)
             if target is None:  # the stop: hold where the arm is now
-                position = self.sim.read_joints().position
-                target = np.array([position[self.state_names.index(n)] for n in self.arm_names])
+                target = self.sim.read_joints().position[self._arm_in_states]
                 duration = 0.05
             self.sim.command_joints(target, max(duration, 0.05))
         elif ros.gripper_command is not None and topic == ros.gripper_command.topic:

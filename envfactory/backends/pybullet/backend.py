@@ -63,7 +63,8 @@ class PyBulletBackend:
         # Self-collision stays off: the gripper's linkage links overlap by design.
         self.body = p.loadURDF(str(urdf_path), basePosition=mount.tolist(), useFixedBase=True,
                                flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=c)
-        infos = [p.getJointInfo(self.body, j, physicsClientId=c) for j in range(p.getNumJoints(self.body, physicsClientId=c))]
+        infos = [p.getJointInfo(self.body, j, physicsClientId=c)
+                 for j in range(p.getNumJoints(self.body, physicsClientId=c))]
         index = {info[1].decode(): info[0] for info in infos}
         link_index = {info[12].decode(): info[0] for info in infos}
         self._arm = [index[j.name] for j in self.robot.arm_joints]
@@ -108,14 +109,19 @@ class PyBulletBackend:
             for follower, gain in self._gripper_followers:
                 p.resetJointState(self.body, follower, gain * gripper, 0.0, physicsClientId=c)
 
-    def _hold(self, q_arm: np.ndarray, gripper: float | None) -> None:
-        c = self.client
-        p.setJointMotorControlArray(self.body, self._arm, p.POSITION_CONTROL, targetPositions=q_arm.tolist(),
-                                    forces=[self.robot.arm_force] * len(self._arm), physicsClientId=c)
+    def _hold(self, q_arm, gripper: float | None) -> None:
+        self._hold_arm(q_arm)
         if self._gripper is not None:
-            target = self.robot.gripper.open if gripper is None else gripper
-            p.setJointMotorControl2(self.body, self._gripper, p.POSITION_CONTROL, targetPosition=target,
-                                    force=self.robot.gripper.force, physicsClientId=c)
+            self._drive_gripper(self.robot.gripper.open if gripper is None else gripper)
+
+    def _hold_arm(self, q_arm) -> None:
+        p.setJointMotorControlArray(self.body, self._arm, p.POSITION_CONTROL, targetPositions=list(q_arm),
+                                    forces=[self.robot.arm_force] * len(self._arm), physicsClientId=self.client)
+
+    def _drive_gripper(self, value: float) -> None:
+        gripper = self.robot.gripper
+        p.setJointMotorControl2(self.body, self._gripper, p.POSITION_CONTROL, targetPosition=float(value),
+                                force=gripper.force, maxVelocity=gripper.max_velocity, physicsClientId=self.client)
 
     # ---------------------------------------------------------------- protocol
 
@@ -154,9 +160,12 @@ class PyBulletBackend:
         if self._gripper is None:
             raise BackendError(f"robot {self.robot.name!r} has no gripper")
         with self._lock:
-            p.setJointMotorControl2(self.body, self._gripper, p.POSITION_CONTROL, targetPosition=float(value),
-                                    force=self.robot.gripper.force, maxVelocity=self.robot.gripper.max_velocity,
-                                    physicsClientId=self.client)
+            self._drive_gripper(value)
+
+    def stop(self) -> None:
+        """Hold the arm where it is now."""
+        with self._lock:
+            self._hold_arm(s[0] for s in p.getJointStates(self.body, self._arm, physicsClientId=self.client))
 
     def advance(self, seconds: float) -> None:
         if self.realtime:

@@ -30,6 +30,8 @@ log = logging.getLogger("envfactory.rosbridge")
 
 MOTION_ENV_VAR = "ALLOW_REAL_ROBOT_MOTION"
 POLL_S = 0.02
+# reconnect backoff: roslibpy waits INITIAL, then FACTOR times longer each try, at most MAX
+RECONNECT_INITIAL_S, RECONNECT_FACTOR, RECONNECT_MAX_S = 0.25, 2.0, 2.0
 
 
 def motion_allowed(flag: bool) -> bool:
@@ -54,6 +56,7 @@ class _Latest:
 
 
 class RosbridgeBackend:
+    teleports_on_reset = False  # the arm drives home
     def __init__(self, spec: EnvSpec, urdf_path: Path, task_origin_world: np.ndarray, render_mode: str | None = None):
         robot, real = spec.robot, spec.env.real
         self.spec, self.real = spec, real
@@ -69,10 +72,9 @@ class RosbridgeBackend:
         self.allow_motion = real.allow_motion
         require_motion_gate(self.allow_motion, f"refusing to connect to {robot.name!r}")
         self.ros_spec = robot.ros
-        urdf_to_ros = {entry.urdf_joint: entry.name for entry in robot.joint_states}
-        self.state_names = [entry.name for entry in robot.joint_states]
-        self.arm_names = [urdf_to_ros[j.name] for j in robot.arm_joints]
-        self._arm_in_states = [self.state_names.index(name) for name in self.arm_names]
+        self.state_names = robot.state_names
+        self.arm_names = robot.arm_state_names
+        self._arm_in_states = robot.arm_state_indices
         missing = [name for name in spec.task.objects if name not in self.ros_spec.object_poses]
         if missing:
             raise BackendError(f"robot {robot.name!r}: ros.object_poses has no topic for {missing}")
@@ -113,7 +115,7 @@ class RosbridgeBackend:
         factory = self.ros.factory
         # roslibpy retries forever by default; a bounded, backed-off retry never hangs a run
         factory.maxRetries = self.real.reconnect_tries
-        factory.initialDelay, factory.maxDelay, factory.factor = 0.25, 2.0, 2.0
+        factory.initialDelay, factory.maxDelay, factory.factor = RECONNECT_INITIAL_S, RECONNECT_MAX_S, RECONNECT_FACTOR
         try:
             self.ros.run(timeout=self.real.connect_timeout_s)
         except Exception as exc:
@@ -150,7 +152,8 @@ class RosbridgeBackend:
         """roslibpy reconnects in the background with backoff; wait a bounded time for it."""
         if self.ros.is_connected:
             return
-        budget = sum(min(0.25 * 2.0**i, 2.0) for i in range(self.real.reconnect_tries)) + 1.0
+        budget = sum(min(RECONNECT_INITIAL_S * RECONNECT_FACTOR**i, RECONNECT_MAX_S)
+                     for i in range(self.real.reconnect_tries)) + 1.0
         deadline = time.monotonic() + budget
         while time.monotonic() < deadline:
             if self.ros.is_connected:
@@ -185,8 +188,9 @@ class RosbridgeBackend:
         with self._lock:
             self._objects[name].values, self._objects[name].received = (position, quaternion), now
 
-    def _fresh(self, latest: _Latest, topic: str, limit: float) -> tuple:
-        """The newest values, or EpisodeAbort (after a stop) saying why they cannot be trusted."""
+    def _fresh(self, latest: _Latest, topic: str, limit: float) -> tuple[tuple, float]:
+        """The newest values and their receive time, or EpisodeAbort (after a stop) saying why
+        they cannot be trusted."""
         with self._lock:
             values, received, error = latest.values, latest.received, latest.error
         reason = error
@@ -199,12 +203,12 @@ class RosbridgeBackend:
         if reason:
             self.stop()
             raise EpisodeAbort(reason)
-        return values
+        return values, received
 
-    def _fresh_joints(self) -> tuple[np.ndarray, np.ndarray]:
+    def _fresh_joints(self) -> tuple[tuple[np.ndarray, np.ndarray], float]:
         return self._fresh(self._joints, self.ros_spec.joint_states.topic, self.real.joint_state_timeout_s)
 
-    def _fresh_object(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+    def _fresh_object(self, name: str) -> tuple[tuple[np.ndarray, np.ndarray], float]:
         return self._fresh(self._objects[name], self.ros_spec.object_poses[name].topic, self.real.cube_pose_timeout_s)
 
     def _check_inputs(self) -> None:
@@ -271,7 +275,7 @@ class RosbridgeBackend:
             for latest in self._objects.values():
                 latest.error = ""
         self._wait_for_first_readings()
-        position, _ = self._fresh_joints()
+        (position, _), _ = self._fresh_joints()
         home = np.asarray(q_arm, float)
         distance = float(np.max(np.abs(position[self._arm_in_states] - home)))
         duration = max(1.0, distance / self.real.reset_speed)
@@ -280,7 +284,7 @@ class RosbridgeBackend:
             self._publish(self._gripper_topic, messages.encode_gripper(self.ros_spec.gripper_command, gripper))
         deadline = time.monotonic() + max(self.real.reset_timeout_s, duration + 2.0)
         while True:
-            position, _ = self._fresh_joints()
+            (position, _), _ = self._fresh_joints()
             if np.max(np.abs(position[self._arm_in_states] - home)) < self.real.reset_tolerance:
                 break
             if time.monotonic() > deadline:
@@ -312,15 +316,11 @@ class RosbridgeBackend:
             time.sleep(min(POLL_S, max(0.0, deadline - time.monotonic())))
 
     def read_joints(self) -> JointReading:
-        position, velocity = self._fresh_joints()
-        with self._lock:
-            stamp = self._joints.received
+        (position, velocity), stamp = self._fresh_joints()
         return JointReading(position.copy(), velocity.copy(), stamp)
 
     def read_object(self, name: str) -> ObjectReading:
-        position, quaternion = self._fresh_object(name)
-        with self._lock:
-            stamp = self._objects[name].received
+        (position, quaternion), stamp = self._fresh_object(name)
         return ObjectReading(position.copy(), quaternion.copy(), stamp)
 
     def mark_goal(self, position) -> None:

@@ -8,12 +8,8 @@ import threading
 import numpy as np
 import pinocchio as pin
 
+from envfactory.kinematics import quaternion_to_matrix
 from envfactory.spec.schema import StaticTransform
-
-
-def _rotation(quaternion) -> np.ndarray:
-    x, y, z, w = quaternion
-    return pin.Quaternion(w, x, y, z).normalized().toRotationMatrix()
 
 
 class FrameGraph:
@@ -32,8 +28,8 @@ class FrameGraph:
         for item in tf_message.get("transforms", []):
             try:
                 t, r = item["transform"]["translation"], item["transform"]["rotation"]
-                edge = (item["header"]["frame_id"].lstrip("/"),
-                        _rotation([r["x"], r["y"], r["z"], r["w"]]), np.array([t["x"], t["y"], t["z"]], float))
+                rotation = quaternion_to_matrix([r["x"], r["y"], r["z"], r["w"]])
+                edge = (item["header"]["frame_id"].lstrip("/"), rotation, np.array([t["x"], t["y"], t["z"]], float))
                 with self._lock:
                     self._edges[item["child_frame_id"].lstrip("/")] = edge
             except (KeyError, TypeError, ValueError):
@@ -42,7 +38,7 @@ class FrameGraph:
     def to_task(self, frame: str, position: np.ndarray, quaternion: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The pose in the task frame; KeyError names the frame with no way there."""
         frame = frame.lstrip("/") or self.task_frame
-        rotation, translation = _rotation(quaternion), np.asarray(position, float)
+        rotation, translation = quaternion_to_matrix(quaternion), np.asarray(position, float)
         hops = 0
         with self._lock:
             while frame != self.task_frame:
