@@ -8,13 +8,20 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
+from typing import Annotated
+
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 Vec3 = tuple[float, float, float]
+PositiveFloat = Annotated[float, Field(gt=0)]
+Size2 = tuple[PositiveFloat, PositiveFloat]
+Size3 = tuple[PositiveFloat, PositiveFloat, PositiveFloat]
 
 
 class Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # NaN and infinity are refused in every float of a spec: a NaN margin compares false
+    # with everything and would switch a check off without a word.
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 # --------------------------------------------------------------------- robot
@@ -123,17 +130,20 @@ class GripperSpec(Model):
         return max(self.open, self.closed)
 
 
-class SafetyLinks(Model):
-    # Radius of a sphere around the link origin that must clear the surfaces,
-    # for links whose body reaches well beyond their origin.
-    radius: dict[str, float] = {}
-    skip: list[str] = []
+class RobotSafety(Model):
+    """What the safety check needs beyond the URDF's collision geometry."""
+
+    # The generated list of link pairs that need no self-collision check (adjacent, always
+    # touching or never near), relative to the robot YAML; `envfactory collision-pairs` writes it.
+    collision_pairs: str | None = None
+    # Extra clearance (m) a link keeps from everything, beyond the margin: cables, tools, doubt.
+    padding: dict[str, Annotated[float, Field(ge=0)]] = {}
 
 
 class PedestalSpec(Model):
     """A stand under the robot base: a top plate on four legs."""
 
-    size: tuple[float, float]
+    size: Size2
     rgba: tuple[float, float, float, float] = (0.3, 0.3, 0.32, 1.0)
 
 
@@ -193,7 +203,7 @@ class RobotSpec(Model):
     gripper: GripperSpec | None = None
     arm_force: float = 150.0
     arm_max_velocity: float = 3.15
-    safety_links: SafetyLinks = SafetyLinks()
+    safety: RobotSafety = RobotSafety()
     ros: RosSpec | None = None
 
     @property
@@ -394,7 +404,7 @@ class TimingSettings(Model):
 
 class SafetySettings(Model):
     floor_z: float = 0.0
-    surface_margin: float = Field(default=0.015, ge=0)
+    surface_margin: float = Field(default=0.015, gt=0)  # from the table, the floor and the arm itself
     table_footprint_margin: float = Field(default=0.03, ge=0)
     max_joint_delta: float = Field(default=0.5, gt=0)
 
@@ -439,8 +449,22 @@ class EnvSettings(Model):
 class TableSpec(Model):
     center: tuple[float, float]
     top_z: float
-    size: tuple[float, float]
-    thickness: float = 0.04
+    size: Size2
+    thickness: PositiveFloat = 0.04
+
+    @model_validator(mode="after")
+    def _stands_on_the_floor(self) -> "TableSpec":
+        if self.top_z <= self.thickness:
+            raise ValueError(f"top_z ({self.top_z}) must be above the top's thickness ({self.thickness})")
+        return self
+
+
+class ObstacleSpec(Model):
+    """A fixed box in the scene (world frame): the simulator builds it and the safety check avoids it."""
+
+    center: Vec3
+    size: Size3
+    rgba: tuple[float, float, float, float] = (0.5, 0.5, 0.5, 1.0)
 
 
 class CameraSpec(Model):
@@ -464,6 +488,7 @@ class CameraSpec(Model):
 
 class SceneSpec(Model):
     table: TableSpec
+    obstacles: dict[str, ObstacleSpec] = {}
     camera: CameraSpec | None = None
 
 
@@ -475,6 +500,12 @@ class SimSettings(Model):
 class Workspace(Model):
     min: Vec3
     max: Vec3
+
+    @model_validator(mode="after")
+    def _ordered(self) -> "Workspace":
+        if any(lo >= hi for lo, hi in zip(self.min, self.max)):
+            raise ValueError(f"min {list(self.min)} must be below max {list(self.max)} on every axis")
+        return self
 
 
 class IdEntry(Model):
