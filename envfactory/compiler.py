@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, ValidationError
 
+from envfactory.collision_pairs import safety_problems
 from envfactory.experts import EXPERTS
 from envfactory.spec.compose import LoadedSpec, validation_problems
 from envfactory.spec.errors import Problem, SpecError, suggest
@@ -338,6 +339,9 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
     achieved_from = _achieved_from(spec, loaded, problems)
     _check_expert(spec, loaded, problems)
     images = _images(spec, loaded, problems)
+    if not problems:  # the URDF is read only for a spec that is otherwise sound
+        asset_root = loaded.file_of("robot.model").parent
+        problems += [loaded.problem(path, message) for path, message in safety_problems(spec, asset_root)]
     if problems:
         raise SpecError(problems, env_id)
     info_keys = tuple(sorted({key for t in rewards for key in t.term.info_keys}))

@@ -50,8 +50,10 @@ class RobotEnv(gym.Env):
         self.safety = SafetyCheck(build_collision_model(self.kinematics, spec, blueprint.asset_root), spec.env.safety)
         self.actions = ActionAdapter(blueprint.action, self.kinematics, spec.workspace, spec.env.safety.max_joint_delta)
         self.home = np.asarray(robot.home, float)
+        reset_gripper = spec.gripper_at_reset if spec.gripper_at_reset is not None else \
+            (robot.gripper.open if robot.gripper is not None else 0.0)
         self.goals = GoalSampler(spec.task.goal, self.kinematics, self.safety, self.home,
-                                 check_reach=blueprint.achieved_from == "ee")
+                                 check_reach=blueprint.achieved_from == "ee", gripper=reset_gripper)
         self.rewards = RewardManager(blueprint.rewards, blueprint.terminations, spec.task.goal.tolerance,
                                      blueprint.info_keys)
         self.observations = ObservationManager(blueprint.policy_observation)
@@ -160,6 +162,7 @@ class RobotEnv(gym.Env):
         if self._state is None:
             raise RuntimeError("call reset() before step()")
         state = self._state
+        action = self._checked_action(action)
         command = self.actions.translate(action, state)
         rejection = command.rejection
         if not rejection:
@@ -186,6 +189,15 @@ class RobotEnv(gym.Env):
             self._stop_backend()  # any failure mid-step stops a real arm before it propagates
             raise
         return self._finish(self._state, command.out_of_bounds, rejection)
+
+    def _checked_action(self, action) -> np.ndarray:
+        """The action as an array of the action space's shape; anything else is refused before it moves the arm."""
+        array = np.asarray(action)
+        if array.shape != self.action_space.shape or not (np.issubdtype(array.dtype, np.floating)
+                                                           or np.issubdtype(array.dtype, np.integer)):
+            raise ValueError(f"{self.blueprint.env_id}: the action has shape {array.shape} and dtype {array.dtype}; "
+                             f"the action space is {self.action_space}: nothing was sent to the arm")
+        return array
 
     def _stop_backend(self) -> None:
         try:
