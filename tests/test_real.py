@@ -176,7 +176,7 @@ def test_malformed_joint_state_ends_the_episode(twin, make):
 
 def test_connection_drop_fails_the_step_without_hanging(twin, make):
     stand_in = twin()
-    env = make_real(make, "UR5eReacherReal-v0", stand_in)
+    env = make_real(make, "UR5eReacherReal-v0", stand_in, overrides=["env.real.reconnect_tries=3"])
     env.reset(seed=0)
     stand_in.faults.refuse_connections = True  # the robot stays gone: reconnect cannot succeed
     stand_in.drop_connections()

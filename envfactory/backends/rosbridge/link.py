@@ -20,6 +20,16 @@ from envfactory.spec.schema import RealSettings, RosSpec, RosTopic
 
 log = logging.getLogger("envfactory.rosbridge")
 
+
+class _QuietGivingUp(logging.Filter):
+    """roslibpy warns each time a connection it may not retry ends; the retrying is ours."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return "max reconnect retries" not in record.getMessage()
+
+
+logging.getLogger("roslibpy").addFilter(_QuietGivingUp())
+
 # backoff between connection tries: INITIAL, then FACTOR times longer, at most MAX
 RECONNECT_INITIAL_S, RECONNECT_FACTOR, RECONNECT_MAX_S = 0.25, 2.0, 2.0
 ROSAPI_TIMEOUT_S = 2.0
