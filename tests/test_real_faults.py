@@ -75,6 +75,7 @@ def test_the_server_killed_mid_episode_comes_back_and_the_next_episode_runs(twin
         for _ in range(10):
             env.step(NUDGE)
     env.reset(seed=1)  # reconnects with backoff, then drives home
+    settled(stand_in, quiet=0.15)
     received = on(stand_in, arm)[sent:]
     if robot == "ur5e":
         assert is_stop(received[0]) and not any(is_stop(m) for m in received[1:])  # the owed stop, once
@@ -167,6 +168,7 @@ def test_vx300s_drives_home_in_segments_no_faster_than_reset_speed(twin, make):
     settled(stand_in, quiet=0.15)
     sent = len(on(stand_in, VX300S_ARM))
     env.reset(seed=1)
+    settled(stand_in, quiet=0.15)
     targets = np.array([m["cmd"] for m in on(stand_in, VX300S_ARM)[sent:]])
     reset_speed, segment_s = 0.3, 0.2
     assert len(targets) == int(np.ceil(0.45 / reset_speed / segment_s))  # 1.5 s in 0.2 s segments
