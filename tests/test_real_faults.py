@@ -175,3 +175,60 @@ def test_vx300s_drives_home_in_segments_no_faster_than_reset_speed(twin, make):
     steps = np.abs(np.diff(np.vstack([away, targets]), axis=0)).max(axis=1)
     assert np.all(steps <= reset_speed * segment_s + 1e-6)
     np.testing.assert_allclose(targets[-1], home, atol=1e-6)
+
+
+def run_cli(stand_in, *extra):
+    from typer.testing import CliRunner
+
+    from envfactory.cli.main import app
+
+    command = ["run", "UR5eReacherReal-v0", "-n", "3", "--policy", "random", "--allow-real-robot-motion",
+               "-k", f"rosbridge_port={stand_in.port}", "-k", "max_episode_steps=10",
+               *[arg for name, value in FAST_KWARGS.items() for arg in ("-k", f"{name}={value}")], *extra]
+    return CliRunner().invoke(app, command)
+
+
+FAST_KWARGS = {"action_cycle_time": 0.1, "environment_loop_rate": 10.0, "action_speed": 0.05}
+
+
+def inject_after(stand_in, commands, fault):
+    """Run `fault` once the arm has received `commands` commands (from a helper thread)."""
+    import threading
+
+    def watch():
+        if wait_for(lambda: len(on(stand_in, UR5E_ARM)) >= commands, timeout=30):
+            fault()
+
+    thread = threading.Thread(target=watch, daemon=True)
+    thread.start()
+    return thread
+
+
+def home_drives(stand_in):
+    return [m for m in on(stand_in, UR5E_ARM) if m["points"] and m["points"][0]["time_from_start"]["secs"] >= 1]
+
+
+def test_run_goes_on_after_a_fault_and_prints_every_episode(twin):
+    stand_in = twin("ur5e", "reach")
+    inject_after(stand_in, 3, lambda: stand_in.faults.silence(UR5E_JOINTS, 1.0))  # home, 2 steps, then frozen
+    result = run_cli(stand_in)
+    assert result.exit_code == 0, result.output
+    assert "1 aborted by a fault" in result.output and "stale" in result.output
+    assert result.output.count("│ no ") + result.output.count("│ yes ") == 3  # three rows
+    assert len(home_drives(stand_in)) == 3  # one drive home per episode, none before the first
+    received = on(stand_in, UR5E_ARM)
+    assert sum(map(is_stop, received)) == 2  # the fault's stop, and the one at close
+
+
+def test_run_prints_the_table_when_recovery_fails(twin):
+    stand_in = twin("ur5e", "reach")
+
+    def gone_for_good():
+        stand_in.faults.refuse_connections = True
+        stand_in.drop_connections()
+
+    inject_after(stand_in, 3, gone_for_good)
+    result = run_cli(stand_in, "-o", "env.real.reconnect_tries=2")
+    assert result.exit_code == 1
+    assert "the run stopped after 1 of 3 episodes" in result.output and "2 connection tries" in result.output
+    assert "lost the rosbridge connection" in result.output  # the aborted episode's reason, in the table
