@@ -118,10 +118,3 @@ def test_without_rosapi_its_services_do_not_exist(stand_in, client):
     finally:
         stand_in.faults.no_rosapi = False
 
-
-def test_the_driver_can_register_a_topic_with_another_type():
-    twin = Twin("ur5e", "reach", topic_types={ARM: "std_msgs/Float64MultiArray"}).start()
-    try:
-        assert twin.server.topic_type(ARM) == "std_msgs/Float64MultiArray"
-    finally:
-        twin.stop()
