@@ -8,6 +8,7 @@ from envfactory.backends.base import CommandIgnored
 from envfactory.backends.rosbridge import messages
 from envfactory.backends.rosbridge.feeds import beyond
 from envfactory.backends.rosbridge.follow import FollowWatch
+from envfactory.backends.rosbridge.link import same_type
 from envfactory.backends.rosbridge.messages import MalformedMessage
 from envfactory.backends.rosbridge.transforms import FrameGraph
 from envfactory.spec.schema import ArmCommand, GripperCommand, StaticTransform
@@ -113,3 +114,8 @@ def test_the_follow_watch_waits_for_motion_and_keeps_its_clock_across_commands()
     watch.commanded(here, here + 0.2, now=20.0)
     watch.observe(here + np.array([0.0, 0.01, 0.0]))  # it moved
     watch.check(now=25.0)
+
+
+def test_ros2_type_names_match_their_ros1_spelling():
+    assert same_type("trajectory_msgs/msg/JointTrajectory", "trajectory_msgs/JointTrajectory")
+    assert not same_type("std_msgs/msg/Float64MultiArray", "trajectory_msgs/JointTrajectory")

@@ -124,7 +124,7 @@ class Link:
                 log.warning("cannot check %s before sending to it (%s); the follow watchdog still catches "
                             "commands nothing executes", command.topic, exc)
                 return
-            if type_name and type_name != command.type:
+            if type_name and not same_type(type_name, command.type):
                 raise CommandRefused(
                     f"{command.topic} has type {type_name} on the robot, but this env sends {command.type} there: "
                     f"the server would refuse every command. Fix the topic map (robots/*.yaml 'ros:', or the "
@@ -161,6 +161,11 @@ class Link:
 
 class _NoRosapi(Exception):
     pass
+
+
+def same_type(a: str, b: str) -> bool:
+    # ROS 2 spells trajectory_msgs/JointTrajectory as trajectory_msgs/msg/JointTrajectory
+    return a.replace("/msg/", "/") == b.replace("/msg/", "/")
 
 
 def _close_quietly(ros) -> None:
