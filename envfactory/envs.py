@@ -134,6 +134,7 @@ class RobotEnv(gym.Env):
         self._seed_pending = None
         super().reset(seed=seed)
         spawn = self.spawner.sample(self.np_random)
+        self.backend.recover()  # a fault of the last episode never reaches this one
         if not self.backend.teleports_on_reset:
             # a real arm drives home: the whole way there must clear the table and floor
             here = self.backend.read_joints().position[self._arm_in_states]
@@ -182,7 +183,7 @@ class RobotEnv(gym.Env):
             self.backend.advance(self._timing.action_cycle_time)
             self._state = self._read_state(previous)
         except EpisodeAbort as exc:
-            # stale or malformed readings: the backend stopped the arm; the episode ends here
+            # stale or malformed readings, an arm that does not follow: the backend stopped it; the episode ends
             log.warning("%s: episode aborted: %s", self.blueprint.env_id, exc)
             return self._finish(state, command.out_of_bounds, rejection, truncated=True, abort=str(exc))
         except BaseException:

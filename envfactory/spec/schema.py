@@ -416,10 +416,11 @@ class RealSettings(Model):
     port: int = Field(default=9090, ge=1, le=65535)
     allow_motion: bool = False  # allow_real_robot_motion; ALLOW_REAL_ROBOT_MOTION=1 also allows
     connect_timeout_s: float = Field(default=5.0, gt=0)
-    reconnect_tries: int = Field(default=3, ge=0)  # bounded, with exponential backoff
+    reconnect_tries: int = Field(default=10, ge=1)  # connection tries at reset, backoff 0.25 s doubling to 2 s
     joint_state_timeout_s: float = Field(default=0.5, gt=0)
     cube_pose_timeout_s: float = Field(default=1.0, gt=0)
     deadman_s: float = Field(default=1.5, gt=0)  # no command for this long: the arm is stopped
+    follow_timeout_s: float = Field(default=1.0, gt=0)  # a commanded arm that has not moved by then: abort
     reset_speed: float = Field(default=0.3, gt=0)  # rad/s of the slowest-allowed move home at reset
     reset_timeout_s: float = Field(default=30.0, gt=0)
     reset_tolerance: float = Field(default=0.02, gt=0)  # rad: home counts as reached
