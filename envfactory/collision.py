@@ -136,6 +136,8 @@ class CollisionModel:
         self._local_ends = np.array([[np.append(shape.capsule_start, 1.0), np.append(shape.capsule_end, 1.0)]
                                      for shape in self.shapes])
         self.radius = np.array([shape.radius for shape in self.shapes])
+        self._moving_shapes = moving
+        self._moving_radius = self.radius[moving][:, None]
         # each capsule is also covered by a few spheres along its axis: cheap, and tight enough
         # that coal is rarely needed between the arm's own links
         self._sphere_shape, self._sphere_fraction, self._sphere_radius = [], [], []
@@ -330,11 +332,13 @@ class CollisionModel:
     def bounds(self) -> np.ndarray:
         """A lower bound on the clearance of every measured pair at the current pose."""
         start, end = self.capsules()
-        low, high = np.minimum(start, end), np.maximum(start, end)
-        shapes, obstacles = self.scene_shape, self.scene_obstacle
-        # separation along the box's own axes: a lower bound on the distance between convex sets
-        apart = np.maximum(low[shapes] - self.obstacle_high[obstacles], self.obstacle_low[obstacles] - high[shapes])
-        scene = apart.max(axis=1) - self.radius[shapes]
+        moving_start, moving_end = start[self._moving_shapes], end[self._moving_shapes]
+        low = np.minimum(moving_start, moving_end)[:, None]
+        high = np.maximum(moving_start, moving_end)[:, None]
+        # separation along the boxes' own axes: a lower bound on the distance between convex sets;
+        # (moving shapes x obstacles), flattened in the order of the scene pairs
+        apart = np.maximum(low - self.obstacle_high, self.obstacle_low - high).max(axis=2)
+        scene = (apart - self._moving_radius).ravel()
         # self pairs: the nearest of the spheres covering the two capsules; coal settles the close ones
         if self._sphere_groups.size == 0:
             return scene

@@ -1,0 +1,73 @@
+"""Cost of the safety check per step, on random actions, per ID and action mode.
+
+    python benchmarks/safety_bench.py [--steps N] [--ids ID ...]
+
+Times `SafetyCheck.check` inside real env steps (full-scale random actions from
+the action space), and reports the median and 90th percentile, the poses it
+measured per check and the share of actions it refused.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+import envfactory  # noqa: F401  (registers the IDs)
+
+SIM_IDS = ["UR5eReacherSim-v0", "UR5ePushSim-v0", "UR5ePnPSim-v0",
+           "VX300SReacherSim-v0", "VX300SPushSim-v0", "VX300SPnPSim-v0"]
+
+
+def measure(env_id: str, ee: bool, steps: int) -> dict:
+    import gymnasium as gym
+
+    env = gym.make(env_id, ee_action_type=ee).unwrapped
+    safety = env.safety
+    times, poses = [], [0]
+    check, anchor = safety.check, safety._anchor
+
+    def counted_anchor(*args):
+        poses[0] += 1
+        return anchor(*args)
+
+    def timed_check(*args):
+        start = time.perf_counter()
+        verdict = check(*args)
+        times.append(time.perf_counter() - start)
+        return verdict
+
+    safety.check, safety._anchor = timed_check, counted_anchor
+    env.reset(seed=0)
+    env.action_space.seed(0)
+    refused = 0
+    for step in range(steps):
+        _, _, terminated, truncated, info = env.step(env.action_space.sample())
+        refused += int(info["action_rejected"])
+        if terminated or truncated or step % 50 == 49:
+            env.reset()
+    env.close()
+    micro = np.array(times) * 1e6
+    return {"median": np.median(micro), "p90": np.percentile(micro, 90), "poses": poses[0] / max(len(times), 1),
+            "refused": refused / steps, "checks": len(times)}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=1000)
+    parser.add_argument("--ids", nargs="*", default=SIM_IDS)
+    args = parser.parse_args()
+    print(f"{'ID':<22} {'mode':<6} {'median µs':>10} {'p90 µs':>8} {'poses/check':>12} {'refused':>8}")
+    medians = []
+    for env_id in args.ids:
+        for ee in (False, True):
+            r = measure(env_id, ee, args.steps)
+            medians.append(r["median"])
+            print(f"{env_id:<22} {'EE' if ee else 'joint':<6} {r['median']:>10.0f} {r['p90']:>8.0f} "
+                  f"{r['poses']:>12.2f} {r['refused']:>8.1%}")
+    print(f"median of medians: {np.median(medians):.0f} µs")
+
+
+if __name__ == "__main__":
+    main()
