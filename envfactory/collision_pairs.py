@@ -85,7 +85,7 @@ def sample_pairs(collision: CollisionModel, margin: float, samples: int = DEFAUL
             always.append(names)
         elif low > margin + NEVER_NEAR:
             never.append(names)
-        elif low > margin and _proven_apart(collision, pair, margin + SafetyCheck.ENGINE_TOLERANCE):
+        elif low > margin and _proven_apart(collision, pair, margin + SafetyCheck.ROUNDING + 2 * SafetyCheck.SHAPE_TOLERANCE):
             proven.append(names)
     structural = sorted([*sorted(key), why] for key, why in collision.ignored.items())
     return {

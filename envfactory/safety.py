@@ -75,9 +75,11 @@ class SafetyCheck:
     INSIDE_TOLERANCE = 0.002
     # A remembered end pose stands in for the next start if the arm ended this close to it.
     REUSE_WITHIN = 0.003
-    # Kept in hand beyond the margin: engines disagree on the same URDF by up to 1.0 mm (measured)
-    # (PyBullet pads convex shapes with a collision margin that coal does not).
-    ENGINE_TOLERANCE = 0.0012
+    # Kept in hand beyond the margin, per robot shape in a pair: engines disagree on the same URDF
+    # (PyBullet pads each shape with a collision margin that coal does not): measured 1.0 mm for a
+    # link against an obstacle, 2.0 mm for two meshed links.
+    SHAPE_TOLERANCE = 0.001
+    ROUNDING = 0.0002
     # Pieces left with at most this many unproven pairs measure them with coal alone.
     FEW_PAIRS = 12
     # Gripper values are sampled this finely (in clearance lost between samples) when its motion matters.
@@ -87,7 +89,8 @@ class SafetyCheck:
         self.collision = collision
         self.kinematics = collision.kinematics
         self.settings = settings
-        self.margin = settings.surface_margin + self.ENGINE_TOLERANCE
+        scene, own = len(collision.scene_shape), len(collision.self_a)
+        self.margin = settings.surface_margin + self.ROUNDING + self.SHAPE_TOLERANCE * np.repeat([1.0, 2.0], [scene, own])
         # the last accepted motion's end pose and the gripper range it was judged over
         self._last_end: tuple[Anchor, tuple[float, float]] | None = None
 
@@ -103,7 +106,7 @@ class SafetyCheck:
 
     def _pose_verdict(self, q_arm: np.ndarray, gripper: float, where: str = "") -> Verdict:
         count = self.collision.pair_count
-        still = Motion(q_arm, q_arm, gripper, gripper, np.zeros(count), np.zeros(count), np.full(count, self.margin))
+        still = Motion(q_arm, q_arm, gripper, gripper, np.zeros(count), np.zeros(count), self.margin.copy())
         return self._settle(self._anchor(1.0, still), still, where)
 
     # ------------------------------------------------------------ motions
@@ -145,7 +148,7 @@ class SafetyCheck:
         # any arm pose, so each pose is judged over the gripper's whole range.
         reserve = lever[:, arm] * abs(gripper_to - gripper_from) / 2 if has_gripper else np.zeros(collision.pair_count)
         motion = Motion(q_from, q_to, gripper_from, gripper_to, lever[:, :arm] @ np.abs(q_to - q_from), reserve,
-                        np.full(collision.pair_count, self.margin), bool(reserve.any()))
+                        self.margin.copy(), bool(reserve.any()))
 
         start = self._start_anchor(motion)
         # a pair already inside the margin now (contact, tracking error) may only move out
@@ -154,8 +157,9 @@ class SafetyCheck:
         if candidates.size:
             collision.pose(q_from, gripper_from)
             now = collision.exact(candidates)
-        inside, now = candidates[now < self.margin], now[now < self.margin]
-        motion.threshold[inside] = np.minimum(now - self.INSIDE_TOLERANCE, self.margin)
+        close = now < self.margin[candidates]
+        inside, now = candidates[close], now[close]
+        motion.threshold[inside] = np.minimum(now - self.INSIDE_TOLERANCE, self.margin[inside])
         end = self._anchor(1.0, motion)
         verdict = self._settle(end, motion, " at the end of the motion")
         if verdict.accepted and inside.size:
