@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, ValidationError
 
+from envfactory import backends, preflight
 from envfactory.experts import EXPERTS
 from envfactory.spec.compose import LoadedSpec, validation_problems
 from envfactory.spec.errors import Problem, SpecError, suggest
@@ -204,7 +205,9 @@ def _action_layout(spec: EnvSpec) -> ActionLayout:
                 rows.append(ActionRow(f"absolute {axis}", lo, hi, f"EE {axis} ({robot.task_frame} frame)", "m"))
     else:
         for joint in robot.arm_joints:
-            rows.append(ActionRow(f"{joint.label or joint.name} {kind}", joint.lower, joint.upper, joint.name, "rad"))
+            # a delta row bounds the step (declared per joint, around zero); an absolute row the target
+            low, high = joint.delta_box if settings.delta else (joint.lower, joint.upper)
+            rows.append(ActionRow(f"{joint.label or joint.name} {kind}", low, high, joint.name, "rad"))
     if spec.task.gripper.in_action:
         gripper, entry = robot.gripper, robot.joint_states[robot.gripper_state_index]
         rows.append(ActionRow(gripper.label, gripper.low, gripper.high, entry.name, entry.unit))
@@ -321,6 +324,29 @@ def _check_expert(spec: EnvSpec, loaded: LoadedSpec, problems: list[Problem]) ->
                                        f"(known: {list(spec.task.objects) or 'none'})"))
 
 
+def _check_backend(spec: EnvSpec, env_id: str, backend: str, loaded: LoadedSpec, problems: list[Problem]) -> None:
+    path = f"registration.ids.{env_id}.backend"
+    known = backends.available()
+    if backend not in known:
+        problems.append(loaded.problem(path, f"unknown backend {backend!r}{suggest(backend, known)}"))
+        return
+    if backend != "rosbridge":
+        return
+    ros = spec.robot.ros
+    if ros is None:
+        problems.append(loaded.problem(path, f"backend rosbridge needs the robot's topics: robot "
+                                             f"{spec.robot.name!r} declares no 'ros:' block"))
+        return
+    for name in spec.task.objects:
+        if name not in ros.object_poses:
+            problems.append(loaded.problem("robot.ros.object_poses", f"backend rosbridge needs a pose topic for "
+                                                                     f"object {name!r}"))
+    uses_gripper = spec.task.gripper.in_action or spec.gripper_at_reset is not None
+    if uses_gripper and ros.gripper_command is None:
+        problems.append(loaded.problem("robot.ros.gripper_command", "backend rosbridge needs a gripper command "
+                                                                    "topic: the task drives the gripper"))
+
+
 def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: bool) -> Blueprint:
     spec = loaded.spec
     problems: list[Problem] = []
@@ -338,6 +364,9 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
     achieved_from = _achieved_from(spec, loaded, problems)
     _check_expert(spec, loaded, problems)
     images = _images(spec, loaded, problems)
+    _check_backend(spec, env_id, backend, loaded, problems)
+    if not problems:
+        problems += preflight.check(spec, loaded.file_of("robot.model").parent, loaded.problem)
     if problems:
         raise SpecError(problems, env_id)
     info_keys = tuple(sorted({key for t in rewards for key in t.term.info_keys}))

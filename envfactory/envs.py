@@ -18,12 +18,10 @@ from envfactory.backends import backend_factory
 from envfactory.backends.base import BackendError, EpisodeAbort
 from envfactory.compiler import Blueprint
 from envfactory.goals import GoalSampler, LiftCurriculum
-from envfactory.kinematics import Kinematics
 from envfactory.managers import ImageManager, ObservationManager, RewardManager
 from envfactory.objects import ObjectSpawner, ObjectTracker
-from envfactory.safety import SafetyCheck, Surfaces
 from envfactory.state import EnvState
-from envfactory.urdf_assembly import assemble
+from envfactory.preflight import robot_geometry
 
 log = logging.getLogger("envfactory")
 
@@ -41,12 +39,10 @@ class RobotEnv(gym.Env):
         spec = blueprint.spec
         robot = spec.robot
         self.metadata = {**self.metadata, "render_fps": 1.0 / spec.env.timing.action_cycle_time}
-        mount = np.asarray(robot.mount, float)
         self.task_origin = np.asarray(robot.task_origin_world, float)
-        urdf = assemble(robot.model, blueprint.asset_root, robot.name)
-        self.kinematics = Kinematics(urdf, robot, mount - self.task_origin)
-        surfaces = Surfaces.from_scene(spec.scene.table, spec.env.safety.floor_z, self.task_origin)
-        self.safety = SafetyCheck(self.kinematics, surfaces, spec.env.safety)
+        geometry = robot_geometry(spec, blueprint.asset_root)
+        urdf, surfaces = geometry.urdf, geometry.surfaces
+        self.kinematics, self.safety = geometry.kinematics, geometry.safety
         self.actions = ActionAdapter(blueprint.action, self.kinematics, spec.workspace, spec.env.safety.max_joint_delta)
         self.home = np.asarray(robot.home, float)
         self.goals = GoalSampler(spec.task.goal, self.kinematics, self.safety, self.home,

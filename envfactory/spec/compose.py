@@ -19,6 +19,8 @@ from omegaconf.errors import OmegaConfBaseException
 from pydantic import BaseModel, ValidationError
 
 from envfactory.spec.errors import Problem, SpecError, suggest
+from envfactory.spec.numbers import non_finite_paths
+from envfactory.spec.plausibility import scene_problems
 from envfactory.spec.schema import EnvSpec
 from envfactory.spec.sources import SourceMap, parse_yaml
 
@@ -231,7 +233,7 @@ def validation_problems(exc: ValidationError, sources: SourceMap, model: type[Ba
     for error in exc.errors():
         loc = tuple(part for part in error["loc"] if not str(part).startswith("function-"))
         path = ".".join(str(part) for part in loc)
-        message = error["msg"]
+        message = error["msg"].removeprefix("Value error, ")
         if error["type"] == "extra_forbidden":
             message = f"unknown key {loc[-1]!r}{suggest(str(loc[-1]), _fields_at(model, loc[:-1]))}"
         elif error["type"] == "missing":
@@ -282,10 +284,17 @@ def load_env_spec(
     problems = [sources.problem(path, "missing value (???)") for path in missing]
     resolved = _resolve(config, sources)
     resolved.pop("defaults", None)
+    # NaN and infinity anywhere (term and expert params included) fail every comparison quietly
+    non_finite = dict(non_finite_paths(resolved))
+    problems += [sources.problem(path, f"must be a finite number, got {value}") for path, value in non_finite.items()]
+    skip = {*missing, *non_finite}
+    spec = None
     try:
         spec = EnvSpec.model_validate(resolved)
     except ValidationError as exc:
-        problems += [p for p in validation_problems(exc, sources, EnvSpec) if p.path not in missing]
+        problems += [p for p in validation_problems(exc, sources, EnvSpec) if p.path not in skip]
+    if spec is not None and not problems:
+        problems += scene_problems(spec, sources.problem)
     if problems:
         raise SpecError(problems, family.name)
     return LoadedSpec(spec, sources, family)

@@ -1,0 +1,34 @@
+"""What every spec model shares: unknown keys are errors, values are frozen."""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, ConfigDict
+
+from envfactory.spec.numbers import Real
+
+Vec3 = tuple[Real, Real, Real]
+Interval = tuple[Real, Real]
+Rgba = tuple[Real, Real, Real, Real]
+
+
+class Model(BaseModel):
+    # A typo is reported with its dotted path and the nearest valid name
+    # instead of being silently ignored.
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+def ordered(low, high, what: str = "") -> None:
+    """Raise unless every component of `low` lies strictly below `high`."""
+    pairs = zip(low, high) if isinstance(low, (tuple, list)) else [(low, high)]
+    if any(lo >= hi for lo, hi in pairs):
+        label = f"{what} " if what else ""
+        raise ValueError(f"{label}min {_show(low)} must lie below max {_show(high)} in every component")
+
+
+def _show(value):
+    return list(value) if isinstance(value, (tuple, list)) else value
+
+
+def in_unit_range(rgba) -> None:
+    if any(not 0.0 <= c <= 1.0 for c in rgba):
+        raise ValueError(f"rgba {list(rgba)}: every component lies in [0, 1]")

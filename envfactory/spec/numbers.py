@@ -1,0 +1,42 @@
+"""Number types for specs: finite, and never a bool or a string in disguise.
+
+YAML reads `yes` as true and pydantic would turn that into 1.0; `.nan` and
+`.inf` parse as floats that every later comparison quietly mishandles.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from typing import Annotated, Any, Iterator
+
+from pydantic import AfterValidator, BeforeValidator, Field
+
+
+def _plain_number(value: Any) -> Any:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError("Input should be a valid number, not a bool or a string")
+    return float(value)
+
+
+def _finite(value: float) -> float:
+    if not math.isfinite(value):
+        raise ValueError("Input should be a finite number")
+    return value
+
+
+Real = Annotated[float, BeforeValidator(_plain_number), AfterValidator(_finite)]
+Positive = Annotated[Real, Field(gt=0)]
+NonNegative = Annotated[Real, Field(ge=0)]
+
+
+def non_finite_paths(node: Any, prefix: str = "") -> Iterator[tuple[str, float]]:
+    """Every NaN or infinity anywhere in a plain config tree, with its dotted path."""
+    if isinstance(node, dict):
+        for key, value in node.items():
+            yield from non_finite_paths(value, f"{prefix}.{key}" if prefix else str(key))
+    elif isinstance(node, (list, tuple)):
+        for index, value in enumerate(node):
+            yield from non_finite_paths(value, f"{prefix}.{index}")
+    elif isinstance(node, float) and not math.isfinite(node):
+        yield prefix, node
