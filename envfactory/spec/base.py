@@ -32,3 +32,17 @@ def _show(value):
 def in_unit_range(rgba) -> None:
     if any(not 0.0 <= c <= 1.0 for c in rgba):
         raise ValueError(f"rgba {list(rgba)}: every component lies in [0, 1]")
+
+
+def located(path: str, message: str) -> ValueError:
+    """A model validator's error pinned to a field below the model (`path` relative to it),
+    so the report names that field's line rather than the model's."""
+    return ValueError(f"@{path}@ {message}")
+
+
+def split_located(message: str) -> tuple[str, str]:
+    """(relative path, message) of a `located` error; ("", message) for any other."""
+    if message.startswith("@") and "@ " in message[1:]:
+        path, _, rest = message[1:].partition("@ ")
+        return path, rest
+    return "", message

@@ -18,6 +18,7 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 from pydantic import BaseModel, ValidationError
 
+from envfactory.spec.base import split_located
 from envfactory.spec.errors import Problem, SpecError, suggest
 from envfactory.spec.numbers import non_finite_paths
 from envfactory.spec.plausibility import scene_problems
@@ -234,11 +235,14 @@ def validation_problems(exc: ValidationError, sources: SourceMap, model: type[Ba
         loc = tuple(part for part in error["loc"] if not str(part).startswith("function-"))
         path = ".".join(str(part) for part in loc)
         message = error["msg"].removeprefix("Value error, ")
+        below, message = split_located(message)
+        if below:
+            loc, path = loc + tuple(below.split(".")), ".".join(filter(None, [path, below]))
         if error["type"] == "extra_forbidden":
             message = f"unknown key {loc[-1]!r}{suggest(str(loc[-1]), _fields_at(model, loc[:-1]))}"
         elif error["type"] == "missing":
             message = "missing value"
-        elif "input" in error and error["type"] not in ("model_type", "dict_type"):
+        elif "input" in error and not below and not isinstance(error["input"], (dict, list)):
             message += f" (got {error['input']!r})"
         problems.append(sources.problem(path, message))
     return problems

@@ -6,7 +6,8 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from envfactory.spec.base import Interval, Model, Rgba, Vec3, in_unit_range, ordered
+from envfactory.spec.base import Interval, Model, Rgba, Vec3, in_unit_range, located, ordered
+from envfactory.spec.errors import suggest
 from envfactory.spec.numbers import NonNegative, Positive, Real
 from envfactory.spec.ros import RosSpec
 
@@ -67,9 +68,9 @@ class ArmJoint(Model):
     @model_validator(mode="after")
     def _ordered(self) -> "ArmJoint":
         if self.lower >= self.upper:
-            raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
+            raise located("upper", f"lower ({self.lower}) must be below upper ({self.upper})")
         if isinstance(self.delta, tuple) and not self.delta[0] < 0 < self.delta[1]:
-            raise ValueError(f"delta {list(self.delta)} must contain 0 strictly inside (zero is 'hold still')")
+            raise located("delta", f"delta {list(self.delta)} must contain 0 strictly inside (zero is 'hold still')")
         return self
 
     @property
@@ -122,11 +123,13 @@ class GripperSpec(Model):
     @model_validator(mode="after")
     def _distinct(self) -> "GripperSpec":
         if self.open == self.closed:
-            raise ValueError("open and closed must differ")
+            raise located("closed", "open and closed must differ")
         if self.grasp_threshold is not None and not self.low <= self.grasp_threshold <= self.high:
-            raise ValueError(f"grasp_threshold {self.grasp_threshold} lies outside [{self.low}, {self.high}]")
-        if any(gain == 0 for gain in self.mimic.values()):
-            raise ValueError("a mimic multiplier of 0 would never move its joint")
+            raise located("grasp_threshold", f"grasp_threshold {self.grasp_threshold} lies outside "
+                                             f"[{self.low}, {self.high}]")
+        for name, gain in self.mimic.items():
+            if gain == 0:
+                raise located(f"mimic.{name}", "a mimic multiplier of 0 would never move its joint")
         return self
 
     def closure(self, value):
@@ -219,22 +222,27 @@ class RobotSpec(Model):
 
     @model_validator(mode="after")
     def _consistent(self) -> "RobotSpec":
-        ordered(self.ee_bounds[0], self.ee_bounds[1], "ee_bounds")
+        try:
+            ordered(self.ee_bounds[0], self.ee_bounds[1], "ee_bounds")
+        except ValueError as exc:
+            raise located("ee_bounds", str(exc)) from None
         if len(self.home) != len(self.arm_joints):
-            raise ValueError(f"home has {len(self.home)} values for {len(self.arm_joints)} arm_joints")
-        for joint, value in zip(self.arm_joints, self.home):
+            raise located("home", f"home has {len(self.home)} values for {len(self.arm_joints)} arm_joints")
+        for index, (joint, value) in enumerate(zip(self.arm_joints, self.home)):
             if not joint.lower <= value <= joint.upper:
-                raise ValueError(f"home value {value} of {joint.name} is outside [{joint.lower}, {joint.upper}]")
+                raise located(f"home.{index}", f"home value {value} of {joint.name} is outside "
+                                               f"[{joint.lower}, {joint.upper}]")
         names = [joint.name for joint in self.arm_joints]
         if len(set(names)) != len(names):
-            raise ValueError(f"arm_joints repeat a joint: {names}")
+            raise located("arm_joints", f"arm_joints repeat a joint: {names}")
         urdf_names = [entry.urdf_joint for entry in self.joint_states]
         if len(set(urdf_names)) != len(urdf_names):
-            raise ValueError(f"joint_states repeat a URDF joint: {urdf_names}")
-        missing = [j.name for j in self.arm_joints if j.name not in urdf_names]
-        if missing:
-            raise ValueError(f"arm joints {missing} are missing from joint_states")
+            raise located("joint_states", f"joint_states repeat a URDF joint: {urdf_names}")
+        for index, joint in enumerate(self.arm_joints):
+            if joint.name not in urdf_names:
+                raise located(f"arm_joints.{index}.name", f"arm joint {joint.name!r} is missing from joint_states"
+                                                          f"{suggest(joint.name, urdf_names)}")
         if self.gripper is not None and self.gripper.joint not in urdf_names:
-            raise ValueError(f"gripper joint {self.gripper.joint!r} is missing from joint_states "
-                             f"(has: {', '.join(urdf_names)})")
+            raise located("gripper.joint", f"gripper joint {self.gripper.joint!r} is missing from joint_states"
+                                           f"{suggest(self.gripper.joint, urdf_names)}")
         return self

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pydantic import Field, model_validator
 
-from envfactory.spec.base import Model, Vec3
+from envfactory.spec.base import Model, Vec3, located
 from envfactory.spec.numbers import NonNegative, Positive, Real
 from envfactory.spec.robot import (
     DEFAULT_JOINT_DELTA,
@@ -68,10 +68,10 @@ class EnvSpec(Model):
     def _gripper_needed(self) -> "EnvSpec":
         uses_gripper = self.task.gripper.in_action or self.task.gripper.at_reset != "unchanged"
         if uses_gripper and self.robot.gripper is None:
-            raise ValueError(f"task {self.task.name!r} uses a gripper but robot {self.robot.name!r} declares none")
+            raise located("task.gripper", f"task {self.task.name!r} uses a gripper but robot {self.robot.name!r} declares none")
         at_reset = self.task.gripper.at_reset
         if isinstance(at_reset, float) and not self.robot.gripper.low <= at_reset <= self.robot.gripper.high:
-            raise ValueError(f"task.gripper.at_reset {at_reset} lies outside the gripper's range "
+            raise located("task.gripper.at_reset", f"task.gripper.at_reset {at_reset} lies outside the gripper's range "
                              f"[{self.robot.gripper.low}, {self.robot.gripper.high}]")
         return self
 

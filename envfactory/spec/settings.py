@@ -2,16 +2,15 @@
 
 from __future__ import annotations
 
-import math
 from typing import Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from envfactory.spec.base import Model, Vec3, ordered
+from envfactory.spec.base import Model, Vec3, located, ordered
 from envfactory.spec.numbers import NonNegative, Positive, Real
 
 # Largest joint change one action may command: a full turn (no revolute joint can travel further).
-MAX_JOINT_DELTA_LIMIT = 2 * math.pi
+MAX_JOINT_DELTA_LIMIT = 6.2832  # 2π
 # A registration entry beyond this many steps per episode is a typo, not a task.
 MAX_EPISODE_STEPS_LIMIT = 1_000_000
 
@@ -32,8 +31,8 @@ class TimingSettings(Model):
     @model_validator(mode="after")
     def _cycle_covers_loop(self) -> "TimingSettings":
         if self.action_cycle_time < 1.0 / self.loop_rate - 1e-9:
-            raise ValueError(
-                f"action_cycle_time ({self.action_cycle_time}) must be >= 1 / loop_rate ({1.0 / self.loop_rate:g})"
+            raise located(
+                "action_cycle_time", f"action_cycle_time ({self.action_cycle_time}) must be >= 1 / loop_rate ({1.0 / self.loop_rate:g})"
             )
         return self
 
@@ -104,9 +103,9 @@ class CameraSpec(Model):
     @model_validator(mode="after")
     def _clipping_ordered(self) -> "CameraSpec":
         if self.near >= self.far:
-            raise ValueError(f"near ({self.near}) must be below far ({self.far})")
+            raise located("far", f"near ({self.near}) must be below far ({self.far})")
         if self.eye == self.target:
-            raise ValueError("eye and target coincide: the camera has no view direction")
+            raise located("target", "eye and target coincide: the camera has no view direction")
         return self
 
 

@@ -6,7 +6,7 @@ from typing import Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from envfactory.spec.base import Model, Rgba, Vec3, in_unit_range
+from envfactory.spec.base import Model, Rgba, Vec3, in_unit_range, located
 from envfactory.spec.numbers import NonNegative, Positive, Real
 
 
@@ -74,7 +74,7 @@ class GoalSpec(Model):
     def _static_in_box(self) -> "GoalSpec":
         low, high = self.box
         if self.static is not None and not all(lo <= v <= hi for v, lo, hi in zip(self.static, low, high)):
-            raise ValueError(f"static goal {list(self.static)} lies outside the goal box")
+            raise located("static", f"static goal {list(self.static)} lies outside the goal box")
         return self
 
     @property
