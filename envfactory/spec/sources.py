@@ -68,21 +68,36 @@ class SourceMap:
         return Problem(path, message, file=shell.file, line=shell.line)
 
 
-def parse_yaml(path: Path) -> yaml.Node | None:
+def read_text(path: Path) -> str:
+    """The file as UTF-8 text, or a SpecError that says why not."""
     try:
-        return yaml.compose(path.read_text(), Loader=_Loader)
-    except yaml.MarkedYAMLError as exc:
-        raise SpecError([yaml_problem(exc, path)]) from None
+        return path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise SpecError([Problem("", f"not a text (UTF-8) file: byte {exc.start} cannot be decoded", str(path), 1)],
+                        path.stem) from None
     except OSError as exc:
-        raise SpecError([Problem("", f"cannot read: {exc.strerror}", file=str(path))]) from None
+        raise SpecError([Problem("", f"cannot read: {exc.strerror or exc}", file=str(path))], path.stem) from None
+
+
+def _parsed(path: Path, parse):
+    text = read_text(path)
+    try:
+        return parse(text)
+    except yaml.MarkedYAMLError as exc:
+        raise SpecError([yaml_problem(exc, path)], path.stem) from None
+    except yaml.YAMLError as exc:  # reader errors (control characters) carry no mark
+        raise SpecError([Problem("", f"YAML: {str(exc).splitlines()[0]}", str(path), 1)], path.stem) from None
+    except RecursionError:
+        raise SpecError([Problem("", "YAML nested too deeply", str(path), 1)], path.stem) from None
+
+
+def parse_yaml(path: Path) -> yaml.Node | None:
+    return _parsed(path, lambda text: yaml.compose(text, Loader=_Loader))
 
 
 def load_plain(path: Path) -> dict:
     """The file's mapping, for the registry's quick scan (no composition)."""
-    try:
-        data = yaml.load(path.read_text(), Loader=_Loader)
-    except yaml.MarkedYAMLError as exc:
-        raise SpecError([yaml_problem(exc, path)]) from None
+    data = _parsed(path, lambda text: yaml.load(text, Loader=_Loader))
     if not isinstance(data, dict):
         raise SpecError([Problem("", "a spec file must hold a mapping", file=str(path), line=1)])
     return data
