@@ -133,7 +133,7 @@ def scan_family(path: Path, search_roots: tuple[Path, ...], source: str = CALL_S
     ]
 
 
-def _clash(record: IdRecord, pending: dict[str, IdRecord]) -> Problem | None:
+def clash(record: IdRecord, pending: dict[str, IdRecord]) -> Problem | None:
     """The duplicate-ID problem of a record, naming both files and lines, or None."""
     existing = _records.get(record.env_id) or pending.get(record.env_id)
     if existing is not None and existing.family.path.resolve() != record.family.path.resolve():
@@ -153,7 +153,7 @@ def _location(path: Path, env_id: str) -> tuple[str, int | None]:
     return problem.file or str(path), problem.line
 
 
-def _check_family(records: list[IdRecord]) -> None:
+def check_family(records: list[IdRecord]) -> None:
     """Compose and compile each distinct ID, so nothing invalid is registered. IDs that differ
     only in name compile alike, so each (backend, goal_env, kwargs) is compiled once."""
     from envfactory.compiler import compile_blueprint
@@ -201,12 +201,12 @@ def register_specs(folder: str | Path, validate: bool = True, source: str = CALL
     for path in family_files(folder):
         try:
             records = scan_family(path, roots, source)
-            clashes = [p for p in (_clash(r, pending) for r in records) if p is not None]
+            clashes = [p for p in (clash(r, pending) for r in records) if p is not None]
             if clashes:
                 raise SpecError(clashes, path.stem)
             fresh = [r for r in records if r.env_id not in _records]
             if validate and fresh:
-                _check_family(fresh)
+                check_family(fresh)
             _register_family(fresh)
         except SpecError as exc:
             problems.append(exc)

@@ -175,6 +175,25 @@ def apply_kwargs(config: dict, sources: SourceMap, kwargs: dict[str, Any], origi
         raise SpecError(problems)
 
 
+def _kwarg_overrides(family: FamilyFile, overrides: tuple[str, ...]) -> tuple[tuple[str, ...], dict[str, Any]]:
+    """Split `multi_goal=false`-style overrides (a kwarg name, no dots) from Hydra's own."""
+    if not overrides:
+        return overrides, {}
+    config = _compose_cached(family, ()).config
+    aliases = {**config.get("kwargs", {}), **config.get("task", {}).get("kwargs", {})}
+    hydra, kwargs = [], {}
+    for override in overrides:
+        key, sep, value = override.partition("=")
+        if sep and key in aliases:
+            try:
+                kwargs[key] = yaml.safe_load(value)
+            except yaml.YAMLError:
+                kwargs[key] = value
+        else:
+            hydra.append(override)
+    return tuple(hydra), kwargs
+
+
 def _set_path(config: dict, dotted: str, value: Any) -> None:
     node = config
     *parents, leaf = dotted.split(".")
@@ -197,7 +216,19 @@ def _missing_paths(node: Any, prefix: str = "") -> Iterable[str]:
         yield prefix
 
 
+def _has_interpolation(node: Any) -> bool:
+    if isinstance(node, dict):
+        return any(_has_interpolation(value) for value in node.values())
+    if isinstance(node, list):
+        return any(_has_interpolation(value) for value in node)
+    return isinstance(node, str) and "${" in node
+
+
 def _resolve(config: dict, sources: SourceMap) -> dict:
+    # OmegaConf wraps every node: on a family of many IDs that costs more than the rest
+    # of loading, so it runs only when there is something to resolve
+    if not _has_interpolation(config):
+        return config
     try:
         return OmegaConf.to_container(OmegaConf.create(config), resolve=True)
     except OmegaConfBaseException as exc:
@@ -270,10 +301,13 @@ def load_env_spec(
     id_kwargs: dict[str, Any] | None = None,
     kwargs: dict[str, Any] | None = None,
 ) -> LoadedSpec:
-    composed = _compose_cached(family, tuple(overrides))
+    overrides, override_kwargs = _kwarg_overrides(family, tuple(overrides))
+    composed = _compose_cached(family, overrides)
     config = copy.deepcopy(composed.config)
     sources = copy.deepcopy(composed.sources)
     try:
+        if override_kwargs:
+            apply_kwargs(config, sources, override_kwargs, "override")
         if id_kwargs:
             apply_kwargs(config, sources, id_kwargs, "registered kwarg")
         if kwargs:
