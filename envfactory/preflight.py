@@ -88,8 +88,12 @@ def _check_by_key(key, carrier: _Carrier) -> tuple[tuple[str, str], ...]:
     problems = _name_problems(spec, model)
     if problems:
         return tuple(problems)
-    geometry = robot_geometry(spec, asset_root)
-    return tuple(_pose_problems(spec, geometry) + _reach_problems(spec, geometry))
+    try:
+        geometry = robot_geometry(spec, asset_root)
+        return tuple(_pose_problems(spec, geometry) + _reach_problems(spec, geometry))
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        # a model whose numbers break the kinematics (a part placed a billion metres out)
+        return (("robot.model", f"the kinematics fail on this robot model: {exc}"),)
 
 
 def _name_problems(spec: EnvSpec, model) -> list[tuple[str, str]]:
@@ -118,9 +122,11 @@ def _name_problems(spec: EnvSpec, model) -> list[tuple[str, str]]:
     for index, entry in enumerate(robot.joint_states):
         joint(f"robot.joint_states.{index}.{'urdf' if entry.urdf else 'name'}", entry.urdf_joint)
     if robot.gripper is not None:
-        joint("robot.gripper.joint", robot.gripper.joint)
-        for name in robot.gripper.mimic:
-            joint(f"robot.gripper.mimic.{name}", name)
+        gripper = robot.gripper
+        joint("robot.gripper.joint", gripper.joint, (gripper.low, gripper.high))
+        for name, gain in gripper.mimic.items():
+            follows = sorted((gain * gripper.low, gain * gripper.high))
+            joint(f"robot.gripper.mimic.{name}.gain", name, (follows[0], follows[1]))
         for index, link in enumerate(robot.gripper.pads.links):
             if link not in frames:
                 problems.append((f"robot.gripper.pads.links.{index}", f"the URDF has no link {link!r}"
@@ -138,8 +144,9 @@ def _pose_problems(spec: EnvSpec, geometry: RobotGeometry) -> list[tuple[str, st
     margin = spec.env.safety.surface_margin
     if clearance[lowest] < margin:
         link = geometry.kinematics.frame_names([geometry.kinematics.checked_frames[lowest]])[0]
-        return [("robot.home", f"the home pose puts link {link} {clearance[lowest]:.3f} m from the table or floor "
-                               f"(the safety margin is {margin:g} m): every reset would start unsafe")]
+        return [("robot.home", f"the home pose leaves link {link} a clearance of {clearance[lowest]:.3f} m above "
+                               f"the table or floor, under the safety margin {margin:g} m: every reset would start "
+                               f"unsafe")]
     return []
 
 

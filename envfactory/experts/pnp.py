@@ -16,11 +16,11 @@ from envfactory.terms.library import TermParams
 
 class PickPlaceParams(TermParams):
     object: str = "cube"
-    grasp_height: float = 0.0  # EE height above the cube centre when closing, m
-    clearance: float = Field(default=0.08, gt=0)  # EE height above the cube centre on the way in, m
-    lift: float = Field(default=0.15, gt=0)  # carry height above the spawn point at least, m
-    step: float = Field(default=0.04, gt=0)  # EE travel per action, m
-    close_steps: int = Field(default=3, ge=1)  # actions spent closing before lifting
+    grasp_height: float = Field(default=0.0, ge=-0.5, le=0.5)  # EE height above the cube centre when closing, m
+    clearance: float = Field(default=0.08, gt=0, le=1.0)  # EE height above the cube centre on the way in, m
+    lift: float = Field(default=0.15, gt=0, le=2.0)  # carry height above the spawn point at least, m
+    step: float = Field(default=0.04, gt=0, le=0.5)  # EE travel per action, m
+    close_steps: int = Field(default=3, ge=1, le=100)  # actions spent closing before lifting
 
 
 class PickPlaceExpert(Expert):

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict
 
-from envfactory.spec.numbers import Real
+from envfactory.spec.numbers import Angle, Coordinate, Real
 
 Vec3 = tuple[Real, Real, Real]
+Position = tuple[Coordinate, Coordinate, Coordinate]  # metres, within the scene extent
+Rpy = tuple[Angle, Angle, Angle]
 Interval = tuple[Real, Real]
 Rgba = tuple[Real, Real, Real, Real]
 

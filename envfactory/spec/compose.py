@@ -314,6 +314,17 @@ def load_env_spec(
             apply_kwargs(config, sources, kwargs, "gym.make kwarg")
     except SpecError as exc:
         raise SpecError(exc.problems, family.name) from None
+    return validate_config(config, sources, family)
+
+
+def composed_config(family: FamilyFile) -> tuple[dict, SourceMap]:
+    """A private copy of the family's composed config (no overrides) and its source map."""
+    composed = _compose_cached(family, ())
+    return copy.deepcopy(composed.config), copy.deepcopy(composed.sources)
+
+
+def validate_config(config: dict, sources: SourceMap, family: FamilyFile) -> LoadedSpec:
+    """Validate a composed config (which this consumes) into a spec, or raise every problem at once."""
     # Report every ??? and every other problem in one go: drop the missing
     # keys so validation still runs, then keep one message per missing path.
     missing = list(_missing_paths(config))

@@ -29,6 +29,16 @@ Real = Annotated[float, BeforeValidator(_plain_number), AfterValidator(_finite)]
 Positive = Annotated[Real, Field(gt=0)]
 NonNegative = Annotated[Real, Field(ge=0)]
 
+# A tabletop arm's scene fits in a 10 m cube around the world origin: a position or a size
+# beyond it is a typo (a misplaced decimal point), never a scene.
+SCENE_EXTENT = 10.0
+Coordinate = Annotated[Real, Field(ge=-SCENE_EXTENT, le=SCENE_EXTENT)]
+Length = Annotated[Real, Field(gt=0, le=SCENE_EXTENT)]
+# Angles in radians: more than a full turn either way is never meant.
+Angle = Annotated[Real, Field(ge=-6.2832, le=6.2832)]
+# Friction coefficients of real materials stay well below this.
+Friction = Annotated[Real, Field(ge=0, le=10.0)]
+
 
 def non_finite_paths(node: Any, prefix: str = "") -> Iterator[tuple[str, float]]:
     """Every NaN or infinity anywhere in a plain config tree, with its dotted path."""

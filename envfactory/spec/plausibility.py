@@ -56,6 +56,35 @@ def scene_problems(spec: EnvSpec, report: Report) -> list[Problem]:
     problems += _goal(spec, scene, report)
     problems += _objects(spec, scene, report)
     problems += _tolerance(spec, report)
+    problems += _observation_bounds(spec, report)
+    return problems
+
+
+def _observation_bounds(spec: EnvSpec, report: Report) -> list[Problem]:
+    """The observation Box must hold what the robot can do: its workspace and its joint ranges."""
+    robot, problems = spec.robot, []
+    ee_low, ee_high = robot.ee_bounds
+    if any(lo < b for lo, b in zip(spec.workspace.min, ee_low)) or \
+            any(hi > b for hi, b in zip(spec.workspace.max, ee_high)):
+        problems.append(report("robot.ee_bounds", f"ee_bounds {_box(ee_low, ee_high)} must contain the workspace "
+                                                  f"{_box(spec.workspace.min, spec.workspace.max)}: the EE "
+                                                  f"observation would leave its Box"))
+    index = {entry.urdf_joint: i for i, entry in enumerate(robot.joint_states)}
+    needs = [(joint.name, (joint.lower, joint.upper), velocity)
+             for joint, velocity in zip(robot.arm_joints, robot.arm_velocities)]
+    if robot.gripper is not None:
+        needs.append((robot.gripper.joint, (robot.gripper.low, robot.gripper.high), robot.gripper.max_velocity))
+    for name, (low, high), velocity in needs:
+        i = index[name]
+        entry = robot.joint_states[i]
+        if entry.position[0] > low or entry.position[1] < high:
+            problems.append(report(f"robot.joint_states.{i}.position", f"position bounds {_fmt(entry.position)} of "
+                                                                       f"{entry.name} must contain its commanded range "
+                                                                       f"{_fmt((low, high))}"))
+        if entry.velocity[0] > -velocity or entry.velocity[1] < velocity:
+            problems.append(report(f"robot.joint_states.{i}.velocity", f"velocity bounds {_fmt(entry.velocity)} of "
+                                                                       f"{entry.name} must contain ±{velocity:g}, "
+                                                                       f"the fastest it is driven"))
     return problems
 
 

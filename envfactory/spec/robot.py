@@ -2,18 +2,27 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
-from envfactory.spec.base import Interval, Model, Rgba, Vec3, in_unit_range, located, ordered
+from envfactory.spec.base import Model, Position, Rgba, Rpy, in_unit_range, located, ordered
 from envfactory.spec.errors import suggest
-from envfactory.spec.numbers import NonNegative, Positive, Real
+from envfactory.spec.numbers import Friction, Length, NonNegative, Positive, Real
 from envfactory.spec.ros import RosSpec
 
 # The joint-delta action box of an arm joint that declares none: symmetric, ±π per
 # unit action before delta_coeff scales it (the seeds' UR5e convention).
 DEFAULT_JOINT_DELTA = 3.14
+# Motor limits no arm on a table exceeds: above them a value is a typo.
+MAX_EFFORT = 10_000.0  # N·m or N
+MAX_JOINT_VELOCITY = 20.0  # rad/s or m/s
+Effort = Annotated[Positive, Field(le=MAX_EFFORT)]
+# Observation bounds of one joint reading (rad, m, or per second): beyond ±100 they bound nothing.
+StateBound = Annotated[Real, Field(ge=-100.0, le=100.0)]
+Velocity = Annotated[Positive, Field(le=MAX_JOINT_VELOCITY)]
+# One unit of action in a delta row times delta_coeff (at most 1) is the step: past a full turn it is a typo.
+DeltaBound = Annotated[Real, Field(ge=-6.2832, le=6.2832)]
 
 
 class UrdfPart(Model):
@@ -21,8 +30,8 @@ class UrdfPart(Model):
     urdf: str | None = None
     prefix: str = ""
     parent: str | None = None
-    xyz: Vec3 = (0.0, 0.0, 0.0)
-    rpy: Vec3 = (0.0, 0.0, 0.0)
+    xyz: Position = (0.0, 0.0, 0.0)
+    rpy: Rpy = (0.0, 0.0, 0.0)
 
     @model_validator(mode="after")
     def _one_source(self) -> "UrdfPart":
@@ -33,8 +42,8 @@ class UrdfPart(Model):
 
 class FrameSpec(Model):
     parent: str
-    xyz: Vec3 = (0.0, 0.0, 0.0)
-    rpy: Vec3 = (0.0, 0.0, 0.0)
+    xyz: Position = (0.0, 0.0, 0.0)
+    rpy: Rpy = (0.0, 0.0, 0.0)
 
 
 class ModelSpec(Model):
@@ -61,9 +70,9 @@ class ArmJoint(Model):
     label: str = ""
     # The joint-delta action row: ± one number, or [min, max] around zero. Independent of
     # the position limits, which bound the target, not the step.
-    delta: Positive | Interval = DEFAULT_JOINT_DELTA
-    effort: Positive | None = None  # N·m (N for a prismatic joint); the robot's arm_force if unset
-    velocity: Positive | None = None  # rad/s (m/s); the robot's arm_max_velocity if unset
+    delta: Annotated[Positive, Field(le=6.2832)] | tuple[DeltaBound, DeltaBound] = DEFAULT_JOINT_DELTA
+    effort: Effort | None = None  # N·m (N for a prismatic joint); the robot's arm_force if unset
+    velocity: Velocity | None = None  # rad/s (m/s); the robot's arm_max_velocity if unset
 
     @model_validator(mode="after")
     def _ordered(self) -> "ArmJoint":
@@ -83,8 +92,8 @@ class JointStateEntry(Model):
 
     name: str
     urdf: str | None = None  # the URDF joint in simulation, when its name differs
-    position: Interval
-    velocity: Interval
+    position: tuple[StateBound, StateBound]
+    velocity: tuple[StateBound, StateBound]
     unit: Literal["rad", "m"] = "rad"
 
     @model_validator(mode="after")
@@ -102,9 +111,9 @@ class ContactSpec(Model):
     """Contact parameters of the links that touch a grasped object."""
 
     links: list[str] = []
-    lateral_friction: NonNegative = 1.0
-    spinning_friction: NonNegative = 0.0
-    rolling_friction: NonNegative = 0.0
+    lateral_friction: Friction = 1.0
+    spinning_friction: Friction = 0.0
+    rolling_friction: Friction = 0.0
     friction_anchor: bool = True  # pins static friction in place: without it a held object creeps out
 
 
@@ -113,8 +122,8 @@ class GripperSpec(Model):
     open: Real
     closed: Real
     mimic: dict[str, Real] = {}  # URDF joint -> multiplier of the driven joint
-    force: Positive = 100.0
-    max_velocity: Positive = 1.0  # of the driven joint, per second
+    force: Effort = 100.0
+    max_velocity: Velocity = 1.0  # of the driven joint, per second
     grasp_threshold: Real | None = None  # closed at least this far when holding something
     closing_axis: Literal["x", "y", "z"] = "y"  # the EE frame axis along which the fingers close
     pads: ContactSpec = ContactSpec()
@@ -148,14 +157,14 @@ class GripperSpec(Model):
 class SafetyLinks(Model):
     # Radius of a sphere around the link origin that must clear the surfaces,
     # for links whose body reaches well beyond their origin.
-    radius: dict[str, NonNegative] = {}
+    radius: dict[str, Annotated[NonNegative, Field(le=1.0)]] = {}
     skip: list[str] = []
 
 
 class PedestalSpec(Model):
     """A stand under the robot base: a top plate on four legs."""
 
-    size: tuple[Positive, Positive]
+    size: tuple[Length, Length]
     rgba: Rgba = (0.3, 0.3, 0.32, 1.0)
 
     @model_validator(mode="after")
@@ -168,24 +177,24 @@ class RobotSpec(Model):
     name: str
     label: str
     model: ModelSpec
-    mount: Vec3  # world position of the robot base
+    mount: Position  # world position of the robot base
     pedestal: PedestalSpec | None = None
     task_frame: Literal["world", "base"]
     arm_joints: list[ArmJoint] = Field(min_length=1)
     home: list[Real]
     ee_frame: str
-    ee_bounds: tuple[Vec3, Vec3]  # EE position bounds in the task frame (obs and absolute EE actions)
-    top_down_rpy: Vec3 | None = None  # task-frame EE orientation that points the gripper straight down
+    ee_bounds: tuple[Position, Position]  # EE position bounds in the task frame (obs and absolute EE actions)
+    top_down_rpy: Rpy | None = None  # task-frame EE orientation that points the gripper straight down
     joint_states: list[JointStateEntry] = Field(min_length=1)
     joint_states_topic: str
     gripper: GripperSpec | None = None
-    arm_force: Positive = 150.0  # N·m per arm joint, unless the joint declares its own effort
-    arm_max_velocity: Positive = 3.15  # rad/s per arm joint, unless the joint declares its own velocity
+    arm_force: Effort = 150.0  # N·m per arm joint, unless the joint declares its own effort
+    arm_max_velocity: Velocity = 3.15  # rad/s per arm joint, unless the joint declares its own velocity
     safety_links: SafetyLinks = SafetyLinks()
     ros: RosSpec | None = None
 
     @property
-    def task_origin_world(self) -> Vec3:
+    def task_origin_world(self) -> tuple[float, float, float]:
         """Where the task frame sits in the world: the robot base, or the world origin."""
         return self.mount if self.task_frame == "base" else (0.0, 0.0, 0.0)
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from envfactory.spec.base import Model, Vec3
+from envfactory.spec.base import Model, Position, Rpy
 
 
 class RosTopic(Model):
@@ -30,8 +30,8 @@ class StaticTransform(Model):
     """Where a frame sits in its parent: lets object poses from a camera reach the task frame."""
 
     parent: str
-    xyz: Vec3 = (0.0, 0.0, 0.0)
-    rpy: Vec3 = (0.0, 0.0, 0.0)
+    xyz: Position = (0.0, 0.0, 0.0)
+    rpy: Rpy = (0.0, 0.0, 0.0)
 
 
 class RosSpec(Model):

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pydantic import Field, model_validator
 
-from envfactory.spec.base import Model, Vec3, located
+from envfactory.spec.base import Model, Position, Rpy, Vec3, located
 from envfactory.spec.numbers import NonNegative, Positive, Real
 from envfactory.spec.robot import (
     DEFAULT_JOINT_DELTA,
@@ -87,7 +87,7 @@ class EnvSpec(Model):
 __all__ = [
     "DEFAULT_JOINT_DELTA", "ActionSettings", "ArmCommand", "ArmJoint", "CameraSpec", "ContactSpec", "EnvSettings",
     "EnvSpec", "ExpertRef", "FrameSpec", "GoalSpec", "GripperCommand", "GripperSpec", "GripperUse", "IdEntry",
-    "JointStateEntry", "LiftStage", "Model", "ModelSpec", "NonNegative", "ObjectSpec", "PedestalSpec", "Positive",
+    "JointStateEntry", "LiftStage", "Model", "ModelSpec", "Position", "Rpy", "NonNegative", "ObjectSpec", "PedestalSpec", "Positive",
     "Real", "RealSettings", "Registration", "RewardSets", "RobotSpec", "RosSpec", "RosTopic", "SafetyLinks",
     "SafetySettings", "SceneSpec", "SimSettings", "SpawnSpec", "StaticTransform", "TableSpec", "TaskSpec",
     "TermRef", "TerminationRef", "TimingSettings", "UrdfPart", "Vec3", "Workspace",

@@ -6,8 +6,8 @@ from typing import Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from envfactory.spec.base import Model, Vec3, located, ordered
-from envfactory.spec.numbers import NonNegative, Positive, Real
+from envfactory.spec.base import Model, Position, located, ordered
+from envfactory.spec.numbers import Coordinate, Length, NonNegative, Positive
 
 # Largest joint change one action may command: a full turn (no revolute joint can travel further).
 MAX_JOINT_DELTA_LIMIT = 6.2832  # 2π
@@ -23,9 +23,9 @@ class ActionSettings(Model):
 
 
 class TimingSettings(Model):
-    loop_rate: Positive = 10.0
-    action_cycle_time: Positive = 0.5
-    action_speed: Positive = 0.2
+    loop_rate: Positive = Field(default=10.0, le=1000.0)  # Hz
+    action_cycle_time: Positive = Field(default=0.5, le=60.0)  # s of motion per step
+    action_speed: Positive = Field(default=0.2, le=60.0)  # s to reach each joint target
     realtime: bool = False
 
     @model_validator(mode="after")
@@ -34,13 +34,17 @@ class TimingSettings(Model):
             raise located(
                 "action_cycle_time", f"action_cycle_time ({self.action_cycle_time}) must be >= 1 / loop_rate ({1.0 / self.loop_rate:g})"
             )
+        if self.action_speed > self.action_cycle_time:
+            raise located("action_speed", f"action_speed ({self.action_speed} s to reach the target) must not exceed "
+                                          f"action_cycle_time ({self.action_cycle_time} s per step): the arm would "
+                                          f"still be moving when the next action arrives")
         return self
 
 
 class SafetySettings(Model):
-    floor_z: Real = 0.0
-    surface_margin: NonNegative = 0.015
-    table_footprint_margin: NonNegative = 0.03
+    floor_z: Coordinate = 0.0
+    surface_margin: Positive = Field(default=0.015, le=0.5)  # m: zero would let a link touch the table
+    table_footprint_margin: NonNegative = Field(default=0.03, le=1.0)
     max_joint_delta: Positive = Field(default=0.5, le=MAX_JOINT_DELTA_LIMIT)
 
 
@@ -50,14 +54,15 @@ class RealSettings(Model):
     host: str = "localhost"
     port: int = Field(default=9090, ge=1, le=65535)
     allow_motion: bool = False  # allow_real_robot_motion; ALLOW_REAL_ROBOT_MOTION=1 also allows
-    connect_timeout_s: Positive = 5.0
+    # Upper bounds: a staleness or deadman limit of minutes is a gate switched off.
+    connect_timeout_s: Positive = Field(default=5.0, le=120.0)
     reconnect_tries: int = Field(default=3, ge=0, le=100)  # bounded, with exponential backoff
-    joint_state_timeout_s: Positive = 0.5
-    cube_pose_timeout_s: Positive = 1.0
-    deadman_s: Positive = 1.5  # no command for this long: the arm is stopped
-    reset_speed: Positive = 0.3  # rad/s of the slowest-allowed move home at reset
-    reset_timeout_s: Positive = 30.0
-    reset_tolerance: Positive = 0.02  # rad: home counts as reached
+    joint_state_timeout_s: Positive = Field(default=0.5, le=5.0)
+    cube_pose_timeout_s: Positive = Field(default=1.0, le=10.0)
+    deadman_s: Positive = Field(default=1.5, le=10.0)  # no command for this long: the arm is stopped
+    reset_speed: Positive = Field(default=0.3, le=3.15)  # rad/s of the slowest-allowed move home at reset
+    reset_timeout_s: Positive = Field(default=30.0, le=600.0)
+    reset_tolerance: Positive = Field(default=0.02, le=0.5)  # rad: home counts as reached
     auto_launch_cube_tracker: bool = False  # True is refused: the user starts the tracker
     cube_tracker_camera: Literal["kinect2", "zed2", "d405"] = "kinect2"
     cube_tracker_target_frame: str = ""  # if set, object poses must be given in (or transform to) this frame
@@ -82,28 +87,28 @@ class EnvSettings(Model):
 
 
 class TableSpec(Model):
-    center: tuple[Real, Real]
-    top_z: Real
-    size: tuple[Positive, Positive]
-    thickness: Positive = 0.04
+    center: tuple[Coordinate, Coordinate]
+    top_z: Coordinate
+    size: tuple[Length, Length]
+    thickness: Length = 0.04
 
 
 class CameraSpec(Model):
     """A fixed camera over the table: the use_kinect image terms render from it."""
 
-    eye: Vec3  # world frame
-    target: Vec3
+    eye: Position  # world frame
+    target: Position
     fov: Positive = Field(default=60.0, lt=180)  # vertical, degrees
     width: int = Field(default=128, ge=8, le=4096)
     height: int = Field(default=96, ge=8, le=4096)
     near: Positive = 0.1
-    far: Positive = 3.0
+    far: Positive = Field(default=3.0, le=100.0)
     terms: list[str] = ["rgb", "depth"]  # image terms, each a key of the Dict observation
 
     @model_validator(mode="after")
     def _clipping_ordered(self) -> "CameraSpec":
         if self.near >= self.far:
-            raise located("far", f"near ({self.near}) must be below far ({self.far})")
+            raise located("near", f"near ({self.near}) must be below far ({self.far})")
         if self.eye == self.target:
             raise located("target", "eye and target coincide: the camera has no view direction")
         return self
@@ -122,8 +127,8 @@ class SimSettings(Model):
 class Workspace(Model):
     """Where the EE may be commanded, in the task frame."""
 
-    min: Vec3
-    max: Vec3
+    min: Position
+    max: Position
 
     @model_validator(mode="after")
     def _ordered(self) -> "Workspace":

@@ -33,8 +33,15 @@ class SourceMap:
 
     def _walk(self, node: yaml.Node, prefix: str, file: str) -> None:
         if isinstance(node, yaml.MappingNode):
+            seen: dict[str, int] = {}
             for key_node, value_node in node.value:
                 key = str(key_node.value)
+                line = key_node.start_mark.line + 1
+                if key in seen:  # YAML would keep the last silently
+                    path = f"{prefix}.{key}" if prefix else key
+                    raise SpecError([Problem(path, f"duplicate key {key!r} (first written at line {seen[key]})",
+                                             file, line)], Path(file).stem)
+                seen[key] = line
                 if not prefix and key == "defaults":
                     continue
                 path = f"{prefix}.{key}" if prefix else key

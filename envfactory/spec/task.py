@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from envfactory.spec.base import Model, Rgba, Vec3, in_unit_range, located
-from envfactory.spec.numbers import NonNegative, Positive, Real
+from envfactory.spec.base import Model, Position, Rgba, in_unit_range, located
+from envfactory.spec.numbers import Friction, NonNegative, Positive, Real
 
 
 class TermRef(Model):
@@ -19,19 +19,19 @@ class TermRef(Model):
 
 
 class SpawnSpec(Model):
-    position: Vec3  # the object's centre at rest, task frame
+    position: Position  # the object's centre at rest, task frame
     random: bool = True  # random_cube_spawn
-    offset: tuple[NonNegative, NonNegative] = (0.05, 0.05)  # random_offset: ± metres in x and y
+    offset: tuple[Annotated[NonNegative, Field(le=1.0)], Annotated[NonNegative, Field(le=1.0)]] = (0.05, 0.05)  # random_offset: ± metres in x and y
 
 
 class ObjectSpec(Model):
     shape: Literal["box"] = "box"
-    size: Positive  # edge length
+    size: Annotated[Positive, Field(le=1.0)]  # edge length, m: something a gripper handles
     rgba: Rgba = (1.0, 0.0, 0.0, 1.0)
-    mass: Positive
-    friction: NonNegative = 1.0
-    spinning_friction: NonNegative = 0.0
-    rolling_friction: NonNegative = 0.0
+    mass: Annotated[Positive, Field(le=100.0)]  # kg
+    friction: Friction = 1.0
+    spinning_friction: Friction = 0.0
+    rolling_friction: Friction = 0.0
     spawn: SpawnSpec
 
     @model_validator(mode="after")
@@ -49,15 +49,15 @@ class LiftStage(Model):
     """The multi_goal curriculum: lift the object above its spawn point, then go for the goal."""
 
     enabled: bool = True  # multi_goal
-    height: Positive = 0.15  # lift_height
+    height: Annotated[Positive, Field(le=2.0)] = 0.15  # lift_height, m
 
 
 class GoalSpec(Model):
     achieved: str  # "ee.position" or "<object>.position"
     tolerance: Positive
-    box: tuple[Vec3, Vec3]
+    box: tuple[Position, Position]
     random: bool = True  # random_goal; otherwise the static goal below
-    static: Vec3 | None = None  # the goal when random is false; the box centre if unset
+    static: Position | None = None  # the goal when random is false; the box centre if unset
     sampling_tries: int = Field(default=20, ge=1, le=1000)
     lift: LiftStage | None = None
 
@@ -78,7 +78,7 @@ class GoalSpec(Model):
         return self
 
     @property
-    def static_goal(self) -> Vec3:
+    def static_goal(self) -> tuple[float, float, float]:
         if self.static is not None:
             return self.static
         low, high = self.box

@@ -19,7 +19,7 @@ from envfactory.terms.objects import bind_object
 
 class GraspParams(TermParams):
     object: str
-    distance: float = Field(default=0.05, gt=0)  # grasp_dist_thresh: farthest EE-to-object distance
+    distance: float = Field(default=0.05, gt=0, le=0.5)  # grasp_dist_thresh: farthest EE-to-object distance
     threshold: float | None = None  # a gripper joint value; the robot's gripper.grasp_threshold if unset
 
 
