@@ -59,8 +59,9 @@ def _describe(layout, params) -> Description:
 
 
 @observation_term(size=fixed(1), bounds=constant_bounds(0.0, 1.0), describe=_describe, params=GraspParams,
-                  bind=bind_grasp)
+                  bind=bind_grasp, unit="0 or 1")
 def is_grasped(state, test):
+    """1 when the object is within `distance` of the EE and the gripper is closed past its threshold."""
     return grasped(state, test)
 
 
