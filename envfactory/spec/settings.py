@@ -34,10 +34,6 @@ class TimingSettings(Model):
             raise located(
                 "action_cycle_time", f"action_cycle_time ({self.action_cycle_time}) must be >= 1 / loop_rate ({1.0 / self.loop_rate:g})"
             )
-        if self.action_speed > self.action_cycle_time:
-            raise located("action_speed", f"action_speed ({self.action_speed} s to reach the target) must not exceed "
-                                          f"action_cycle_time ({self.action_cycle_time} s per step): the arm would "
-                                          f"still be moving when the next action arrives")
         return self
 
 
