@@ -21,11 +21,10 @@ from envfactory.goals import GoalSampler, LiftCurriculum
 from envfactory.managers import ImageManager, ObservationManager, RewardManager
 from envfactory.objects import ObjectSpawner, ObjectTracker
 from envfactory.state import EnvState
+from envfactory.terms.rewards import STAGE_KEYS, STEP_FLAGS
 from envfactory.preflight import robot_geometry
 
 log = logging.getLogger("envfactory")
-
-STEP_FLAGS = ("action_out_of_bounds", "action_rejected", "goal_sampling_failed")
 
 
 class RobotEnv(gym.Env):
@@ -200,16 +199,14 @@ class RobotEnv(gym.Env):
 
     def _info(self, state: EnvState, achieved: np.ndarray, out_of_bounds: bool, rejection: str) -> dict:
         distance = float(np.linalg.norm(achieved - self._goal))
-        info = {
-            "action_out_of_bounds": float(out_of_bounds),
-            "action_rejected": float(bool(rejection)),
-            "goal_sampling_failed": float(self._goal_failed),
-            "rejection_reason": rejection,
-            "distance": distance,
-            "is_success": distance < self.blueprint.spec.task.goal.tolerance,
-        }
+        flags = (out_of_bounds, bool(rejection), self._goal_failed)
+        info = {key: float(value) for key, value in zip(STEP_FLAGS, flags, strict=True)}
+        info.update(rejection_reason=rejection, distance=distance,
+                    is_success=distance < self.blueprint.spec.task.goal.tolerance)
         if self.curriculum is not None:
             info.update(self.curriculum.info())
+        else:
+            info.update(zip(STAGE_KEYS, (0.0, self._goal.copy()), strict=True))  # no lift stage: never active
         info.update(self.rewards.measure(state))
         return info
 
