@@ -19,7 +19,7 @@ from envfactory.experts import EXPERTS
 from envfactory.spec.compose import LoadedSpec, validation_problems
 from envfactory.spec.errors import Problem, SpecError, suggest
 from envfactory.spec.schema import EnvSpec
-from envfactory.terms import IMAGES, OBSERVATIONS, REWARDS, TERMINATIONS, Layout
+from envfactory.terms import IMAGES, OBSERVATIONS, REWARDS, TERMINATIONS, Layout, plugins
 from envfactory.terms.library import Description, ImageTerm, ObservationTerm, RewardTerm, TerminationTerm
 from envfactory.terms.rewards import step_info_keys
 
@@ -378,9 +378,21 @@ def _check_backend(spec: EnvSpec, env_id: str, backend: str, loaded: LoadedSpec,
                                                                     "topic: the task drives the gripper"))
 
 
+def _import_terms(loaded: LoadedSpec, problems: list[Problem]) -> None:
+    """The user's term modules, before any term is looked up."""
+    plugins.load_entry_points()
+    for index, name in enumerate(loaded.spec.terms):
+        try:
+            plugins.import_module(name, loaded.family.folder)
+        except Exception as exc:  # the module's own error, whatever its type
+            problems.append(loaded.problem(f"terms.{index}", f"cannot import term module {name!r}: "
+                                                             f"{type(exc).__name__}: {exc}"))
+
+
 def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: bool) -> Blueprint:
     spec = loaded.spec
     problems: list[Problem] = []
+    _import_terms(loaded, problems)
     action = _action_layout(spec)
     layout = Layout(spec.robot, spec.task, action.size, action.low, action.high)
     observation = _observation(spec, layout, loaded, problems)

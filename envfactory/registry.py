@@ -74,7 +74,7 @@ def search_roots(folder: Path) -> tuple[Path, ...]:
 
 def folder_of(family_path: Path) -> Path:
     """The spec folder a family file belongs to (the parent of a specs/ subfolder)."""
-    return family_path.parent.parent if family_path.parent.name == "specs" else family_path.parent
+    return FamilyFile(family_path, ()).folder
 
 
 # ------------------------------------------------------------------ scanning

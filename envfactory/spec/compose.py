@@ -39,6 +39,11 @@ class FamilyFile:
     def name(self) -> str:
         return self.path.stem
 
+    @property
+    def folder(self) -> Path:
+        """The spec folder the file belongs to (the parent of a specs/ subfolder)."""
+        return self.path.parent.parent if self.path.parent.name == "specs" else self.path.parent
+
 
 @dataclass(frozen=True)
 class Composed:
