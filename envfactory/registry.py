@@ -98,6 +98,8 @@ def scan_family(path: Path, search_roots: tuple[Path, ...], source: str = CALL_S
     if size > MAX_SPEC_BYTES:
         raise SpecError([Problem("", f"the file is {size / 1024:.0f} KiB; a spec file may hold at most "
                                      f"{MAX_SPEC_BYTES // 1024} KiB (split the family)", str(path), 1)], path.stem)
+    sources = SourceMap()
+    sources.record_file(path, "")  # also refuses duplicate keys, which a plain load would merge silently
     data = load_plain(path)
     family = FamilyFile(path, search_roots)
     raw = data.get("registration")
@@ -106,23 +108,19 @@ def scan_family(path: Path, search_roots: tuple[Path, ...], source: str = CALL_S
                                  str(path), 1)], path.stem)
     ids = raw.get("ids") if isinstance(raw, dict) else None
     if isinstance(ids, dict) and len(ids) > MAX_IDS_PER_FAMILY:
-        sources = SourceMap()
-        sources.record_file(path, "")
         raise SpecError([sources.problem("registration.ids", f"{len(ids)} IDs; a family may declare at most "
                                                              f"{MAX_IDS_PER_FAMILY} (split it into several files)")],
                         path.stem)
     try:
         registration = Registration.model_validate(raw)
     except ValidationError as exc:
-        sources = SourceMap()
-        sources.record_file(path, "")
         problems = validation_problems(exc, sources, Registration)
         located = [sources.problem(f"registration.{p.path}" if p.path else "registration", p.message)
                    for p in problems]
         raise SpecError(located, path.stem) from None
     bad = [env_id for env_id in registration.ids if not isinstance(env_id, str) or not ENV_ID_RE.fullmatch(env_id)]
     if bad:
-        raise SpecError([_id_problem(path, str(env_id), f"{env_id!r} is not a valid gymnasium ID: use letters, "
+        raise SpecError([sources.problem(f"registration.ids.{env_id}", f"{env_id!r} is not a valid gymnasium ID: use letters, "
                                                         f"digits, '_', '-', '.', ':' and an optional 'ns/' prefix "
                                                         f"and '-v<N>' suffix, e.g. 'MyReach-v0'") for env_id in bad],
                         path.stem)
