@@ -227,6 +227,9 @@ def register(
         if save and added and not problems:
             new = user_config.add_folder(path)
             console.print(f"{'recorded' if new else 'already recorded'} {path.resolve()} in {user_config.config_file()}")
+        elif save and problems:
+            errors.print(f"{path}: not recorded in {user_config.config_file()}: fix the errors above and register "
+                         f"again", highlight=False, markup=False)
     if failed:
         raise typer.Exit(1)
 

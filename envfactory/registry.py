@@ -162,7 +162,7 @@ def check_family(records: list[IdRecord]) -> None:
         if key in seen:
             continue
         seen.add(key)
-        loaded = load_env_spec(record.family, (), dict(record.kwargs))
+        loaded = load_env_spec(record.family, (), dict(record.kwargs), env_id=record.env_id)
         compile_blueprint(loaded, record.env_id, record.backend, record.goal_env)
 
 
@@ -291,7 +291,7 @@ def _blueprint_cached(env_id: str, overrides: tuple[str, ...], frozen_kwargs: tu
     from envfactory.compiler import compile_blueprint
 
     entry = record(env_id)
-    loaded = load_env_spec(entry.family, overrides, dict(entry.kwargs), dict(kwargs_items))
+    loaded = load_env_spec(entry.family, overrides, dict(entry.kwargs), dict(kwargs_items), env_id=env_id)
     return compile_blueprint(loaded, env_id, entry.backend, entry.goal_env)
 
 

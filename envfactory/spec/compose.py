@@ -164,18 +164,26 @@ def _compose_cached(family: FamilyFile, overrides: tuple[str, ...]) -> Composed:
 # ------------------------------------------------------------------ kwargs
 
 
-def apply_kwargs(config: dict, sources: SourceMap, kwargs: dict[str, Any], origin: str) -> None:
+def apply_kwargs(config: dict, sources: SourceMap, kwargs: dict[str, Any], origin: str,
+                 written_at: str | None = None) -> None:
+    """Set each kwarg at the spec path its alias names. `written_at` is the dotted path of the
+    mapping the kwargs were written in (a registration entry), so errors name its file and line."""
     aliases = {**config.get("kwargs", {}), **config.get("task", {}).get("kwargs", {})}
     problems = []
     for name, value in kwargs.items():
+        where = sources.locate(f"{written_at}.{name}") if written_at else Problem("", "", origin)
+        file, line = (where.file, where.line) if where.line is not None else (origin, None)
         if name not in aliases:
             problems.append(
-                Problem("", f"unknown kwarg {name!r}{suggest(name, aliases)}; valid kwargs: {', '.join(sorted(aliases))}",
-                        origin)
+                Problem(f"{written_at}.{name}" if written_at else "", f"unknown kwarg {name!r}{suggest(name, aliases)}; "
+                        f"valid kwargs: {', '.join(sorted(aliases))}", file, line)
             )
             continue
         _set_path(config, aliases[name], value)
-        sources.note(aliases[name], f"{origin} {name}={value!r}")
+        if line is not None:  # errors at the aliased path point at where the kwarg was written
+            sources.note(aliases[name], file, line)
+        else:
+            sources.note(aliases[name], f"{origin} {name}={value!r}")
     if problems:
         raise SpecError(problems)
 
@@ -305,6 +313,7 @@ def load_env_spec(
     overrides: Iterable[str] = (),
     id_kwargs: dict[str, Any] | None = None,
     kwargs: dict[str, Any] | None = None,
+    env_id: str | None = None,
 ) -> LoadedSpec:
     overrides, override_kwargs = _kwarg_overrides(family, tuple(overrides))
     composed = _compose_cached(family, overrides)
@@ -314,7 +323,8 @@ def load_env_spec(
         if override_kwargs:
             apply_kwargs(config, sources, override_kwargs, "override")
         if id_kwargs:
-            apply_kwargs(config, sources, id_kwargs, "registered kwarg")
+            apply_kwargs(config, sources, id_kwargs, "registered kwarg",
+                         f"registration.ids.{env_id}.kwargs" if env_id else None)
         if kwargs:
             apply_kwargs(config, sources, kwargs, "gym.make kwarg")
     except SpecError as exc:

@@ -56,7 +56,8 @@ class ModelSpec(Model):
     def _attached_parts_name_parent(self) -> "ModelSpec":
         base = self.parts[0]
         if base.parent is not None or any(base.xyz) or any(base.rpy):
-            raise ValueError("parts[0] is the base: it takes no parent, xyz or rpy (place the robot with 'mount')")
+            raise located("parts.0", "parts[0] is the base: it takes no parent, xyz or rpy (place the robot with "
+                                     "'mount'; a rotated base is not supported)")
         for index, part in enumerate(self.parts[1:], start=1):
             if part.parent is None:
                 raise ValueError(f"parts[{index}] needs 'parent': the link it is mounted on")

@@ -23,7 +23,8 @@ except ImportError:  # pragma: no cover
 @dataclass
 class SourceMap:
     locations: dict[str, tuple[str, int]] = field(default_factory=dict)
-    notes: dict[str, str] = field(default_factory=dict)  # path -> "gym.make kwarg x" etc.
+    # path -> (origin, line): "gym.make kwarg x", or the registration entry's file and line
+    notes: dict[str, tuple[str, int | None]] = field(default_factory=dict)
 
     def record_file(self, path: Path, package: str) -> yaml.Node | None:
         node = parse_yaml(path)
@@ -54,15 +55,16 @@ class SourceMap:
                 self.locations[path] = (file, item.start_mark.line + 1)
                 self._walk(item, path, file)
 
-    def note(self, path: str, origin: str) -> None:
-        self.notes[path] = origin
+    def note(self, path: str, origin: str, line: int | None = None) -> None:
+        self.notes[path] = (origin, line)
 
     def locate(self, path: str) -> Problem:
         """A Problem shell at the nearest recorded ancestor of `path`."""
         probe = path
         while True:
             if probe in self.notes:
-                return Problem(path, "", file=self.notes[probe])
+                origin, line = self.notes[probe]
+                return Problem(path, "", file=origin, line=line)
             if probe in self.locations:
                 file, line = self.locations[probe]
                 return Problem(path, "", file=file, line=line)
