@@ -12,6 +12,7 @@ import envfactory
 from envfactory.compiler import compile_blueprint
 from envfactory.spec.compose import composed_config, validate_config
 from envfactory.spec.errors import SpecError
+from envfactory.spec.tree import leaves
 
 FAMILIES = ("ur5e_pnp", "vx300s_pnp", "ur5e_reach")
 MUTATIONS = {"negative": lambda v: -abs(v) - 1.0, "zero": lambda v: 0, "nan": lambda v: math.nan,
@@ -47,17 +48,6 @@ ACCEPTED = [
 ]
 
 
-def _leaves(node, prefix=""):
-    if isinstance(node, dict):
-        for key, value in node.items():
-            yield from _leaves(value, f"{prefix}.{key}" if prefix else str(key))
-    elif isinstance(node, list):
-        for index, value in enumerate(node):
-            yield from _leaves(value, f"{prefix}.{index}")
-    elif isinstance(node, (int, float)) and not isinstance(node, bool):
-        yield prefix, node
-
-
 def _set(config, dotted, value):
     *parents, leaf = dotted.split(".")
     node = config
@@ -81,8 +71,9 @@ def test_every_numeric_mutation_is_rejected_with_a_line_or_documented(family_nam
     config, _ = composed_config(record.family)
     undocumented, unlocated = [], []
     count = 0
-    for path, value in _leaves(config):
-        if path.startswith(("registration", "kwargs")):
+    for path, value in leaves(config):
+        if path.startswith(("registration", "kwargs")) or isinstance(value, bool) or \
+                not isinstance(value, (int, float)):
             continue
         for kind, mutate in MUTATIONS.items():
             mutant, sources = composed_config(record.family)

@@ -24,6 +24,7 @@ from envfactory.spec.numbers import non_finite_paths
 from envfactory.spec.plausibility import scene_problems
 from envfactory.spec.schema import EnvSpec
 from envfactory.spec.sources import SourceMap, parse_yaml
+from envfactory.spec.tree import leaves
 
 MISSING = "???"
 
@@ -218,23 +219,12 @@ def _set_path(config: dict, dotted: str, value: Any) -> None:
 # ------------------------------------------------------------------ validation
 
 
-def _missing_paths(node: Any, prefix: str = "") -> Iterable[str]:
-    if isinstance(node, dict):
-        for key, value in node.items():
-            yield from _missing_paths(value, f"{prefix}.{key}" if prefix else str(key))
-    elif isinstance(node, list):
-        for index, value in enumerate(node):
-            yield from _missing_paths(value, f"{prefix}.{index}")
-    elif node == MISSING:
-        yield prefix
+def _missing_paths(node: Any) -> Iterable[str]:
+    return (path for path, value in leaves(node) if value == MISSING)
 
 
 def _has_interpolation(node: Any) -> bool:
-    if isinstance(node, dict):
-        return any(_has_interpolation(value) for value in node.values())
-    if isinstance(node, list):
-        return any(_has_interpolation(value) for value in node)
-    return isinstance(node, str) and "${" in node
+    return any(isinstance(value, str) and "${" in value for _, value in leaves(node))
 
 
 def _resolve(config: dict, sources: SourceMap) -> dict:

@@ -12,6 +12,8 @@ from typing import Annotated, Any, Iterator
 
 from pydantic import AfterValidator, BeforeValidator, Field
 
+from envfactory.spec.tree import leaves
+
 
 def _plain_number(value: Any) -> Any:
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
@@ -40,13 +42,6 @@ Angle = Annotated[Real, Field(ge=-6.2832, le=6.2832)]
 Friction = Annotated[Real, Field(ge=0, le=10.0)]
 
 
-def non_finite_paths(node: Any, prefix: str = "") -> Iterator[tuple[str, float]]:
+def non_finite_paths(node: Any) -> Iterator[tuple[str, float]]:
     """Every NaN or infinity anywhere in a plain config tree, with its dotted path."""
-    if isinstance(node, dict):
-        for key, value in node.items():
-            yield from non_finite_paths(value, f"{prefix}.{key}" if prefix else str(key))
-    elif isinstance(node, (list, tuple)):
-        for index, value in enumerate(node):
-            yield from non_finite_paths(value, f"{prefix}.{index}")
-    elif isinstance(node, float) and not math.isfinite(node):
-        yield prefix, node
+    return ((path, value) for path, value in leaves(node) if isinstance(value, float) and not math.isfinite(value))

@@ -65,20 +65,27 @@ class ObservationTerm:
 
 
 @dataclass(frozen=True)
-class RewardTerm:
-    """Vectorised over a batch: fn(achieved, desired, info, bound params, tolerance) -> (N,).
+class GoalTerm:
+    """Pure in the goals and the step's info, vectorised over a batch:
+    fn(achieved, desired, info, bound params, tolerance) -> (N,), so HER can relabel it."""
+
+    name: str
+    fn: Callable
+    description: str
+    params: type[BaseModel] = NoParams
+    info_keys: tuple[str, ...] = ()  # step info the term reads
+    bind: Callable[[Layout, Any], Any] = unchanged
+
+
+@dataclass(frozen=True)
+class RewardTerm(GoalTerm):
+    """A reward: fn returns (N,) floats, weighted in the task.
 
     A term that depends on the env state rather than the goals has `measure`:
     the step evaluates it on the state and records it in info under
     `info_keys[0]`, so `fn` (reading info) stays exact when HER relabels goals.
     """
 
-    name: str
-    fn: Callable
-    description: str
-    params: type[BaseModel] = NoParams
-    info_keys: tuple[str, ...] = ()
-    bind: Callable[[Layout, Any], Any] = unchanged
     measure: Callable[[Any, Any], float] | None = None
 
 
@@ -131,18 +138,9 @@ def reward_term(**spec) -> Callable:
 
 
 @dataclass(frozen=True)
-class TerminationTerm:
-    """Ends the episode: fn(achieved, desired, info, bound params, tolerance) -> bool array (N,).
-
-    Pure in the goals like a reward term, so a goal env's compute_terminated stays exact
+class TerminationTerm(GoalTerm):
+    """Ends the episode: fn returns (N,) bools; a goal env's compute_terminated stays exact
     under relabelling."""
-
-    name: str
-    fn: Callable
-    description: str
-    params: type[BaseModel] = NoParams
-    info_keys: tuple[str, ...] = ()
-    bind: Callable[[Layout, Any], Any] = unchanged
 
 
 def termination_term(**spec) -> Callable:
