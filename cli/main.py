@@ -162,6 +162,16 @@ def _list_sources() -> None:
     console.print(table)
 
 
+def _known(env_id: str) -> None:
+    """Refuse an unknown ID with the nearest registered ones, before any work."""
+    import envfactory.registry as registry
+
+    try:
+        registry.record(env_id)
+    except KeyError as exc:
+        _fail(str(exc).strip("'\""))
+
+
 def _parse_kwargs(items: List[str] | None) -> dict:
     import yaml
 
@@ -190,12 +200,9 @@ def describe(
     import envfactory
     from envfactory.describe import render_description
 
+    _known(env_id)
     kwargs = _parse_kwargs(kwarg)
-    try:
-        compiled = envfactory.blueprint(env_id, overrides or (), **kwargs)
-    except KeyError as exc:
-        _fail(str(exc).strip("'\""))
-    render_description(compiled, console)
+    render_description(envfactory.blueprint(env_id, overrides or (), **kwargs), console)
 
 
 @command()
@@ -328,6 +335,7 @@ def run(
     from envfactory.experts import make_policy
     from envfactory.spec.errors import SpecError
 
+    _known(env_id)
     kwargs = _parse_kwargs(kwarg)
     if policy not in ("scripted", "random"):
         _fail(f"--policy {policy!r}: use 'scripted' or 'random'")

@@ -33,6 +33,7 @@ SPEC_PATH_VARIABLE = "ENVFACTORY_SPEC_PATH"
 # distinct ID, so both are capped (and stated in the README).
 MAX_SPEC_BYTES = 256 * 1024
 MAX_IDS_PER_FAMILY = 200
+MAX_FAMILY_FILES = 500  # per folder
 
 BUILTIN_SOURCE = "built-in"
 CONFIG_SOURCE = "config"
@@ -196,7 +197,11 @@ def register_specs(folder: str | Path, validate: bool = True, source: str = CALL
     roots = search_roots(folder)
     added, problems = [], []
     pending: dict[str, IdRecord] = {}
-    for path in family_files(folder):
+    paths = family_files(folder)
+    if len(paths) > MAX_FAMILY_FILES:
+        return [], [SpecError([Problem("", f"{len(paths)} family files; a spec folder may hold at most "
+                                           f"{MAX_FAMILY_FILES}", str(folder))])]
+    for path in paths:
         try:
             records = scan_family(path, roots, source)
             clashes = [p for p in (clash(r, pending) for r in records) if p is not None]

@@ -29,10 +29,19 @@ class SourceMap:
     def record_file(self, path: Path, package: str) -> yaml.Node | None:
         node = parse_yaml(path)
         if node is not None:
-            self._walk(node, package, str(path))
+            self._walk(node, package, str(path), set(), 1)
         return node
 
-    def _walk(self, node: yaml.Node, prefix: str, file: str) -> None:
+    def _walk(self, node: yaml.Node, prefix: str, file: str, visited: set[int], used_at: int) -> None:
+        """Record every key's line; `used_at` is the line where this node is used (an alias's)."""
+        if isinstance(node, (yaml.MappingNode, yaml.SequenceNode)):
+            # A block reused by alias is walked (and later merged) once per use: nested aliases
+            # grow exponentially from a few lines, so spec files may not reuse blocks that way.
+            if id(node) in visited:
+                raise SpecError([Problem(prefix, "YAML alias of a block (*name or <<: *name) is not supported in "
+                                                 "spec files: use the defaults list or ${...} interpolation",
+                                         file, used_at)], Path(file).stem)
+            visited.add(id(node))
         if isinstance(node, yaml.MappingNode):
             seen: dict[str, int] = {}
             for key_node, value_node in node.value:
@@ -48,12 +57,14 @@ class SourceMap:
                 path = f"{prefix}.{key}" if prefix else key
                 self.locations[path] = (file, key_node.start_mark.line + 1)
                 self.notes.pop(path, None)
-                self._walk(value_node, path, file)
+                self._walk(value_node, path, file, visited, line)
         elif isinstance(node, yaml.SequenceNode):
             for index, item in enumerate(node.value):
                 path = f"{prefix}.{index}"
                 self.locations[path] = (file, item.start_mark.line + 1)
-                self._walk(item, path, file)
+                # an aliased item starts where its anchor was written, above this use
+                item_line = item.start_mark.line + 1
+                self._walk(item, path, file, visited, item_line if item_line >= used_at else used_at)
 
     def note(self, path: str, origin: str, line: int | None = None) -> None:
         self.notes[path] = (origin, line)
