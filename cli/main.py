@@ -423,6 +423,9 @@ def twin(
         stand_in.stop()
 
 
+from envfactory.cli import safety as _safety_commands  # noqa: E402,F401  (registers its commands)
+
+
 def main() -> None:  # pragma: no cover
     sys.exit(app())
 

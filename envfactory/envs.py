@@ -20,6 +20,7 @@ from envfactory.compiler import Blueprint
 from envfactory.goals import GoalSampler, LiftCurriculum
 from envfactory.managers import ImageManager, ObservationManager, RewardManager
 from envfactory.objects import ObjectSpawner, ObjectTracker
+from envfactory.obstacles import table_bounds_xy
 from envfactory.state import EnvState
 from envfactory.terms.rewards import STAGE_KEYS, STEP_FLAGS
 from envfactory.preflight import robot_geometry
@@ -40,8 +41,7 @@ class RobotEnv(gym.Env):
         self.metadata = {**self.metadata, "render_fps": 1.0 / spec.env.timing.action_cycle_time}
         self.task_origin = np.asarray(robot.task_origin_world, float)
         geometry = robot_geometry(spec, blueprint.asset_root)
-        urdf, surfaces = geometry.urdf, geometry.surfaces
-        self.kinematics, self.safety = geometry.kinematics, geometry.safety
+        urdf, self.kinematics, self.safety = geometry.urdf, geometry.kinematics, geometry.safety
         self.actions = ActionAdapter(blueprint.action, self.kinematics, spec.workspace, spec.env.safety.max_joint_delta)
         self.home = np.asarray(robot.home, float)
         self.goals = GoalSampler(spec.task.goal, self.kinematics, self.safety, self.home,
@@ -57,7 +57,7 @@ class RobotEnv(gym.Env):
         self._arm_in_states = np.array(robot.arm_state_indices)
         self._gripper_in_states = robot.gripper_state_index
         self._gripper_reset = spec.gripper_at_reset
-        self.spawner = ObjectSpawner(spec.task.objects, surfaces)
+        self.spawner = ObjectSpawner(spec.task.objects, table_bounds_xy(spec.scene.table, self.task_origin))
         self._trackers = {name: ObjectTracker() for name in spec.task.objects}
         lift = spec.task.goal.lift
         self.curriculum = (LiftCurriculum(lift.enabled, lift.height, spec.task.goal.tolerance)
@@ -129,10 +129,11 @@ class RobotEnv(gym.Env):
         if not self.backend.teleports_on_reset:
             # a real arm drives home: the whole way there must clear the table and floor
             here = self.backend.read_joints().position[self._arm_in_states]
-            verdict = self.safety.path_is_clear(here, self.home)
+            verdict = self.safety.path_is_clear(here, self.home, self._state.gripper if self._state else 0.0)
             if not verdict.accepted:
                 raise BackendError(f"the move home is unsafe ({verdict.reason}); bring the arm clear by hand")
         self.backend.reset(self.home, self._gripper_reset, spawn)
+        self.safety.forget()
         for tracker in self._trackers.values():
             tracker.reset()
         self._goal, self._goal_failed = self.goals.sample(self.np_random)
@@ -156,7 +157,7 @@ class RobotEnv(gym.Env):
         command = self.actions.translate(action, state)
         rejection = command.rejection
         if not rejection:
-            verdict = self.safety.check(state.q_arm, command.q_arm, state.gripper)
+            verdict = self.safety.check(state.q_arm, command.q_arm, state.gripper, command.gripper)
             rejection = verdict.reason
         if rejection and self._verbose:
             log.info("%s: action rejected: %s", self.blueprint.env_id, rejection)

@@ -32,6 +32,7 @@ class IkResult:
 class Kinematics:
     def __init__(self, urdf_path: Path, robot: RobotSpec, base_in_task: np.ndarray):
         self.robot = robot
+        self.urdf_path = Path(urdf_path)
         self.model = pin.buildModelFromUrdf(str(urdf_path))
         self.data = self.model.createData()
         self.base_in_task = np.asarray(base_in_task, dtype=float)
@@ -46,7 +47,6 @@ class Kinematics:
             self._gripper_q = np.array([self._q_index(name) for name, _ in followers])
             self._gripper_gain = np.array([gain for _, gain in followers])
         self.ee_frame = self._frame_id(robot.ee_frame)
-        self.checked_frames, self.checked_radii = self._safety_frames()
         self._q = pin.neutral(self.model)
 
     # ----------------------------------------------------------- lookups
@@ -65,40 +65,15 @@ class Kinematics:
             raise ValueError(f"robot {self.robot.name!r}: the URDF has no frame {frame_name!r}")
         return self.model.getFrameId(frame_name)
 
-    def _safety_frames(self) -> tuple[list[int], np.ndarray]:
-        # Links that no arm joint moves (the base) cannot be moved by an action,
-        # and several URDF frames share one origin: check each point once.
-        first_arm_joint = self.model.getJointId(self.robot.arm_joints[0].name)
-        moved = set(self.model.subtrees[first_arm_joint])
-        skip = set(self.robot.safety_links.skip)
-        chosen: dict[tuple, int] = {}
-        q = pin.neutral(self.model)
-        pin.framesForwardKinematics(self.model, self.data, q)
-        for frame_id, frame in enumerate(self.model.frames):
-            if frame.type != pin.FrameType.BODY or frame.parentJoint not in moved or frame.name in skip:
-                continue
-            key = (frame.parentJoint, *np.round(frame.placement.translation, 6))
-            radius = self.robot.safety_links.radius.get(frame.name, 0.0)
-            if key not in chosen or radius > self.robot.safety_links.radius.get(self.model.frames[chosen[key]].name, 0.0):
-                chosen[key] = frame_id
-        ids = sorted(chosen.values())
-        radii = np.array([self.robot.safety_links.radius.get(self.model.frames[i].name, 0.0) for i in ids])
-        self.lever_arm = self._longest_chain(first_arm_joint, ids)
-        return ids, radii
-
-    def _longest_chain(self, first_joint: int, frame_ids: list[int]) -> float:
-        """An upper bound on the distance from any arm joint axis to any checked point, in any pose:
-        the summed lengths of the links between them. A joint change Δq moves no point farther
-        than lever_arm · Σ|Δq|."""
-        longest = 0.0
-        for frame_id in frame_ids:
-            frame = self.model.frames[frame_id]
-            length, joint = float(np.linalg.norm(frame.placement.translation)), frame.parentJoint
-            while joint > first_joint:
-                length += float(np.linalg.norm(self.model.jointPlacements[joint].translation))
-                joint = self.model.parents[joint]
-            longest = max(longest, length)
-        return longest
+    def coordinate_drivers(self) -> dict[int, tuple[int, float]]:
+        """Which coordinate moves each driven joint, and how much: joint id -> (coordinate, gain).
+        Coordinates are the arm joints in action order, then the gripper."""
+        drivers = {self.model.getJointId(j.name): (index, 1.0) for index, j in enumerate(self.robot.arm_joints)}
+        if self.robot.gripper is not None:
+            gripper = len(self.robot.arm_joints)
+            for name, gain in [(self.robot.gripper.joint, 1.0), *self.robot.gripper.mimic.items()]:
+                drivers[self.model.getJointId(name)] = (gripper, gain)
+        return drivers
 
     def frame_names(self, ids: list[int]) -> list[str]:
         return [self.model.frames[i].name for i in ids]
@@ -119,12 +94,6 @@ class Kinematics:
         pin.forwardKinematics(self.model, self.data, self.full_q(q_arm, gripper))
         placement = pin.updateFramePlacement(self.model, self.data, self.ee_frame)
         return placement.translation + self.base_in_task, placement.rotation.copy()
-
-    def checked_link_positions(self, q_arm: np.ndarray, gripper: float = 0.0) -> np.ndarray:
-        """Task-frame positions of every link the safety check guards, shape (n, 3)."""
-        pin.framesForwardKinematics(self.model, self.data, self.full_q(q_arm, gripper))
-        oMf = self.data.oMf
-        return np.array([oMf[i].translation for i in self.checked_frames]) + self.base_in_task
 
     # ----------------------------------------------------------- inverse kinematics
 

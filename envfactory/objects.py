@@ -11,7 +11,6 @@ import pinocchio as pin
 
 from envfactory.backends.base import ObjectReading
 from envfactory.kinematics import quaternion_to_matrix
-from envfactory.safety import Surfaces
 from envfactory.spec.schema import ObjectSpec
 from envfactory.state import ObjectState
 
@@ -21,9 +20,9 @@ IDENTITY_QUATERNION = np.array([0.0, 0.0, 0.0, 1.0])
 class ObjectSpawner:
     """Spawn poses in the task frame: the declared position, or a random offset from it kept on the table."""
 
-    def __init__(self, objects: dict[str, ObjectSpec], surfaces: Surfaces):
+    def __init__(self, objects: dict[str, ObjectSpec], table_xy: tuple[np.ndarray, np.ndarray]):
         self.objects = objects
-        self.table_min, self.table_max = surfaces.table_min_xy, surfaces.table_max_xy
+        self.table_min, self.table_max = table_xy
 
     def sample(self, rng: np.random.Generator) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         poses = {}

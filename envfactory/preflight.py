@@ -28,22 +28,22 @@ LIMIT_SLACK = 0.005
 class RobotGeometry:
     urdf: Path
     kinematics: object  # envfactory.kinematics.Kinematics
-    surfaces: object  # envfactory.safety.Surfaces
     safety: object  # envfactory.safety.SafetyCheck
 
 
 def robot_geometry(spec: EnvSpec, asset_root: Path) -> RobotGeometry:
     """The assembled URDF, the kinematics and the safety check of a spec's robot in its scene."""
+    from envfactory.collision_pairs import build_collision_model
     from envfactory.kinematics import Kinematics
-    from envfactory.safety import SafetyCheck, Surfaces
+    from envfactory.safety import SafetyCheck
     from envfactory.urdf_assembly import assemble
 
     robot = spec.robot
     task_origin = np.asarray(robot.task_origin_world, float)
     urdf = assemble(robot.model, asset_root, robot.name)
     kinematics = Kinematics(urdf, robot, np.asarray(robot.mount, float) - task_origin)
-    surfaces = Surfaces.from_scene(spec.scene.table, spec.env.safety.floor_z, task_origin)
-    return RobotGeometry(urdf, kinematics, surfaces, SafetyCheck(kinematics, surfaces, spec.env.safety))
+    collision = build_collision_model(kinematics, spec, asset_root)
+    return RobotGeometry(urdf, kinematics, SafetyCheck(collision, spec.env.safety))
 
 
 def check(spec: EnvSpec, asset_root: Path, report) -> list[Problem]:
@@ -88,12 +88,37 @@ def _check_by_key(key, carrier: _Carrier) -> tuple[tuple[str, str], ...]:
     problems = _name_problems(spec, model)
     if problems:
         return tuple(problems)
+    from envfactory.collision_pairs import StalePairs
+
     try:
-        geometry = robot_geometry(spec, asset_root)
+        robot_shape = spec.robot.model_dump_json(include=GEOMETRY_FIELDS)
+        geometry = _shared_geometry((robot_shape, spec.scene.model_dump_json(), spec.env.safety.model_dump_json(),
+                                     str(asset_root)), carrier)
+        geometry.safety.forget()
+    except StalePairs as exc:
+        return (("robot.safety.collision_pairs", str(exc)),)
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError, RuntimeError) as exc:
+        # a model whose numbers break the kinematics or the collision geometry
+        return (("robot.model", f"the kinematics or collision geometry fail on this robot model: {exc}"),)
+    problems = _padding_problems(spec, geometry)
+    if problems:
+        return tuple(problems)
+    try:
         return tuple(_pose_problems(spec, geometry) + _reach_problems(spec, geometry))
     except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
-        # a model whose numbers break the kinematics (a part placed a billion metres out)
         return (("robot.model", f"the kinematics fail on this robot model: {exc}"),)
+
+
+# The robot fields the kinematics and the collision model are built from; the others (home,
+# bounds, topics, labels) leave a shared geometry valid.
+GEOMETRY_FIELDS = {"name", "model", "mount", "pedestal", "task_frame", "arm_joints", "ee_frame", "gripper", "safety"}
+
+
+@functools.lru_cache(maxsize=8)
+def _shared_geometry(key, carrier: _Carrier) -> RobotGeometry:
+    """One robot-in-scene geometry per key for the checks here (building the collision model is
+    the slow part); an env builds its own, since the safety check remembers its last motion."""
+    return robot_geometry(carrier.spec, carrier.asset_root)
 
 
 def _name_problems(spec: EnvSpec, model) -> list[tuple[str, str]]:
@@ -136,17 +161,21 @@ def _name_problems(spec: EnvSpec, model) -> list[tuple[str, str]]:
     return problems
 
 
+def _padding_problems(spec: EnvSpec, geometry: RobotGeometry) -> list[tuple[str, str]]:
+    """A padded link the collision geometry lacks would silently keep no extra clearance."""
+    links = geometry.safety.collision.links
+    return [(f"robot.safety.padding.{name}", f"no link {name!r} has collision geometry{suggest(name, links)}")
+            for name in spec.robot.safety.padding if name not in links]
+
+
 def _pose_problems(spec: EnvSpec, geometry: RobotGeometry) -> list[tuple[str, str]]:
     home = np.asarray(spec.robot.home, float)
-    gripper = spec.gripper_at_reset or 0.0
-    clearance = geometry.safety.link_clearance(home, gripper)
-    lowest = int(np.argmin(clearance))
-    margin = spec.env.safety.surface_margin
-    if clearance[lowest] < margin:
-        link = geometry.kinematics.frame_names([geometry.kinematics.checked_frames[lowest]])[0]
-        return [("robot.home", f"the home pose leaves link {link} a clearance of {clearance[lowest]:.3f} m above "
-                               f"the table or floor, under the safety margin {margin:g} m: every reset would start "
-                               f"unsafe")]
+    gripper = spec.gripper_at_reset
+    gripper = spec.robot.gripper.open if gripper is None and spec.robot.gripper is not None else (gripper or 0.0)
+    verdict = geometry.safety.check(home, home, gripper)  # a motion of length zero: the home pose itself
+    if not verdict.accepted:
+        return [("robot.home", f"the home pose is unsafe ({verdict.reason}; the margin is "
+                               f"{spec.env.safety.surface_margin:g} m): every reset would start there")]
     return []
 
 

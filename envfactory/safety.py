@@ -1,20 +1,27 @@
 """Decides whether a joint target may be sent to the arm.
 
 One check serves sim and real: finite values, joint bounds, the largest joint
-change allowed in one action, and per-link FK clearance above the floor and
-the table top. The motion between the current pose and the target is proven
-clear as a whole, not sampled, because two safe end poses can sweep a link
-through the table between any two samples.
+change allowed in one action, and the clearance of every link's collision
+shapes from the scene's obstacles and from the arm's other links, proven over
+the whole commanded motion (the gripper's included), not sampled: two safe
+end poses can sweep a link through the table between any two samples.
+
+The proof rests on one bound. A joint change Δq moves no point of a shape
+farther than lever · |Δq| (its per-coordinate lever arms), so clearances
+known at two poses of a straight joint-space motion bound the clearance
+everywhere between them: at least (c_a + c_b - travel) / 2. Pieces whose
+bound falls short are halved until they are proven, found unsafe, or too
+small to split: then the motion is refused. A doubt stops the arm.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from envfactory.kinematics import Kinematics
-from envfactory.spec.schema import SafetySettings, TableSpec
+from envfactory.collision import CollisionModel
+from envfactory.spec.schema import SafetySettings
 
 
 @dataclass(frozen=True)
@@ -26,62 +33,82 @@ class Verdict:
 ACCEPTED = Verdict(True)
 
 
+@dataclass
+class Anchor:
+    """One arm pose of a motion, with a lower bound on each pair's clearance there over the whole
+    range the gripper sweeps in the motion. Bounds tighten in levels: capsules (0), coal at the
+    gripper's middle value less the gripper's half-travel (1), coal across the gripper's range (2)."""
+
+    fraction: float
+    q_arm: np.ndarray
+    bound: np.ndarray
+    level: np.ndarray  # per pair
+
+
 @dataclass(frozen=True)
-class Surfaces:
-    """The floor and the table top, in the task frame."""
+class Motion:
+    """A straight joint-space motion of the arm, and the gripper's range during it."""
 
-    floor_z: float
-    table_min_xy: np.ndarray
-    table_max_xy: np.ndarray
-    table_top_z: float
+    q_from: np.ndarray
+    q_to: np.ndarray
+    gripper_from: float
+    gripper_to: float
+    travel: np.ndarray  # per pair: how far the arm's motion can close it, end to end
+    reserve: np.ndarray  # per pair: how far the gripper's motion can close it from its middle value
+    threshold: np.ndarray  # per pair: the clearance it must keep
 
-    @classmethod
-    def from_scene(cls, table: TableSpec, floor_z_world: float, task_origin_world: np.ndarray) -> "Surfaces":
-        half = np.asarray(table.size) / 2.0
-        center = np.asarray(table.center) - task_origin_world[:2]
-        return cls(
-            floor_z=floor_z_world - task_origin_world[2],
-            table_min_xy=center - half,
-            table_max_xy=center + half,
-            table_top_z=table.top_z - task_origin_world[2],
-        )
+    @property
+    def gripper_middle(self) -> float:
+        return (self.gripper_from + self.gripper_to) / 2
 
-    def clearance(self, points: np.ndarray, radii: np.ndarray, footprint_margin: float) -> np.ndarray:
-        """Height of each sphere's bottom above the surface below it."""
-        reach = footprint_margin + radii
-        x, y = points[:, 0], points[:, 1]
-        (x_min, y_min), (x_max, y_max) = self.table_min_xy, self.table_max_xy
-        over_table = (x >= x_min - reach) & (x <= x_max + reach) & (y >= y_min - reach) & (y <= y_max + reach)
-        surface = np.where(over_table, self.table_top_z, self.floor_z)
-        return points[:, 2] - radii - surface
+    def arm_at(self, fraction: float) -> np.ndarray:
+        return self.q_from + fraction * (self.q_to - self.q_from)
 
 
 class SafetyCheck:
-    # Bisection of the commanded motion stops at pieces this small; a piece that still cannot be
-    # proven clear is refused: a doubt stops the arm.
-    FINEST_PIECE = 1.0 / 64
+    # Bisection stops at pieces this small. Deep pieces are needed only where a pair starts
+    # inside the margin and must prove it does not get closer.
+    FINEST_PIECE = 1.0 / 512
+    # A pair that starts inside the margin may dip this much below where it started on its
+    # way out: the bisection cannot prove an exact non-decrease.
+    INSIDE_TOLERANCE = 0.002
+    # A remembered end pose stands in for the next start if the arm ended this close to it.
+    REUSE_WITHIN = 0.003
+    # Kept in hand beyond the margin: engines disagree on the same URDF by up to 1 mm
+    # (PyBullet pads convex shapes with a collision margin that coal does not).
+    ENGINE_TOLERANCE = 0.002
+    # Gripper values are sampled this finely (in clearance lost between samples) when its motion matters.
+    SWEEP_RESOLUTION = 0.001
 
-    def __init__(self, kinematics: Kinematics, surfaces: Surfaces, settings: SafetySettings):
-        self.kinematics = kinematics
-        self.surfaces = surfaces
+    def __init__(self, collision: CollisionModel, settings: SafetySettings):
+        self.collision = collision
+        self.kinematics = collision.kinematics
         self.settings = settings
+        self.margin = settings.surface_margin + self.ENGINE_TOLERANCE
+        # the last accepted motion's end pose and the gripper range it was judged over
+        self._last_end: tuple[Anchor, tuple[float, float]] | None = None
 
-    def link_clearance(self, q_arm: np.ndarray, gripper: float = 0.0) -> np.ndarray:
-        points = self.kinematics.checked_link_positions(q_arm, gripper)
-        return self.surfaces.clearance(points, self.kinematics.checked_radii, self.settings.table_footprint_margin)
+    # ------------------------------------------------------------ single poses
+
+    def clearances(self, q_arm: np.ndarray, gripper: float = 0.0) -> np.ndarray:
+        """Exact clearance of every measured pair at one pose."""
+        self.collision.pose(np.asarray(q_arm, float), gripper)
+        return self.collision.all_exact()
 
     def pose_is_clear(self, q_arm: np.ndarray, gripper: float = 0.0) -> bool:
-        return bool(np.all(self.link_clearance(q_arm, gripper) >= self.settings.surface_margin))
+        return self._pose_verdict(np.asarray(q_arm, float), gripper).accepted
 
-    def path_is_clear(self, q_from: np.ndarray, q_to: np.ndarray) -> Verdict:
-        """Clearance along a long joint-space move (a real arm driving home), with no joint-change limit."""
-        q_from, q_to = np.asarray(q_from, float), np.asarray(q_to, float)
-        verdict = self._pose_verdict(q_to, 0.0, " at the end of the way")
-        if not verdict.accepted:
-            return verdict
-        return self._motion_verdict(q_from, q_to - q_from, 0.0, finest=self.FINEST_PIECE / 16)
+    def _pose_verdict(self, q_arm: np.ndarray, gripper: float, where: str = "") -> Verdict:
+        count = self.collision.pair_count
+        still = Motion(q_arm, q_arm, gripper, gripper, np.zeros(count), np.zeros(count), np.full(count, self.margin))
+        return self._settle(self._anchor(1.0, still), still, where)
 
-    def check(self, q_arm_now: np.ndarray, q_arm_target: np.ndarray, gripper: float = 0.0) -> Verdict:
+    # ------------------------------------------------------------ motions
+
+    def check(self, q_arm_now: np.ndarray, q_arm_target: np.ndarray, gripper_now: float = 0.0,
+              gripper_target: float | None = None) -> Verdict:
+        """Whether the arm may move from now to the target (and the gripper to its target, if given)."""
+        q_arm_target = np.asarray(q_arm_target, float)
         if not np.all(np.isfinite(q_arm_target)):
             return Verdict(False, "non-finite joint target")
         kin = self.kinematics
@@ -91,56 +118,139 @@ class SafetyCheck:
         largest = float(np.max(np.abs(delta)))
         if largest > self.settings.max_joint_delta + 1e-12:
             return Verdict(False, f"joint change {largest:.3f} rad exceeds max_joint_delta {self.settings.max_joint_delta}")
-        end = self.kinematics.checked_link_positions(q_arm_target, gripper)
-        verdict = self._points_verdict(end)
+        if gripper_target is not None and not np.isfinite(gripper_target):
+            return Verdict(False, "non-finite gripper target")
+        return self._motion_verdict(np.asarray(q_arm_now, float), q_arm_target, gripper_now,
+                                    gripper_now if gripper_target is None else float(gripper_target),
+                                    self.FINEST_PIECE, remember=True)
+
+    def path_is_clear(self, q_from: np.ndarray, q_to: np.ndarray, gripper: float = 0.0) -> Verdict:
+        """Clearance along a long joint-space move (a real arm driving home), with no joint-change limit."""
+        return self._motion_verdict(np.asarray(q_from, float), np.asarray(q_to, float), gripper, gripper,
+                                    self.FINEST_PIECE / 8, remember=False)
+
+    def forget(self) -> None:
+        """The arm moved without a check (a reset): the remembered end pose no longer applies."""
+        self._last_end = None
+
+    def _motion_verdict(self, q_from, q_to, gripper_from, gripper_to, finest, remember) -> Verdict:
+        collision = self.collision
+        lever = collision.pair_lever
+        arm = len(q_from)
+        has_gripper = collision.coordinates > arm
+        # The gripper moves on its own clock: any of its values between start and target may meet
+        # any arm pose, so each pose is judged over the gripper's whole range.
+        reserve = lever[:, arm] * abs(gripper_to - gripper_from) / 2 if has_gripper else np.zeros(collision.pair_count)
+        motion = Motion(q_from, q_to, gripper_from, gripper_to, lever[:, :arm] @ np.abs(q_to - q_from), reserve,
+                        np.full(collision.pair_count, self.margin))
+
+        start = self._start_anchor(motion)
+        inside = np.flatnonzero(start.bound < self.margin)
+        self._refine(start, inside, motion, level=2)
+        inside = inside[start.bound[inside] < self.margin]
+        # a pair already inside the margin (contact, tracking error) may only move out
+        motion.threshold[inside] = start.bound[inside] - self.INSIDE_TOLERANCE
+        end = self._anchor(1.0, motion)
+        verdict = self._settle(end, motion, " at the end of the motion")
+        if verdict.accepted and inside.size:
+            self._refine(end, inside, motion, level=2)
+            stuck = inside[end.bound[inside] <= start.bound[inside]]
+            if stuck.size:
+                verdict = Verdict(False, self._describe(stuck[0], end.bound[stuck[0]],
+                                                        " and the motion does not move it away"))
         if not verdict.accepted:
             return verdict
-        travel = self.kinematics.lever_arm * float(np.sum(np.abs(delta)))
-        if self._vouches(end, travel):  # well clear of everything: the end vouches for the whole motion
-            return ACCEPTED
-        return self._motion_verdict(q_arm_now, delta, gripper)
-
-    def _pose_verdict(self, q_arm: np.ndarray, gripper: float, where: str = "") -> Verdict:
-        """Whether one pose clears the surfaces, naming the offending link if not."""
-        return self._points_verdict(self.kinematics.checked_link_positions(q_arm, gripper), where)
-
-    def _points_verdict(self, points: np.ndarray, where: str = "") -> Verdict:
-        clearance = self.surfaces.clearance(points, self.kinematics.checked_radii, self.settings.table_footprint_margin)
-        lowest = int(np.argmin(clearance))
-        if clearance[lowest] < self.settings.surface_margin:
-            link = self.kinematics.frame_names([self.kinematics.checked_frames[lowest]])[0]
-            return Verdict(False, f"link {link} would come within {clearance[lowest]:.3f} m of a surface{where}")
-        return ACCEPTED
-
-    def _vouches(self, points: np.ndarray, travel: float) -> bool:
-        """Whether every pose whose points lie within `travel` of these clears the surfaces:
-        a point drops at most `travel`, and comes over the table only from within `travel` of it."""
-        clearance = self.surfaces.clearance(points, self.kinematics.checked_radii,
-                                            self.settings.table_footprint_margin + travel)
-        return float(np.min(clearance)) - travel >= self.settings.surface_margin
-
-    def _motion_verdict(self, q_start: np.ndarray, delta: np.ndarray, gripper: float,
-                        finest: float = FINEST_PIECE) -> Verdict:
-        """Prove every pose between start and target clear, not just sampled ones.
-
-        No checked point moves farther than lever_arm · Σ|Δq| · (fraction of the motion), so a
-        pose whose clearance beats the margin by that travel (against a table footprint widened
-        by the same travel) vouches for its whole neighbourhood. Pieces it cannot vouch for are
-        halved until they are proven, found unsafe, or too small: then the motion is refused."""
-        per_fraction = self.kinematics.lever_arm * float(np.sum(np.abs(delta)))
-        pieces = [(0.0, 1.0)]
+        pieces = [(start, end)]
         while pieces:
-            low, high = pieces.pop()
-            middle, half = (low + high) / 2, (high - low) / 2
-            points = self.kinematics.checked_link_positions(q_start + middle * delta, gripper)
-            if self._vouches(points, per_fraction * half):
+            a, b = pieces.pop()
+            length = b.fraction - a.fraction
+            short = self._weak(a, b, motion, length)
+            for level in (1, 2):
+                if short.size == 0:
+                    break
+                self._refine(a, short, motion, level)
+                self._refine(b, short, motion, level)
+                short = self._weak(a, b, motion, length)
+            if short.size == 0:
                 continue
-            verdict = self._points_verdict(points, f" at {middle:.0%} of the motion")
+            if length <= finest:
+                names = " and ".join(collision.pair_names(short[0]))
+                return Verdict(False, f"cannot prove {names} stay clear near {a.fraction:.0%} of the motion")
+            middle = self._anchor((a.fraction + b.fraction) / 2, motion)
+            verdict = self._settle(middle, motion, f" at {middle.fraction:.0%} of the motion")
             if not verdict.accepted:
                 return verdict
-            if half * 2 <= finest:
-                if low == 0.0 and not self.pose_is_clear(q_start, gripper):
-                    continue  # already inside the margin (contact, tracking error): a way out is not refused
-                return Verdict(False, f"cannot prove the motion clears the surfaces near {middle:.0%} of the way")
-            pieces += [(low, middle), (middle, high)]
+            pieces += [(a, middle), (middle, b)]
+        if remember:
+            self._last_end = (end, tuple(sorted((gripper_from, gripper_to))))
         return ACCEPTED
+
+    # ------------------------------------------------------------ anchors
+
+    def _anchor(self, fraction: float, motion: Motion) -> Anchor:
+        q_arm = motion.arm_at(fraction)
+        self.collision.pose(q_arm, motion.gripper_middle)
+        bound = self.collision.bounds() - motion.reserve
+        return Anchor(fraction, q_arm, bound, np.zeros(bound.size, dtype=np.int8))
+
+    def _start_anchor(self, motion: Motion) -> Anchor:
+        """The start pose's bounds: the last accepted end pose's, less how far the arm and gripper
+        are from where it was judged."""
+        if self._last_end is not None:
+            last, (old_low, old_high) = self._last_end
+            lever = self.collision.pair_lever
+            arm = len(motion.q_from)
+            moved = lever[:, :arm] @ np.abs(motion.q_from - last.q_arm)
+            if lever.shape[1] > arm:
+                low, high = sorted((motion.gripper_from, motion.gripper_to))
+                # the old bound covers its own gripper range; beyond it, the gripper lever applies
+                moved = moved + lever[:, arm] * max(old_low - low, high - old_high, 0.0)
+            if moved.max() <= self.REUSE_WITHIN:
+                return Anchor(0.0, motion.q_from, last.bound - moved, np.zeros(moved.size, dtype=np.int8))
+        return self._anchor(0.0, motion)
+
+    def _refine(self, anchor: Anchor, pairs: np.ndarray, motion: Motion, level: int) -> None:
+        """Tighten the bounds of these pairs to the given level at the anchor's pose."""
+        collision = self.collision
+        todo = pairs[anchor.level[pairs] < min(level, 1)]
+        if todo.size:
+            collision.pose(anchor.q_arm, motion.gripper_middle)
+            anchor.bound[todo] = collision.exact(todo) - motion.reserve[todo]
+            anchor.level[todo] = 1
+        if level < 2:
+            return
+        sweep = pairs[(anchor.level[pairs] < 2) & (motion.reserve[pairs] > 0)]
+        if sweep.size == 0:
+            return
+        # coal at gripper values spaced so that the gripper lever between them costs little
+        span = 2 * motion.reserve[sweep].max()
+        count = int(np.ceil(span / (2 * self.SWEEP_RESOLUTION))) + 1
+        values = np.linspace(motion.gripper_from, motion.gripper_to, count)
+        lowest = np.full(sweep.size, np.inf)
+        for value in values:
+            collision.pose(anchor.q_arm, value)
+            np.minimum(lowest, collision.exact(sweep), out=lowest)
+        anchor.bound[sweep] = lowest - motion.reserve[sweep] / (count - 1)
+        anchor.level[sweep] = 2
+
+    def _settle(self, anchor: Anchor, motion: Motion, where: str) -> Verdict:
+        """Tighten every pair the capsules cannot clear, and refuse if one is truly too close."""
+        for level in (1, 2):
+            self._refine(anchor, np.flatnonzero(anchor.bound < motion.threshold), motion, level)
+        return self._violation(anchor, motion.threshold, where)
+
+    @staticmethod
+    def _weak(a: Anchor, b: Anchor, motion: Motion, length: float) -> np.ndarray:
+        """Pairs whose clearance between two anchors is not proven above their threshold."""
+        return np.flatnonzero((a.bound + b.bound - motion.travel * length) / 2 < motion.threshold)
+
+    def _violation(self, anchor: Anchor, threshold: np.ndarray, where: str) -> Verdict:
+        below = np.flatnonzero((anchor.level > 0) & (anchor.bound < threshold))
+        if below.size == 0:
+            return ACCEPTED
+        worst = below[np.argmin(anchor.bound[below] - threshold[below])]
+        return Verdict(False, self._describe(worst, anchor.bound[worst], where))
+
+    def _describe(self, pair: int, clearance: float, where: str) -> str:
+        first, second = self.collision.pair_names(pair)
+        return f"{first} would come within {clearance:.3f} m of {second}{where}"

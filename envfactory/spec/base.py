@@ -16,7 +16,8 @@ Rgba = tuple[Real, Real, Real, Real]
 class Model(BaseModel):
     # A typo is reported with its dotted path and the nearest valid name
     # instead of being silently ignored.
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # NaN and infinity are refused in every float (the Real type says so per field too).
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 def ordered(low, high, what: str = "") -> None:

@@ -155,11 +155,14 @@ class GripperSpec(Model):
         return max(self.open, self.closed)
 
 
-class SafetyLinks(Model):
-    # Radius of a sphere around the link origin that must clear the surfaces,
-    # for links whose body reaches well beyond their origin.
-    radius: dict[str, Annotated[NonNegative, Field(le=1.0)]] = {}
-    skip: list[str] = []
+class RobotSafety(Model):
+    """What the safety check needs beyond the URDF's collision geometry."""
+
+    # The generated list of link pairs that need no self-collision check (adjacent, always
+    # touching or never near), relative to the robot YAML; `envfactory collision-pairs` writes it.
+    collision_pairs: str | None = None
+    # Extra clearance (m) a link keeps from everything, beyond the margin: cables, tools, doubt.
+    padding: dict[str, Annotated[NonNegative, Field(le=1.0)]] = {}
 
 
 class PedestalSpec(Model):
@@ -191,7 +194,7 @@ class RobotSpec(Model):
     gripper: GripperSpec | None = None
     arm_force: Effort = 150.0  # N·m per arm joint, unless the joint declares its own effort
     arm_max_velocity: Velocity = 3.15  # rad/s per arm joint, unless the joint declares its own velocity
-    safety_links: SafetyLinks = SafetyLinks()
+    safety: RobotSafety = RobotSafety()
     ros: RosSpec | None = None
 
     @property

@@ -17,8 +17,8 @@ from envfactory.spec.robot import (
     JointStateEntry,
     ModelSpec,
     PedestalSpec,
+    RobotSafety,
     RobotSpec,
-    SafetyLinks,
     UrdfPart,
 )
 from envfactory.spec.ros import ArmCommand, GripperCommand, RosSpec, RosTopic, StaticTransform
@@ -27,6 +27,7 @@ from envfactory.spec.settings import (
     CameraSpec,
     EnvSettings,
     IdEntry,
+    ObstacleSpec,
     RealSettings,
     Registration,
     SafetySettings,
@@ -87,8 +88,8 @@ class EnvSpec(Model):
 __all__ = [
     "DEFAULT_JOINT_DELTA", "ActionSettings", "ArmCommand", "ArmJoint", "CameraSpec", "ContactSpec", "EnvSettings",
     "EnvSpec", "ExpertRef", "FrameSpec", "GoalSpec", "GripperCommand", "GripperSpec", "GripperUse", "IdEntry",
-    "JointStateEntry", "LiftStage", "Model", "ModelSpec", "Position", "Rpy", "NonNegative", "ObjectSpec", "PedestalSpec", "Positive",
-    "Real", "RealSettings", "Registration", "RewardSets", "RobotSpec", "RosSpec", "RosTopic", "SafetyLinks",
+    "JointStateEntry", "LiftStage", "Model", "ModelSpec", "Position", "Rpy", "NonNegative", "ObjectSpec", "ObstacleSpec", "PedestalSpec", "Positive",
+    "Real", "RealSettings", "Registration", "RewardSets", "RobotSpec", "RosSpec", "RosTopic", "RobotSafety",
     "SafetySettings", "SceneSpec", "SimSettings", "SpawnSpec", "StaticTransform", "TableSpec", "TaskSpec",
     "TermRef", "TerminationRef", "TimingSettings", "UrdfPart", "Vec3", "Workspace",
 ]

@@ -6,7 +6,7 @@ from typing import Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from envfactory.spec.base import Model, Position, located, ordered
+from envfactory.spec.base import Model, Position, Rgba, in_unit_range, located, ordered
 from envfactory.spec.numbers import Coordinate, Length, NonNegative, Positive
 
 # Largest joint change one action may command: a full turn (no revolute joint can travel further).
@@ -88,6 +88,25 @@ class TableSpec(Model):
     size: tuple[Length, Length]
     thickness: Length = 0.04
 
+    @model_validator(mode="after")
+    def _stands_on_the_floor(self) -> "TableSpec":
+        if self.top_z <= self.thickness:
+            raise located("top_z", f"top_z ({self.top_z}) must be above the top's thickness ({self.thickness})")
+        return self
+
+
+class ObstacleSpec(Model):
+    """A fixed box in the scene (world frame): the simulator builds it and the safety check avoids it."""
+
+    center: Position
+    size: tuple[Length, Length, Length]
+    rgba: Rgba = (0.5, 0.5, 0.5, 1.0)
+
+    @model_validator(mode="after")
+    def _colour(self) -> "ObstacleSpec":
+        in_unit_range(self.rgba)
+        return self
+
 
 class CameraSpec(Model):
     """A fixed camera over the table: the use_kinect image terms render from it."""
@@ -112,6 +131,7 @@ class CameraSpec(Model):
 
 class SceneSpec(Model):
     table: TableSpec
+    obstacles: dict[str, ObstacleSpec] = {}
     camera: CameraSpec | None = None
 
 

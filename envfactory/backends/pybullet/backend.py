@@ -11,6 +11,7 @@ import pybullet as p
 
 from envfactory.backends.base import BackendError, CameraFrame, JointReading, ObjectReading
 from envfactory.backends.pybullet import scene
+from envfactory.obstacles import scene_obstacles
 from envfactory.spec.schema import CameraSpec, EnvSpec
 
 # Followers of a mimic joint track their driver through gear constraints;
@@ -55,11 +56,8 @@ class PyBulletBackend:
         p.setTimeStep(self.dt, physicsClientId=c)
         p.setPhysicsEngineParameter(numSolverIterations=self.spec.sim.solver_iterations, physicsClientId=c)
         p.configureDebugVisualizer(p.COV_ENABLE_GUI, 0, physicsClientId=c)
-        scene.add_floor(c, self.spec.env.safety.floor_z)
-        scene.add_table(c, self.spec.scene.table)
+        self.obstacle_bodies = scene.add_obstacles(c, scene_obstacles(self.spec))
         mount = np.asarray(self.robot.mount, float)
-        if self.robot.pedestal is not None:
-            scene.add_pedestal(c, self.robot.pedestal, mount)
         # Self-collision stays off: the gripper's linkage links overlap by design.
         self.body = p.loadURDF(str(urdf_path), basePosition=mount.tolist(), useFixedBase=True,
                                flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=c)

@@ -1,0 +1,358 @@
+"""The robot's collision geometry against the scene and against itself.
+
+Every link's collision shapes come from the URDF through Pinocchio's
+GeometryModel (meshes as their convex hulls) and coal measures exact
+distances. Each shape is also wrapped in a capsule fitted around it: capsules
+give lower bounds on every distance for the price of one vectorised pass,
+and coal runs only for the pairs those bounds leave undecided.
+
+Distances here are clearances: the exact gap minus the links' padding, in
+metres, negative when shapes overlap. They are in the robot base frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import coal
+import numpy as np
+import pinocchio as pin
+
+from envfactory.kinematics import Kinematics
+from envfactory.obstacles import Obstacle
+
+
+@dataclass(frozen=True)
+class Shape:
+    """One collision shape of the robot, with the capsule that encloses it (parent joint frame)."""
+
+    name: str
+    link: str
+    joint: int  # Pinocchio joint the shape rides on; 0 for the fixed base
+    capsule_start: np.ndarray
+    capsule_end: np.ndarray
+    radius: float  # capsule radius, padding included
+    padding: float
+
+
+def _shape_points(geometry) -> np.ndarray:
+    """Points whose convex hull is the shape (cylinders and spheres: their capsule's axis)."""
+    if isinstance(geometry, coal.Box):
+        half = np.asarray(geometry.halfSide)
+        return np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
+    if isinstance(geometry, coal.ConvexBase):
+        return np.asarray(geometry.points())
+    if isinstance(geometry, coal.BVHModelBase):
+        return np.asarray(geometry.vertices())
+    raise TypeError(type(geometry).__name__)
+
+
+def fit_capsule(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """A capsule containing every point, and so their convex hull: axis along the
+    principal direction, radius the largest distance from it."""
+    center = points.mean(axis=0)
+    offsets = points - center
+    axis = np.linalg.svd(offsets, full_matrices=False)[2][0]
+    along = offsets @ axis
+    across = np.linalg.norm(offsets - np.outer(along, axis), axis=1)
+    radius = float(across.max())
+    # a point at distance `across` from the axis sits inside the end cap while its
+    # projection is within sqrt(r² - across²) of the segment end
+    room = np.sqrt(np.maximum(radius**2 - across**2, 0.0))
+    low, high = float(np.min(along + room)), float(np.max(along - room))
+    if low > high:  # short and round: a sphere does
+        middle = center + axis * (low + high) / 2
+        radius = float(np.max(np.linalg.norm(points - middle, axis=1)))
+        return middle, middle.copy(), radius
+    return center + axis * low, center + axis * high, radius
+
+
+def _capsule_of(geometry_object) -> tuple[np.ndarray, np.ndarray, float]:
+    geometry, placement = geometry_object.geometry, geometry_object.placement
+    if isinstance(geometry, (coal.Cylinder, coal.Capsule)):
+        half = float(geometry.halfLength)
+        start, end = placement.act(np.array([0.0, 0.0, -half])), placement.act(np.array([0.0, 0.0, half]))
+        return start, end, float(geometry.radius)
+    if isinstance(geometry, coal.Sphere):
+        center = placement.translation.copy()
+        return center, center.copy(), float(geometry.radius)
+    local = _shape_points(geometry)
+    start, end, radius = fit_capsule(local @ placement.rotation.T + placement.translation)
+    return start, end, radius * (1 + 1e-9) + 1e-9
+
+
+class CollisionModel:
+    """The robot's shapes, the scene's obstacles, and the pairs between them that are measured."""
+
+    def __init__(self, kinematics: Kinematics, obstacles: list[Obstacle], padding: dict[str, float] | None = None):
+        self.kinematics = kinematics
+        model = kinematics.model
+        self.geometry = pin.buildGeomFromUrdf(model, str(kinematics.urdf_path), pin.GeometryType.COLLISION)
+        padding = padding or {}
+        self.shapes: list[Shape] = []
+        for geometry_object in self.geometry.geometryObjects:
+            if isinstance(geometry_object.geometry, coal.BVHModelBase):
+                # coal measures meshes as the convex hull of their vertices, as PyBullet simulates them
+                geometry_object.geometry.buildConvexHull(True, "Qt")
+                geometry_object.geometry = geometry_object.geometry.convex
+            link = model.frames[geometry_object.parentFrame].name
+            start, end, radius = _capsule_of(geometry_object)
+            pad = float(padding.get(link, 0.0))
+            self.shapes.append(Shape(geometry_object.name, link, int(geometry_object.parentJoint), start, end,
+                                     radius + pad, pad))
+        self.links = sorted({shape.link for shape in self.shapes})
+
+        # the obstacles, in the robot base frame, join the geometry model on the universe joint
+        self.obstacles = obstacles
+        base_in_world = np.asarray(kinematics.robot.mount, float)
+        self.obstacle_low = np.array([o.low for o in obstacles]) - base_in_world
+        self.obstacle_high = np.array([o.high for o in obstacles]) - base_in_world
+        first_obstacle = len(self.shapes)
+        for obstacle, low, high in zip(obstacles, self.obstacle_low, self.obstacle_high):
+            box = coal.Box(*(high - low))
+            self.geometry.addGeometryObject(pin.GeometryObject(f"obstacle:{obstacle.name}", 0, 0,
+                                                               pin.SE3(np.eye(3), (low + high) / 2), box))
+
+        drivers = kinematics.coordinate_drivers()
+        self.coordinates = len(kinematics.robot.arm_joints) + (kinematics.robot.gripper is not None)
+        self._moving = np.array([self._is_moved(shape.joint, drivers) for shape in self.shapes])
+        self.lever = np.array([self._lever(shape, drivers) for shape in self.shapes])  # (shapes, coordinates)
+        if kinematics.robot.gripper is not None:
+            self.lever[:, -1] = self._gripper_levers(drivers)
+
+        moving = np.flatnonzero(self._moving)
+        self.scene_shape = np.repeat(moving, len(obstacles))
+        self.scene_obstacle = np.tile(np.arange(len(obstacles)), len(moving))
+        self.self_pairs: list[tuple[int, int, str]] = []  # (shape, shape, why a pair is skipped or "")
+        for a in range(len(self.shapes)):
+            for b in range(a + 1, len(self.shapes)):
+                self.self_pairs.append((a, b, self._structural_exemption(a, b, drivers)))
+        self._pin_pairs_scene = np.array([self._add_pair(s, first_obstacle + o)
+                                          for s, o in zip(self.scene_shape, self.scene_obstacle)], dtype=int)
+        # capsules are moved in one batch per pose: the joints that carry shapes, in order
+        self._carriers = sorted({shape.joint for shape in self.shapes})
+        carrier_row = {joint: row for row, joint in enumerate(self._carriers)}
+        self._shape_carrier = np.array([carrier_row[shape.joint] for shape in self.shapes])
+        self._local_ends = np.array([[np.append(shape.capsule_start, 1.0), np.append(shape.capsule_end, 1.0)]
+                                     for shape in self.shapes])
+        self.radius = np.array([shape.radius for shape in self.shapes])
+        # each capsule is also covered by a few spheres along its axis: cheap, and tight enough
+        # that coal is rarely needed between the arm's own links
+        self._sphere_shape, self._sphere_fraction, self._sphere_radius = [], [], []
+        for index, shape in enumerate(self.shapes):
+            length = float(np.linalg.norm(shape.capsule_end - shape.capsule_start))
+            count = int(min(self.SPHERES_PER_CAPSULE, max(1, np.ceil(length / (2 * shape.radius)))))
+            for k in range(count):
+                self._sphere_shape.append(index)
+                self._sphere_fraction.append((k + 0.5) / count)
+                self._sphere_radius.append(shape.radius + length / (2 * count))
+        self._sphere_shape = np.array(self._sphere_shape)
+        self._sphere_fraction = np.array(self._sphere_fraction)[:, None]
+        self._sphere_radius = np.array(self._sphere_radius)
+        self.set_ignored_pairs({})
+        self.geometry_data = self.geometry.createData()
+        self.data = model.createData()
+
+        self.padding = np.array([shape.padding for shape in self.shapes])
+
+    # ----------------------------------------------------------- structure
+
+    def _is_moved(self, joint: int, drivers) -> bool:
+        while joint > 0:
+            if joint in drivers:
+                return True
+            joint = self.kinematics.model.parents[joint]
+        return False
+
+    def _path(self, joint_a: int, joint_b: int) -> tuple[list[int], int]:
+        """The joints between two bodies (those on either branch below their common ancestor),
+        and that common ancestor."""
+        parents = self.kinematics.model.parents
+        ancestors_a, joint = [], joint_a
+        while True:
+            ancestors_a.append(joint)
+            if joint == 0:
+                break
+            joint = parents[joint]
+        path_b, joint = [], joint_b
+        while joint not in ancestors_a:
+            path_b.append(joint)
+            joint = parents[joint]
+        return ancestors_a[: ancestors_a.index(joint)] + path_b, joint
+
+    def _structural_exemption(self, a: int, b: int, drivers) -> str:
+        shape_a, shape_b = self.shapes[a], self.shapes[b]
+        path, _ = self._path(shape_a.joint, shape_b.joint)
+        driven = [j for j in path if j in drivers]
+        if not driven:
+            return "rigidly joined"
+        gripper = self.coordinates - 1 if self.kinematics.robot.gripper is not None else None
+        if all(drivers[j][0] == gripper for j in driven):
+            return "gripper mechanism"  # only the gripper moves them against each other: its own design
+        if len(path) == 1:
+            return "adjacent"
+        return ""
+
+    def _lever(self, shape: Shape, drivers, above: int = 0) -> np.ndarray:
+        """How far any point of the shape can move per unit change of each coordinate, relative to
+        joint `above` (the base by default): for a revolute joint, the summed link lengths from its
+        axis to the farthest point of the capsule. The gripper column is replaced by a measured sweep."""
+        model = self.kinematics.model
+        lever = np.zeros(self.coordinates)
+        reach = max(np.linalg.norm(shape.capsule_start), np.linalg.norm(shape.capsule_end)) + shape.radius
+        joint = shape.joint
+        while joint > above:
+            kind = model.joints[joint].shortname()
+            prismatic = "Prismatic" in kind or kind.startswith("JointModelP")
+            if joint in drivers:
+                coordinate, gain = drivers[joint]
+                lever[coordinate] += abs(gain) * (1.0 if prismatic else reach)
+            if prismatic:  # the slide lengthens every lever above it by its travel
+                reach += max(abs(model.lowerPositionLimit[model.idx_qs[joint]]),
+                             abs(model.upperPositionLimit[model.idx_qs[joint]]))
+            reach += float(np.linalg.norm(model.jointPlacements[joint].translation))
+            joint = model.parents[joint]
+        return lever
+
+    def _relative_lever(self, a: int, b: int, drivers) -> np.ndarray:
+        """Levers of two shapes against each other: joints above both move them as one body."""
+        shape_a, shape_b = self.shapes[a], self.shapes[b]
+        _, common = self._path(shape_a.joint, shape_b.joint)
+        lever = self._lever(shape_a, drivers, common) + self._lever(shape_b, drivers, common)
+        if self.kinematics.robot.gripper is not None:
+            lever[-1] = self.lever[a, -1] + self.lever[b, -1]
+        return lever
+
+    SPHERES_PER_CAPSULE = 4
+    GRIPPER_SAMPLES = 400
+    GRIPPER_SAFETY_FACTOR = 1.25
+
+    def _gripper_levers(self, drivers) -> np.ndarray:
+        """How far any point of each shape moves per unit of gripper travel, measured along the gripper's
+        one-dimensional range. A linkage's joints turn against each other (a parallel gripper keeps its
+        pads upright), so the summed joint levers would overstate the motion several times; a dense
+        sweep with a safety factor bounds it instead."""
+        kin, model = self.kinematics, self.kinematics.model
+        gripper = kin.robot.gripper
+        data = model.createData()
+        values = np.linspace(gripper.low, gripper.high, self.GRIPPER_SAMPLES)
+        q_arm = np.zeros(len(kin.robot.arm_joints))
+        mounts = [self._gripper_mount(shape.joint, drivers) for shape in self.shapes]
+        frames = []
+        for value in values:
+            pin.forwardKinematics(model, data, kin.full_q(q_arm, value))
+            frames.append([data.oMi[mount].actInv(data.oMi[shape.joint])
+                           for shape, mount in zip(self.shapes, mounts)])
+        levers = np.zeros(len(self.shapes))
+        step = values[1] - values[0]
+        for index, shape in enumerate(self.shapes):
+            rate = 0.0
+            for before, after in zip(frames[:-1], frames[1:]):
+                a, b = before[index], after[index]
+                moved = max(np.linalg.norm(b.act(shape.capsule_start) - a.act(shape.capsule_start)),
+                            np.linalg.norm(b.act(shape.capsule_end) - a.act(shape.capsule_end)))
+                turned = np.linalg.norm(pin.log3(b.rotation @ a.rotation.T))
+                rate = max(rate, (moved + shape.radius * turned) / step)
+            levers[index] = self.GRIPPER_SAFETY_FACTOR * rate
+        return levers
+
+    def _gripper_mount(self, joint: int, drivers) -> int:
+        """The nearest joint at or above this one that the gripper does not move."""
+        gripper = self.coordinates - 1
+        while joint > 0 and joint in drivers and drivers[joint][0] == gripper:
+            joint = self.kinematics.model.parents[joint]
+        return joint
+
+    def _add_pair(self, first: int, second: int) -> int:
+        self.geometry.addCollisionPair(pin.CollisionPair(int(first), int(second)))
+        return len(self.geometry.collisionPairs) - 1
+
+    def set_ignored_pairs(self, ignored: dict[frozenset, str]) -> None:
+        """Skip the self pairs a sampled allowed-collision list names (link-name pairs -> reason)."""
+        self.ignored = {}
+        checked = []
+        for a, b, why in self.self_pairs:
+            key = frozenset((self.shapes[a].name, self.shapes[b].name))
+            why = why or ignored.get(key, "")
+            if why:
+                self.ignored[key] = why
+            else:
+                checked.append((a, b))
+        self.self_a = np.array([a for a, _ in checked], dtype=int)
+        self.self_b = np.array([b for _, b in checked], dtype=int)
+        spheres_of = [np.flatnonzero(self._sphere_shape == shape) for shape in range(len(self.shapes))]
+        pairs = [(i, j) for a, b in checked for i in spheres_of[a] for j in spheres_of[b]]
+        counts = [len(spheres_of[a]) * len(spheres_of[b]) for a, b in checked]
+        self._sphere_a = np.array([i for i, _ in pairs], dtype=int)
+        self._sphere_b = np.array([j for _, j in pairs], dtype=int)
+        self._sphere_sum = self._sphere_radius[self._sphere_a] + self._sphere_radius[self._sphere_b]
+        self._sphere_groups = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int) if counts else np.zeros(0, int)
+        existing = {(p.first, p.second): k for k, p in enumerate(self.geometry.collisionPairs)}
+        self._pin_pairs_self = np.array([existing.get((a, b)) if (a, b) in existing else self._add_pair(a, b)
+                                         for a, b in checked], dtype=int)
+        self.geometry_data = self.geometry.createData()
+        drivers = self.kinematics.coordinate_drivers()
+        relative = [self._relative_lever(a, b, drivers) for a, b in checked]
+        self.pair_lever = np.vstack([self.lever[self.scene_shape], *relative]) if relative \
+            else self.lever[self.scene_shape]
+        self.pair_padding = np.concatenate([self.padding_of(self.scene_shape),
+                                            self.padding_of(self.self_a) + self.padding_of(self.self_b)])
+        self._pin_pairs = np.concatenate([self._pin_pairs_scene, self._pin_pairs_self]).astype(int)
+
+    def padding_of(self, shapes: np.ndarray) -> np.ndarray:
+        return np.array([self.shapes[s].padding for s in shapes], dtype=float)
+
+    @property
+    def pair_count(self) -> int:
+        return len(self._pin_pairs)
+
+    def pair_names(self, pair: int) -> tuple[str, str]:
+        """The link and the obstacle or link a measured pair names."""
+        scene = len(self.scene_shape)
+        if pair < scene:
+            return self.shapes[self.scene_shape[pair]].link, self.obstacles[self.scene_obstacle[pair]].name
+        pair -= scene
+        return self.shapes[self.self_a[pair]].link, self.shapes[self.self_b[pair]].link
+
+    # ----------------------------------------------------------- measuring
+
+    def pose(self, q_arm: np.ndarray, gripper: float) -> None:
+        """Place every shape at this configuration."""
+        pin.forwardKinematics(self.kinematics.model, self.data, self.kinematics.full_q(q_arm, gripper))
+
+    def capsules(self) -> tuple[np.ndarray, np.ndarray]:
+        """Capsule end points of every shape at the current pose (base frame)."""
+        placements = self.data.oMi
+        frames = np.array([placements[joint].homogeneous[:3] for joint in self._carriers])[self._shape_carrier]
+        ends = np.matmul(frames[:, None], self._local_ends[..., None])[..., 0]  # (shapes, 2, 3)
+        return ends[:, 0], ends[:, 1]
+
+    def bounds(self) -> np.ndarray:
+        """A lower bound on the clearance of every measured pair at the current pose."""
+        start, end = self.capsules()
+        low, high = np.minimum(start, end), np.maximum(start, end)
+        shapes, obstacles = self.scene_shape, self.scene_obstacle
+        # separation along the box's own axes: a lower bound on the distance between convex sets
+        apart = np.maximum(low[shapes] - self.obstacle_high[obstacles], self.obstacle_low[obstacles] - high[shapes])
+        scene = apart.max(axis=1) - self.radius[shapes]
+        # self pairs: the nearest of the spheres covering the two capsules; coal settles the close ones
+        if self._sphere_groups.size == 0:
+            return scene
+        origin = start[self._sphere_shape]
+        centers = origin + (end[self._sphere_shape] - origin) * self._sphere_fraction
+        gap = centers[self._sphere_a] - centers[self._sphere_b]
+        spheres = np.sqrt(np.einsum("ij,ij->i", gap, gap)) - self._sphere_sum
+        return np.concatenate([scene, np.minimum.reduceat(spheres, self._sphere_groups)])
+
+    def exact(self, pairs: np.ndarray) -> np.ndarray:
+        """coal's clearance of the given measured pairs at the current pose."""
+        pin.updateGeometryPlacements(self.kinematics.model, self.data, self.geometry, self.geometry_data)
+        out = np.empty(len(pairs))
+        for row, pair in enumerate(pairs):
+            result = pin.computeDistance(self.geometry, self.geometry_data, int(self._pin_pairs[pair]))
+            out[row] = result.min_distance - self.pair_padding[pair]
+        return out
+
+    def all_exact(self) -> np.ndarray:
+        return self.exact(np.arange(self.pair_count))
+
