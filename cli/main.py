@@ -331,7 +331,7 @@ def run(
 
     import envfactory  # noqa: F401  (registers the IDs)
     from envfactory.backends.base import BackendError
-    from envfactory.episodes import run_episodes, success_rate
+    from envfactory.episodes import iter_episodes
     from envfactory.experts import make_policy
     from envfactory.spec.errors import SpecError
 
@@ -347,29 +347,28 @@ def run(
         env = gym.make(env_id, overrides=override or [], render_mode="rgb_array" if video else None, **kwargs)
     except (SpecError, KeyError, gym.error.Error, BackendError) as exc:
         _fail(str(exc).strip("'\""))
-    frames = []
+    frames, results, failure = [], [], ""
     try:
-        env.reset(seed=seed)
-        actor = make_policy(policy, env)
+        actor = make_policy(policy, env, seed)
         limit = env.spec.max_episode_steps or 100
         with Progress(console=console, transient=True) as progress:
             task = progress.add_task(f"{env_id} ({policy})", total=episodes * limit)
-            results = run_episodes(env, actor, episodes, seed, on_frame=frames.append if video else None,
-                                   on_step=lambda: progress.advance(task))
+            # the first reset is the first episode's: a real arm drives home once
+            for result in iter_episodes(env, actor, episodes, seed, on_frame=frames.append if video else None,
+                                        on_step=lambda: progress.advance(task)):
+                results.append(result)
     except KeyboardInterrupt:
         env.close()  # before the message: on a real robot this sends the stop
+        _print_results(env_id, policy, results)
         errors.print("interrupted: the env is closed and the arm stopped")
         raise typer.Exit(130)
     except (ValueError, BackendError) as exc:
-        _fail(str(exc))
+        failure = str(exc)
     finally:
         env.close()
-    table = Table("Episode", "Seed", "Return", "Length", "Success", "Rejected actions", title=f"{env_id} — {policy}")
-    for r in results:
-        table.add_row(str(r.index), str(r.seed), f"{r.episode_return:.2f}", str(r.length),
-                      "yes" if r.success else "no", str(r.rejected))
-    console.print(table)
-    console.print(f"success rate: {success_rate(results):.0%} over {len(results)} episodes")
+    _print_results(env_id, policy, results)
+    if failure:
+        _fail(f"the run stopped after {len(results)} of {episodes} episodes: {failure}")
     if video:
         import imageio
 
@@ -378,38 +377,74 @@ def run(
         console.print(f"video: {video} ({len(frames)} frames)")
 
 
+def _print_results(env_id: str, policy: str, results) -> None:
+    from envfactory.episodes import success_rate
+
+    aborted = any(r.abort_reason for r in results)
+    columns = ["Episode", "Seed", "Return", "Length", "Success", "Rejected actions"] + (["Aborted"] if aborted else [])
+    table = Table(*columns, title=f"{env_id} — {policy}")
+    for r in results:
+        row = [str(r.index), str(r.seed), f"{r.episode_return:.2f}", str(r.length), "yes" if r.success else "no",
+               str(r.rejected)]
+        table.add_row(*row, *([r.abort_reason] if aborted else []))
+    console.print(table)
+    aborts = sum(bool(r.abort_reason) for r in results)
+    console.print(f"success rate: {success_rate(results):.0%} over {len(results)} episodes"
+                  + (f"; {aborts} aborted by a fault" if aborts else ""))
+
+
 @command()
 def twin(
     robot: str = typer.Argument(..., help="Robot name: ur5e or vx300s"),
     task: str = typer.Option("push", help="The task whose objects it simulates (push has the cube)"),
     port: int = typer.Option(9090, help="Port of the rosbridge websocket; 0 picks a free one"),
     host: str = typer.Option("127.0.0.1", help="Interface to listen on (loopback by default)"),
+    group_move: float = typer.Option(2.0, help="VX300S: seconds every group command takes (xs_sdk time profile)"),
     delay: float = typer.Option(0.0, help="Fault: latency added to every published message, s"),
     stop_joint_states_after: Optional[float] = typer.Option(None, help="Fault: stop publishing joint states after S s"),
     stop_object_poses_after: Optional[float] = typer.Option(None, help="Fault: stop publishing the cube pose after S s"),
+    freeze_after: Optional[float] = typer.Option(None, help="Fault: the driver freezes after S s (no joint states)"),
+    freeze_for: float = typer.Option(2.0, help="... for this many seconds"),
     malformed_after: Optional[float] = typer.Option(None, help="Fault: publish malformed joint states after S s"),
+    malformed_count: int = typer.Option(1, help="... this many (a NaN position, sent as null)"),
+    kill_after: Optional[float] = typer.Option(None, help="Fault: the rosbridge server dies after S s"),
+    down_for: float = typer.Option(4.0, help="... and comes back after this many seconds"),
     drop_after: Optional[float] = typer.Option(None, help="Fault: drop every connection after S s"),
+    ignore_commands_after: Optional[float] = typer.Option(
+        None, help="Fault: after S s the driver takes commands but executes none (a stopped controller)"),
+    topic_type: List[str] = typer.Option(
+        None, help="Fault: the driver registers TOPIC with another TYPE (TOPIC=TYPE), repeatable"),
+    no_rosapi: bool = typer.Option(False, help="Fault: serve without rosapi (its services do not exist)"),
 ):
     """A rosbridge stand-in serving a PyBullet robot and cube on the real topics: rehearse Real IDs on it."""
     import time
 
     from envfactory.twin import Twin
 
+    types = {}
+    for item in topic_type or []:
+        topic, sep, type_name = item.partition("=")
+        if not sep:
+            _fail(f"--topic-type {item!r}: write TOPIC=TYPE")
+        types[topic] = type_name
     try:
-        stand_in = Twin(robot, task, host=host, port=port).start()
+        stand_in = Twin(robot, task, host=host, port=port, topic_types=types, group_move_s=group_move).start()
     except (ValueError, OSError) as exc:
         _fail(str(exc))
-    ros = stand_in.ros
-    stand_in.faults.delay_s = delay
+    ros, faults = stand_in.ros, stand_in.faults
+    faults.delay_s, faults.no_rosapi = delay, no_rosapi
     console.print(f"twin of {robot} ({task}) at ws://{host}:{stand_in.port}; "
                   f"publishing {ros.joint_states.topic} and {[t.topic for t in ros.object_poses.values()]}, "
                   f"executing {ros.arm_command.topic}"
                   f"{' and ' + ros.gripper_command.topic if ros.gripper_command else ''}. Ctrl-C stops it.")
-    schedule = [(stop_joint_states_after, lambda: stand_in.faults.silenced.add(ros.joint_states.topic)),
-                (stop_object_poses_after, lambda: stand_in.faults.silenced.update(
-                    t.topic for t in ros.object_poses.values())),
-                (malformed_after, lambda: stand_in.faults.malformed.add(ros.joint_states.topic)),
-                (drop_after, stand_in.drop_connections)]
+    poses = [t.topic for t in ros.object_poses.values()]
+    schedule = [(stop_joint_states_after, lambda: faults.silence(ros.joint_states.topic)),
+                (stop_object_poses_after, lambda: [faults.silence(topic) for topic in poses]),
+                (freeze_after, lambda: faults.silence(ros.joint_states.topic, freeze_for)),
+                (malformed_after, lambda: faults.corrupt(ros.joint_states.topic, malformed_count)),
+                (kill_after, lambda: stand_in.kill(down_for)),
+                (drop_after, stand_in.drop_connections),
+                (ignore_commands_after, lambda: setattr(faults, "ignore_commands", True))]
     start = time.monotonic()
     pending = sorted(((after, act) for after, act in schedule if after is not None), key=lambda item: item[0])
     try:
@@ -418,7 +453,8 @@ def twin(
                 pending.pop(0)[1]()
             time.sleep(0.05)
     except KeyboardInterrupt:
-        console.print(f"twin stopped; it received {len(stand_in.received)} commands")
+        console.print(f"twin stopped; its driver received {len(stand_in.received)} commands; "
+                      f"the server refused {len(stand_in.server.errors)} messages")
     finally:
         stand_in.stop()
 

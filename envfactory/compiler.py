@@ -349,10 +349,14 @@ def _check_expert(spec: EnvSpec, loaded: LoadedSpec, problems: list[Problem]) ->
                                        f"unknown expert {ref.policy!r}{suggest(ref.policy, EXPERTS)}"))
         return
     params = _params(expert.Params, ref.params, "task.expert.params", loaded, problems)
-    if params is not None and getattr(params, "object", None) not in (None, *spec.task.objects):
+    if params is None:
+        return
+    if getattr(params, "object", None) not in (None, *spec.task.objects):
         problems.append(loaded.problem("task.expert.params.object",
                                        f"'object: {params.object}' names no object of the task "
                                        f"(known: {list(spec.task.objects) or 'none'})"))
+    for name, message in expert.check(params, spec):
+        problems.append(loaded.problem(f"task.expert.params.{name}", message))
 
 
 def _check_backend(spec: EnvSpec, env_id: str, backend: str, loaded: LoadedSpec, problems: list[Problem]) -> None:

@@ -114,6 +114,52 @@ def kwarg_lines(compiled: Blueprint) -> list[str]:
     return ["Kwargs: " + ", ".join(values)]
 
 
+def safety_table(compiled: Blueprint) -> Table:
+    """The geometry the safety check keeps clear: each link's collision shapes and what they are checked against."""
+    from envfactory.collision_pairs import collision_model_of
+
+    collision = collision_model_of(compiled)
+    settings = compiled.spec.env.safety
+    margin = settings.surface_margin
+    table = _table(f"Safety: every shape ≥ {margin:g} m from {', '.join(o.name for o in collision.obstacles)} "
+                   f"(table footprint +{settings.table_footprint_margin:g} m) and from the arm's other links; "
+                   f"joint change ≤ {settings.max_joint_delta:g} rad", "Link", "Shape", "Size (m)", "Margin (m)",
+                   "Self pairs checked")
+    checked: dict[int, int] = {}
+    for a, b in zip(collision.self_a, collision.self_b):
+        checked[a] = checked.get(a, 0) + 1
+        checked[b] = checked.get(b, 0) + 1
+    for index, (shape, geometry_object) in enumerate(zip(collision.shapes, collision.geometry.geometryObjects)):
+        moving = "" if shape.joint else " (fixed base)"
+        table.add_row(shape.link + moving, _shape_kind(geometry_object.geometry), _shape_size(geometry_object.geometry),
+                      f"{margin + shape.padding:g}", str(checked.get(index, 0)))
+    skipped = len(collision.ignored)
+    table.caption = (f"{collision.pair_count} pairs measured ({len(collision.scene_shape)} link–obstacle, "
+                     f"{len(collision.self_a)} link–link); {skipped} link pairs skipped as rigid, adjacent, "
+                     f"gripper mechanism or always touching")
+    return table
+
+
+def _shape_kind(geometry) -> str:
+    name = type(geometry).__name__
+    return "mesh (convex hull)" if name in ("Convex", "ConvexBase") else name.lower()
+
+
+def _shape_size(geometry) -> str:
+    import numpy as np
+
+    name = type(geometry).__name__
+    if name == "Box":
+        return "× ".join(f"{2 * v:.3f}" for v in geometry.halfSide).replace("× ", " × ")
+    if name in ("Cylinder", "Capsule"):
+        return f"r {geometry.radius:.3f}, l {2 * geometry.halfLength:.3f}"
+    if name == "Sphere":
+        return f"r {geometry.radius:.3f}"
+    points = np.asarray(geometry.points())
+    extent = points.max(axis=0) - points.min(axis=0)
+    return f"{len(points)} points, {' × '.join(f'{v:.3f}' for v in extent)}"
+
+
 def render_description(compiled: Blueprint, console: Console) -> None:
     spec = compiled.spec
     kind = "goal-conditioned (Dict)" if compiled.goal_env else "standard (Box)"
@@ -139,6 +185,7 @@ def render_description(compiled: Blueprint, console: Console) -> None:
                       f"joint states ≤ {real.joint_state_timeout_s:g} s old, object poses ≤ "
                       f"{real.cube_pose_timeout_s:g} s old, deadman {real.deadman_s:g} s\n")
     console.print(action_table(compiled))
+    console.print(safety_table(compiled))
     console.print(reward_table(compiled))
     active = [f"{t.name} ({t.term.name})" for t in compiled.terminations if t.active]
     console.print(f"Termination: {', '.join(active) or 'none on this reward type'}; "

@@ -44,8 +44,10 @@ class RobotEnv(gym.Env):
         urdf, self.kinematics, self.safety = geometry.urdf, geometry.kinematics, geometry.safety
         self.actions = ActionAdapter(blueprint.action, self.kinematics, spec.workspace, spec.env.safety.max_joint_delta)
         self.home = np.asarray(robot.home, float)
+        reset_gripper = spec.gripper_at_reset if spec.gripper_at_reset is not None else \
+            (robot.gripper.open if robot.gripper is not None else 0.0)
         self.goals = GoalSampler(spec.task.goal, self.kinematics, self.safety, self.home,
-                                 check_reach=blueprint.achieved_from == "ee")
+                                 check_reach=blueprint.achieved_from == "ee", gripper=reset_gripper)
         self.rewards = RewardManager(blueprint.rewards, blueprint.terminations, spec.task.goal.tolerance,
                                      blueprint.info_keys)
         self.observations = ObservationManager(blueprint.policy_observation)
@@ -126,6 +128,7 @@ class RobotEnv(gym.Env):
         self._seed_pending = None
         super().reset(seed=seed)
         spawn = self.spawner.sample(self.np_random)
+        self.backend.recover()  # a fault of the last episode never reaches this one
         if not self.backend.teleports_on_reset:
             # a real arm drives home: the whole way there must clear the table and floor
             here = self.backend.read_joints().position[self._arm_in_states]
@@ -154,6 +157,7 @@ class RobotEnv(gym.Env):
         if self._state is None:
             raise RuntimeError("call reset() before step()")
         state = self._state
+        action = self._checked_action(action)
         command = self.actions.translate(action, state)
         rejection = command.rejection
         if not rejection:
@@ -173,13 +177,22 @@ class RobotEnv(gym.Env):
             self.backend.advance(self._timing.action_cycle_time)
             self._state = self._read_state(previous)
         except EpisodeAbort as exc:
-            # stale or malformed readings: the backend stopped the arm; the episode ends here
+            # stale or malformed readings, an arm that does not follow: the backend stopped it; the episode ends
             log.warning("%s: episode aborted: %s", self.blueprint.env_id, exc)
             return self._finish(state, command.out_of_bounds, rejection, truncated=True, abort=str(exc))
         except BaseException:
             self._stop_backend()  # any failure mid-step stops a real arm before it propagates
             raise
         return self._finish(self._state, command.out_of_bounds, rejection)
+
+    def _checked_action(self, action) -> np.ndarray:
+        """The action as an array of the action space's shape; anything else is refused before it moves the arm."""
+        array = np.asarray(action)
+        if array.shape != self.action_space.shape or not (np.issubdtype(array.dtype, np.floating)
+                                                           or np.issubdtype(array.dtype, np.integer)):
+            raise ValueError(f"{self.blueprint.env_id}: the action has shape {array.shape} and dtype {array.dtype}; "
+                             f"the action space is {self.action_space}: nothing was sent to the arm")
+        return array
 
     def _stop_backend(self) -> None:
         try:

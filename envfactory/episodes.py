@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Iterator
 
 import numpy as np
+
+from envfactory.backends.base import BackendError, MotionRefused
 
 
 @dataclass(frozen=True)
@@ -16,13 +18,17 @@ class EpisodeResult:
     length: int
     success: bool
     rejected: int
+    abort_reason: str = ""  # why a fault ended the episode early (a real robot's stale feed, lost link...)
 
 
-def run_episodes(env, policy, episodes: int, seed: int, on_frame: Callable | None = None,
-                 on_step: Callable | None = None, stop_on_success: bool = True) -> list[EpisodeResult]:
+def iter_episodes(env, policy, episodes: int, seed: int, on_frame: Callable | None = None,
+                  on_step: Callable | None = None, stop_on_success: bool = True) -> Iterator[EpisodeResult]:
     """Dense envs do not terminate at the goal; with `stop_on_success` the runner
-    ends a solved episode anyway, so lengths read as time-to-success."""
-    results = []
+    ends a solved episode anyway, so lengths read as time-to-success.
+
+    A fault ends its episode (recorded with the reason) and the next reset
+    recovers; a reset that cannot recover raises, after the episodes so far
+    were yielded. A closed motion gate is not a fault: it ends the run."""
     for index in range(episodes):
         episode_seed = seed + index
         observation, info = env.reset(seed=episode_seed)
@@ -31,20 +37,32 @@ def run_episodes(env, policy, episodes: int, seed: int, on_frame: Callable | Non
         if on_frame is not None:
             on_frame(env.render())
         total, length, rejected, success = 0.0, 0, 0, bool(info.get("is_success", False))
+        abort = ""
         while True:
-            observation, reward, terminated, truncated, info = env.step(policy(observation))
+            try:
+                observation, reward, terminated, truncated, info = env.step(policy(observation))
+            except MotionRefused:
+                raise
+            except BackendError as exc:  # the backend stopped the arm before it raised
+                abort = str(exc)
+                break
             total += float(reward)
             length += 1
             rejected += int(info.get("action_rejected", 0.0) > 0)
             success = bool(info.get("is_success", False))
+            abort = info.get("abort_reason", "")
             if on_frame is not None:
                 on_frame(env.render())
             if on_step is not None:
                 on_step()
             if terminated or truncated or (stop_on_success and success):
                 break
-        results.append(EpisodeResult(index, episode_seed, total, length, success, rejected))
-    return results
+        yield EpisodeResult(index, episode_seed, total, length, success, rejected, abort)
+
+
+def run_episodes(env, policy, episodes: int, seed: int, on_frame: Callable | None = None,
+                 on_step: Callable | None = None, stop_on_success: bool = True) -> list[EpisodeResult]:
+    return list(iter_episodes(env, policy, episodes, seed, on_frame, on_step, stop_on_success))
 
 
 def success_rate(results: list[EpisodeResult]) -> float:

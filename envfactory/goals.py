@@ -15,7 +15,7 @@ class GoalSampler:
     or the static goal when random goals are off."""
 
     def __init__(self, goal: GoalSpec, kinematics: Kinematics, safety: SafetyCheck, home: np.ndarray,
-                 check_reach: bool):
+                 check_reach: bool, gripper: float = 0.0):
         self.low = np.asarray(goal.box[0], float)
         self.high = np.asarray(goal.box[1], float)
         self.random = goal.random
@@ -25,10 +25,11 @@ class GoalSampler:
         self.safety = safety
         self.home = np.asarray(home, float)
         self.check_reach = check_reach
+        self.gripper = gripper  # the gripper as a reset leaves it: its fingers must clear too
 
     def reachable(self, goal: np.ndarray) -> bool:
-        solution = self.kinematics.solve_ik(self.home, goal)
-        return solution.success and self.safety.pose_is_clear(solution.q_arm)
+        solution = self.kinematics.solve_ik(self.home, goal, gripper=self.gripper)
+        return solution.success and self.safety.pose_is_clear(solution.q_arm, self.gripper)
 
     def sample(self, rng: np.random.Generator) -> tuple[np.ndarray, bool]:
         """A goal and whether sampling failed (every try unreachable)."""

@@ -88,8 +88,15 @@ def _check_by_key(key, carrier: _Carrier) -> tuple[tuple[str, str], ...]:
     problems = _name_problems(spec, model)
     if problems:
         return tuple(problems)
-    from envfactory.collision_pairs import StalePairs
+    from envfactory.collision_pairs import StalePairs, pairs_file
 
+    problems = _padding_problems(spec, model)
+    pairs = pairs_file(spec, asset_root)
+    if pairs is not None and not pairs.is_file():
+        problems.append(("robot.safety.collision_pairs", f"no file {pairs}: run `envfactory collision-pairs "
+                                                         f"{spec.robot.name}`"))
+    if problems:
+        return tuple(problems)
     try:
         robot_shape = spec.robot.model_dump_json(include=GEOMETRY_FIELDS)
         geometry = _shared_geometry((robot_shape, spec.scene.model_dump_json(), spec.env.safety.model_dump_json(),
@@ -100,9 +107,12 @@ def _check_by_key(key, carrier: _Carrier) -> tuple[tuple[str, str], ...]:
     except (ValueError, ArithmeticError, np.linalg.LinAlgError, RuntimeError) as exc:
         # a model whose numbers break the kinematics or the collision geometry
         return (("robot.model", f"the kinematics or collision geometry fail on this robot model: {exc}"),)
-    problems = _padding_problems(spec, geometry)
-    if problems:
-        return tuple(problems)
+    links = geometry.safety.collision.links
+    bare = [(f"robot.safety.padding.{name}", f"link {name!r} has no collision geometry: its padding would change "
+                                             f"nothing (links with geometry: {', '.join(links)})")
+            for name in spec.robot.safety.padding if name not in links]
+    if bare:
+        return tuple(bare)
     try:
         return tuple(_pose_problems(spec, geometry) + _reach_problems(spec, geometry))
     except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
@@ -161,10 +171,10 @@ def _name_problems(spec: EnvSpec, model) -> list[tuple[str, str]]:
     return problems
 
 
-def _padding_problems(spec: EnvSpec, geometry: RobotGeometry) -> list[tuple[str, str]]:
-    """A padded link the collision geometry lacks would silently keep no extra clearance."""
-    links = geometry.safety.collision.links
-    return [(f"robot.safety.padding.{name}", f"no link {name!r} has collision geometry{suggest(name, links)}")
+def _padding_problems(spec: EnvSpec, model) -> list[tuple[str, str]]:
+    """A padded link the URDF lacks would silently keep no extra clearance."""
+    links = {frame.name for frame in model.frames}
+    return [(f"robot.safety.padding.{name}", f"the URDF has no link {name!r}{suggest(name, links)}")
             for name in spec.robot.safety.padding if name not in links]
 
 

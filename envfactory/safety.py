@@ -145,16 +145,19 @@ class SafetyCheck:
                         np.full(collision.pair_count, self.margin))
 
         start = self._start_anchor(motion)
-        inside = np.flatnonzero(start.bound < self.margin)
-        self._refine(start, inside, motion, level=2)
-        inside = inside[start.bound[inside] < self.margin]
-        # a pair already inside the margin (contact, tracking error) may only move out
-        motion.threshold[inside] = start.bound[inside] - self.INSIDE_TOLERANCE
+        # a pair already inside the margin now (contact, tracking error) may only move out
+        candidates = np.flatnonzero(start.bound < self.margin)
+        now = np.zeros(0)
+        if candidates.size:
+            collision.pose(q_from, gripper_from)
+            now = collision.exact(candidates)
+        inside, now = candidates[now < self.margin], now[now < self.margin]
+        motion.threshold[inside] = np.minimum(now - self.INSIDE_TOLERANCE, self.margin)
         end = self._anchor(1.0, motion)
         verdict = self._settle(end, motion, " at the end of the motion")
         if verdict.accepted and inside.size:
             self._refine(end, inside, motion, level=2)
-            stuck = inside[end.bound[inside] <= start.bound[inside]]
+            stuck = inside[end.bound[inside] <= now]
             if stuck.size:
                 verdict = Verdict(False, self._describe(stuck[0], end.bound[stuck[0]],
                                                         " and the motion does not move it away"))

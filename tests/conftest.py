@@ -27,3 +27,20 @@ def make():
     yield _make
     for env in opened:
         env.close()
+
+
+@pytest.fixture
+def twin():
+    """Start digital twins (robot, task, Twin options); each is stopped after the test."""
+    from envfactory.twin import Twin
+
+    started = []
+
+    def start(robot="ur5e", task="push", **options):
+        stand_in = Twin(robot, task, **options).start()
+        started.append(stand_in)
+        return stand_in
+
+    yield start
+    for stand_in in started:
+        stand_in.stop()

@@ -14,60 +14,9 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from envfactory.backends.base import BackendError, MotionRefused
+from envfactory.backends.base import BackendError, CommandRefused, ConnectionLost, MotionRefused
 from envfactory.experts import make_policy
-from envfactory.twin import Twin
-
-# wall-clock steps of 0.1 s, each command's trajectory done in 0.05 s
-FAST = {"action_cycle_time": 0.1, "environment_loop_rate": 10.0, "action_speed": 0.05}
-UR5E_ARM = "/scaled_pos_joint_traj_controller/command"
-UR5E_JOINTS = "/ur5e/joint_states"
-
-
-@pytest.fixture
-def twin():
-    started = []
-
-    def start(robot="ur5e", task="push"):
-        stand_in = Twin(robot, task).start()
-        started.append(stand_in)
-        return stand_in
-
-    yield start
-    for stand_in in started:
-        stand_in.stop()
-
-
-def make_real(make, env_id, stand_in, **kwargs):
-    return make(env_id, rosbridge_port=stand_in.port, **{"allow_real_robot_motion": True, **FAST, **kwargs})
-
-
-def on(stand_in, topic):
-    return [r.msg for r in stand_in.received if r.topic == topic]
-
-
-def is_stop(msg):
-    return msg.get("points") == []
-
-
-def settled(stand_in, quiet=0.3):
-    """How many messages the twin has once nothing new arrived for `quiet` seconds."""
-    count = len(stand_in.received)
-    while True:
-        time.sleep(quiet)
-        if len(stand_in.received) == count:
-            return count
-        count = len(stand_in.received)
-
-
-def wait_for(predicate, timeout=3.0):
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.02)
-    return True
-
+from real_helpers import FAST, UR5E_ARM, UR5E_JOINTS, is_stop, make_real, on, settled, wait_for
 
 def test_reacher_real_full_episode(twin, make):
     stand_in = twin(task="reach")
@@ -149,7 +98,7 @@ def test_stale_feed_skips_the_command_and_ends_the_episode(twin, make, topic, li
     env = make_real(make, "UR5ePushReal-v0", stand_in)
     env.reset(seed=0)
     env.step(np.zeros(6, dtype=np.float32))
-    stand_in.faults.silenced.add(topic)
+    stand_in.faults.silence(topic)
     time.sleep(limit + 0.3)
     settled(stand_in, quiet=0.05)
     sent = len(on(stand_in, UR5E_ARM))
@@ -165,7 +114,7 @@ def test_malformed_joint_state_ends_the_episode(twin, make):
     stand_in = twin()
     env = make_real(make, "UR5ePushReal-v0", stand_in)
     env.reset(seed=0)
-    stand_in.faults.malformed.add(UR5E_JOINTS)
+    stand_in.faults.corrupt(UR5E_JOINTS)
     settled(stand_in, quiet=0.1)
     sent = len(on(stand_in, UR5E_ARM))
     _, _, _, truncated, info = env.step(np.ones(6, dtype=np.float32))
@@ -176,7 +125,7 @@ def test_malformed_joint_state_ends_the_episode(twin, make):
 
 def test_connection_drop_fails_the_step_without_hanging(twin, make):
     stand_in = twin()
-    env = make_real(make, "UR5eReacherReal-v0", stand_in)
+    env = make_real(make, "UR5eReacherReal-v0", stand_in, overrides=["env.real.reconnect_tries=3"])
     env.reset(seed=0)
     stand_in.faults.refuse_connections = True  # the robot stays gone: reconnect cannot succeed
     stand_in.drop_connections()
@@ -184,7 +133,7 @@ def test_connection_drop_fails_the_step_without_hanging(twin, make):
     with pytest.raises(BackendError, match="rosbridge connection"):
         for _ in range(5):
             env.step(np.zeros(6, dtype=np.float32))
-    with pytest.raises(BackendError, match="reconnect"):
+    with pytest.raises(ConnectionLost, match="connection tries"):
         env.reset(seed=1)  # bounded reconnect with backoff, then a clear failure
     assert time.monotonic() - start < 10.0
 
@@ -242,8 +191,12 @@ def test_topics_are_overridable_by_kwarg(twin, make):
     with pytest.raises(BackendError, match=r"nothing arrived on \['/elsewhere/joint_states'\]"):
         make("UR5ePushReal-v0", rosbridge_port=stand_in.port, allow_real_robot_motion=True,
              joint_states_topic="/elsewhere/joint_states", overrides=["env.real.connect_timeout_s=1.0"])
-    env = make_real(make, "UR5ePushReal-v0", stand_in, arm_command_topic="/my_arm/command")
+    # a command topic nothing listens to is refused before anything is sent
+    with pytest.raises(CommandRefused, match="nothing subscribes to /my_arm/command"):
+        make_real(make, "UR5ePushReal-v0", stand_in, arm_command_topic="/my_arm/command")
+    moved = twin(overrides=("robot.ros.arm_command.topic=/my_arm/command",))
+    env = make_real(make, "UR5ePushReal-v0", moved, arm_command_topic="/my_arm/command")
     env.reset(seed=0)
     env.step(np.zeros(6, dtype=np.float32))
-    assert wait_for(lambda: len(on(stand_in, "/my_arm/command")) >= 2)
-    assert on(stand_in, UR5E_ARM) == []
+    assert wait_for(lambda: len(on(moved, "/my_arm/command")) >= 2)
+    assert on(moved, UR5E_ARM) == [] and on(stand_in, "/my_arm/command") == []

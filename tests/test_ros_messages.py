@@ -4,7 +4,11 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from envfactory.backends.base import CommandIgnored
 from envfactory.backends.rosbridge import messages
+from envfactory.backends.rosbridge.feeds import beyond
+from envfactory.backends.rosbridge.follow import FollowWatch
+from envfactory.backends.rosbridge.link import same_type
 from envfactory.backends.rosbridge.messages import MalformedMessage
 from envfactory.backends.rosbridge.transforms import FrameGraph
 from envfactory.spec.schema import ArmCommand, GripperCommand, StaticTransform
@@ -79,3 +83,39 @@ def test_camera_pose_reaches_the_task_frame_through_static_and_tf_transforms():
     assert np.allclose(np.abs(quaternion), np.abs([x, y, z, w]))
     with pytest.raises(KeyError, match="no transform from frame 'kinect2_link'"):
         graph.to_task("kinect2_link", np.zeros(3), np.array([0, 0, 0, 1.0]))
+
+
+def test_null_in_a_joint_state_is_named():
+    with pytest.raises(MalformedMessage, match="holds null"):
+        messages.decode_joint_state({"name": NAMES, "position": [1.0, None, 3.0]}, NAMES)
+
+
+@pytest.mark.parametrize("age, limit, text", [
+    (0.5004, 0.5, "0.51 s old (limit 0.50 s)"),
+    (0.50001, 0.5, "0.51 s old (limit 0.50 s)"),
+    (2.0, 0.5, "2.00 s old (limit 0.50 s)"),
+    (0.5, 0.4999, "0.5000 s old (limit 0.4999 s)"),
+])
+def test_an_age_past_its_limit_reads_as_past_it(age, limit, text):
+    assert beyond(age, limit) == text
+
+
+def test_the_follow_watch_waits_for_motion_and_keeps_its_clock_across_commands():
+    watch = FollowWatch("/arm", timeout=1.0)
+    here = np.zeros(3)
+    watch.commanded(here, here + 0.001, now=0.0)  # a hold asks for no motion
+    watch.check(now=10.0)
+    watch.commanded(here, here + 0.2, now=10.0)
+    watch.commanded(here, here + 0.3, now=10.6)  # a later command does not restart the clock
+    watch.observe(here + 0.001)  # noise is not motion
+    with pytest.raises(CommandIgnored, match="did not follow the command on /arm"):
+        watch.check(now=11.1)
+    watch.clear()
+    watch.commanded(here, here + 0.2, now=20.0)
+    watch.observe(here + np.array([0.0, 0.01, 0.0]))  # it moved
+    watch.check(now=25.0)
+
+
+def test_ros2_type_names_match_their_ros1_spelling():
+    assert same_type("trajectory_msgs/msg/JointTrajectory", "trajectory_msgs/JointTrajectory")
+    assert not same_type("std_msgs/msg/Float64MultiArray", "trajectory_msgs/JointTrajectory")

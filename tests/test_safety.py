@@ -1,85 +1,197 @@
-"""Property: no joint target the safety check accepts puts a link below the floor or into the table."""
+"""The safety check against an independent judge, and the bounds it rests on.
+
+The judge is PyBullet: its own distance queries on the simulated scene and on
+the commanded motion posed in a second client (tests/bullet_oracle.py), never
+the check's Pinocchio/coal model.
+"""
+
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 import envfactory
+from bullet_oracle import ADVERSARIAL, POLICIES, BulletJudge, judge_steps
+from envfactory.collision_pairs import StalePairs, read_pairs, write_pairs
 from envfactory.envs import RobotEnv
 
+SIM_IDS = ["UR5eReacherSim-v0", "UR5ePushSim-v0", "UR5ePnPSim-v0",
+           "VX300SReacherSim-v0", "VX300SPushSim-v0", "VX300SPnPSim-v0"]
 
-@pytest.fixture(scope="module", params=["UR5eReacherSim-v0", "VX300SReacherSim-v0"])
+
+def make(env_id, **kwargs):
+    return RobotEnv(envfactory.blueprint(env_id, **kwargs))
+
+
+@pytest.fixture(scope="module", params=["UR5ePnPSim-v0", "VX300SPnPSim-v0"])
 def env(request):
-    environment = RobotEnv(envfactory.blueprint(request.param))
+    environment = make(request.param)
+    environment.reset(seed=0)
     yield environment
     environment.close()
 
 
-def draw_motion(env, data):
-    """A start pose anywhere in the joint bounds and a target up to 0.5 rad per joint away."""
-    kin = env.kinematics
-    now = np.array([data.draw(st.floats(lo, hi)) for lo, hi in zip(kin.arm_lower, kin.arm_upper)])
-    step = np.array([data.draw(st.floats(-0.5, 0.5)) for _ in now])
-    return now, np.clip(now + step, kin.arm_lower, kin.arm_upper)
+def _judge(env_id, ee, steps, seed=0):
+    results = {}
+    for name in POLICIES:
+        environment = make(env_id, ee_action_type=ee)
+        try:
+            results[name] = judge_steps(environment, name, steps, seed)
+        finally:
+            environment.close()
+    return results
 
 
-@settings(max_examples=300, deadline=None)
-@given(data=st.data())
-def test_accepted_targets_keep_every_link_clear(env, data):
-    kin, safety = env.kinematics, env.safety
-    now, target = draw_motion(env, data)
-    if not safety.pose_is_clear(now):
-        return  # the check judges motions that start from a safe pose
-    verdict = safety.check(now, target)
-    if verdict.accepted:
-        clearance = safety.link_clearance(target)
-        assert clearance.min() >= safety.settings.surface_margin - 1e-9
-        points = kin.checked_link_positions(target)
-        assert np.all(points[:, 2] - kin.checked_radii >= safety.surfaces.floor_z)
+def _assert_judged(results, env_id, ee):
+    for name, result in results.items():
+        assert result["violations"] == [], f"{env_id} ee={ee} {name}: accepted steps Bullet finds inside the margin"
+    refused = sum(results[name]["rejected"] for name in ADVERSARIAL)
+    assert refused > 0, f"{env_id} ee={ee}: no adversarial action was ever refused"
+    assert results["random"]["accepted"] > 0, f"{env_id} ee={ee}: random actions were all refused"
 
 
-@settings(max_examples=300, deadline=None)
-@given(data=st.data())
-def test_accepted_motions_keep_the_midpoint_clear(env, data):
-    """The check may skip the midpoint when the end pose is high enough; the skip must never hide a dip."""
-    safety = env.safety
-    now, target = draw_motion(env, data)
-    if not safety.pose_is_clear(now):
-        return
-    if safety.check(now, target).accepted:
-        for fraction in (0.25, 0.5, 0.75):
-            assert safety.link_clearance(now + fraction * (target - now)).min() >= safety.settings.surface_margin - 1e-9
+@pytest.mark.parametrize("ee", [False, True], ids=["joint", "ee"])
+@pytest.mark.parametrize("env_id", SIM_IDS)
+def test_accepted_steps_keep_the_margin_by_bullet(env_id, ee):
+    """A few hundred steps per ID and mode: no accepted step comes within the margin, simulated or commanded."""
+    _assert_judged(_judge(env_id, ee, steps=50), env_id, ee)
 
 
-def test_lever_arm_bounds_every_point_move(env):
-    kin = env.kinematics
-    rng = np.random.default_rng(1)
-    for _ in range(200):
-        q = rng.uniform(kin.arm_lower, kin.arm_upper)
-        dq = rng.uniform(-0.05, 0.05, q.size)
-        moved = np.linalg.norm(kin.checked_link_positions(q + dq) - kin.checked_link_positions(q), axis=1)
-        assert moved.max() <= kin.lever_arm * np.abs(dq).sum() + 1e-12
+@pytest.mark.slow
+@pytest.mark.parametrize("ee", [False, True], ids=["joint", "ee"])
+@pytest.mark.parametrize("env_id", SIM_IDS)
+def test_accepted_steps_keep_the_margin_by_bullet_10k(env_id, ee):
+    _assert_judged(_judge(env_id, ee, steps=2500, seed=1), env_id, ee)
 
 
-def test_check_rejects_known_collision(env):
-    kin, safety = env.kinematics, env.safety
-    lowest = safety.surfaces.table_top_z
-    # search for a pose whose EE dips below the table top, then confirm the verdict
-    rng = np.random.default_rng(0)
-    for _ in range(2000):
-        q = rng.uniform(kin.arm_lower, kin.arm_upper)
-        ee, _ = kin.ee_pose(q)
-        inside = np.all(ee[:2] >= safety.surfaces.table_min_xy) and np.all(ee[:2] <= safety.surfaces.table_max_xy)
-        if inside and ee[2] < lowest:
-            assert not safety.pose_is_clear(q)
-            return
-    pytest.fail("no pose below the table top was found to test")
+def test_capsule_bounds_never_exceed_coal(env):
+    """The cheap bounds the proof stands on are lower bounds of the exact clearance."""
+    collision, kin = env.safety.collision, env.kinematics
+    gripper = kin.robot.gripper
+    rng = np.random.default_rng(3)
+    for _ in range(300):
+        collision.pose(rng.uniform(kin.arm_lower, kin.arm_upper), rng.uniform(gripper.low, gripper.high))
+        assert np.all(collision.bounds() <= collision.all_exact() + 1e-9)
+
+
+def test_levers_bound_every_shape_move_by_bullet(env):
+    """No point of any link moves farther than lever · |Δ coordinates|: judged on Bullet's link AABBs,
+    whose corners move with the links' collision shapes."""
+    import pybullet as p
+
+    collision, kin = env.safety.collision, env.kinematics
+    judge = BulletJudge(env, 0.0)
+    link_of = {}
+    for index in range(p.getNumJoints(judge.body, physicsClientId=judge.client)):
+        link_of[p.getJointInfo(judge.body, index, physicsClientId=judge.client)[12].decode()] = index
+    gripper = kin.robot.gripper
+    rng = np.random.default_rng(4)
+    try:
+        for _ in range(100):
+            q = rng.uniform(kin.arm_lower, kin.arm_upper)
+            g = rng.uniform(gripper.low, gripper.high)
+            dq = rng.uniform(-0.02, 0.02, q.size)
+            dg = rng.uniform(-0.1, 0.1) * (gripper.high - gripper.low)
+            q2, g2 = np.clip(q + dq, kin.arm_lower, kin.arm_upper), np.clip(g + dg, gripper.low, gripper.high)
+            change = np.append(np.abs(q2 - q), abs(g2 - g))
+            for index, shape in enumerate(collision.shapes):
+                if shape.joint == 0:
+                    continue
+                link = link_of[shape.link]
+                judge.pose(q, g)
+                before = np.array(p.getAABB(judge.body, link, physicsClientId=judge.client))
+                judge.pose(q2, g2)
+                after = np.array(p.getAABB(judge.body, link, physicsClientId=judge.client))
+                # an AABB face moves no farther than the farthest-moving point of the shape
+                assert np.abs(after - before).max() <= collision.lever[index] @ change + 2e-3, shape.link
+    finally:
+        judge.close()
+
+
+def test_ur5e_straight_down_stops_above_the_table():
+    """Straight down at full scale in EE mode, twice, from the seed-0 start: the fingers keep the margin."""
+    environment = make("UR5eReacherSim-v0", ee_action_type=True)
+    judge = BulletJudge(environment, 0.05)
+    try:
+        environment.reset(seed=0)
+        for _ in range(4):
+            _, _, _, _, info = environment.step(np.array([0.0, 0.0, -1.5], dtype=np.float32))
+            lowest, what = judge.simulated()
+            assert lowest >= environment.blueprint.spec.env.safety.surface_margin, what
+        assert info["action_rejected"] == 1.0, "the last steps would reach the table: refused"
+    finally:
+        judge.close()
+        environment.close()
+
+
+def test_vx300s_repeated_fold_is_refused_before_the_table():
+    environment = make("VX300SReacherSim-v0")
+    judge = BulletJudge(environment, 0.05)
+    try:
+        environment.reset(seed=0)
+        action = np.array([0.0, 1.26, 1.61, 0.0, 0.0, 3.14], dtype=np.float32)
+        refused = 0
+        for _ in range(10):
+            before = environment.state.q_arm.copy()
+            command = environment.actions.translate(action, environment.state)
+            _, _, _, _, info = environment.step(action)
+            refused += int(info["action_rejected"])
+            if not info["action_rejected"]:
+                lowest, what = judge.commanded(before, command.q_arm, environment.state.gripper,
+                                               environment.state.gripper)
+                assert lowest >= environment.blueprint.spec.env.safety.surface_margin, what
+        assert refused > 0
+    finally:
+        judge.close()
+        environment.close()
+
+
+def test_inside_the_margin_only_a_way_out_is_accepted():
+    environment = make("UR5eReacherSim-v0")
+    safety, kin = environment.safety, environment.kinematics
+    try:
+        environment.reset(seed=0)
+        # lower the arm from home until the fingers are inside the margin, by joint-space search
+        q = environment.home.copy()
+        lift = np.array([0.0, 0.02, 0.0, 0.0, 0.0, 0.0])  # shoulder lift down brings the gripper down
+        for _ in range(200):
+            if not safety.pose_is_clear(q):
+                break
+            q = q + lift
+        assert not safety.pose_is_clear(q), "found no pose inside the margin"
+        safety.forget()
+        assert not safety.check(q, q + lift).accepted, "deeper must be refused"
+        assert safety.check(q, q - 3 * lift).accepted, "the way out must be accepted"
+        assert not safety.check(q, q).accepted, "standing still inside the margin does not move it away"
+    finally:
+        environment.close()
 
 
 def test_max_joint_delta_rejects_large_jumps(env):
-    home = env.home
-    target = home.copy()
+    target = env.home.copy()
     target[0] += 0.6
-    verdict = env.safety.check(home, target)
+    verdict = env.safety.check(env.home, target)
     assert not verdict.accepted and "max_joint_delta" in verdict.reason
+
+
+@pytest.mark.parametrize("bad", [np.zeros((7, 1)), np.zeros(6), np.array(["a"] * 7)])
+def test_malformed_actions_are_refused_before_anything_moves(env, bad):
+    env.reset(seed=0)
+    before = env.backend.read_joints().position.copy()
+    with pytest.raises(ValueError, match="action space"):
+        env.step(bad)
+    assert np.array_equal(env.backend.read_joints().position, before)
+
+
+def test_a_stale_pair_list_is_refused(env, tmp_path):
+    collision = env.safety.collision
+    margin = env.blueprint.spec.env.safety.surface_margin
+    path = tmp_path / "pairs.yaml"
+    write_pairs(path, "robot", {"fingerprint": "0" * 16, "margin": margin, "samples": 1, "seed": 0, "skipped": []})
+    with pytest.raises(StalePairs, match="stale"):
+        read_pairs(path, collision, margin)
+    from envfactory.collision_pairs import fingerprint
+
+    write_pairs(path, "robot", {"fingerprint": fingerprint(collision, 0.05), "margin": 0.05, "samples": 1,
+                                "seed": 0, "skipped": []})
+    with pytest.raises(StalePairs, match="above the spec"):
+        read_pairs(path, collision, margin)

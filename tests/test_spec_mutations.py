@@ -23,7 +23,6 @@ MUTATIONS = {"negative": lambda v: -abs(v) - 1.0, "zero": lambda v: 0, "nan": la
 # Documented acceptances: (path pattern, mutations accepted, why). NaN is never accepted.
 ACCEPTED = [
     (r"task\.reward\.\w+\.\w+\.weight", {"negative", "zero", "huge"}, "reward weights are the task's design"),
-    (r"env\.real\.reconnect_tries", {"zero"}, "no reconnect at all is a valid choice"),
     (r"env\.safety\.floor_z", {"negative", "zero"}, "the floor may lie anywhere below the table"),
     (r"env\.safety\.table_footprint_margin", {"zero"}, "the table edge itself as the boundary"),
     (r"robot\.arm_joints\.\d+\.delta\.\d", {"negative"}, "a wider delta row, still around zero"),
@@ -42,6 +41,7 @@ ACCEPTED = [
     (r"scene\.camera\.(eye|target)\.\d", {"negative", "zero"}, "a camera placement"),
     (r"scene\.table\.center\.\d", {"negative", "zero"}, "the table moved, boxes still on it"),
     (r"task\.expert\.params\.(grasp_height|height)", {"zero"}, "the expert at the cube's centre height"),
+    (r"task\.expert\.params\.grip", {"zero"}, "a grip command within the gripper's range"),
     (r"task\.goal\.box\.\d\.\d", {"zero"}, "a goal box edge at 0 that stays valid"),
     (r"task\.gripper\.at_reset", {"zero"}, "a reset gripper value within range"),
     (r"task\.objects\.\w+\.(rgba\.\d|spawn\.offset\.\d|spawn\.position\.\d|friction|spinning_friction)", {"zero"},

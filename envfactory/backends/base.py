@@ -38,8 +38,28 @@ class BackendError(RuntimeError):
 
 
 class EpisodeAbort(BackendError):
-    """This episode cannot safely go on (stale or malformed readings): nothing was
-    commanded, the arm is stopped, and the env ends the episode with the reason."""
+    """This episode cannot safely go on: nothing more is commanded, the arm is
+    stopped, and the env ends the episode with the reason."""
+
+
+class StaleFeed(EpisodeAbort):
+    """A reading (joint states, an object pose) is older than its limit or never came."""
+
+
+class MalformedFeed(EpisodeAbort):
+    """A reading arrived that does not have the shape or values its type promises."""
+
+
+class CommandIgnored(EpisodeAbort):
+    """The arm did not start following a command it should follow: nothing executes it."""
+
+
+class ConnectionLost(BackendError):
+    """The connection to the robot is gone; reset() reconnects, within bounds."""
+
+
+class CommandRefused(BackendError):
+    """A command topic that nothing of the expected type subscribes to: refused before any motion."""
 
 
 class MotionRefused(BackendError):
@@ -59,6 +79,10 @@ class Backend(Protocol):
 
     def command_gripper(self, value: float) -> None:
         ...
+
+    def recover(self) -> None:
+        """Make the backend usable again after any fault (reconnect, clear the fault, wait for
+        fresh readings), or raise saying why not. First thing in every reset."""
 
     def stop(self) -> None:
         """Hold the arm where it is. Always allowed: stopping is not motion."""

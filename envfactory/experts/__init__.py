@@ -26,9 +26,10 @@ class RandomPolicy:
         return self.space.sample()
 
 
-def make_policy(kind: str, env):
+def make_policy(kind: str, env, seed: int | None = None):
+    """`seed` seeds the random policy's samples (default: from the env's generator)."""
     if kind == "random":
-        env.action_space.seed(int(env.unwrapped.np_random.integers(2**31)))
+        env.action_space.seed(seed if seed is not None else int(env.unwrapped.np_random.integers(2**31)))
         return RandomPolicy(env)
     if kind != "scripted":
         raise ValueError(f"unknown policy {kind!r}: use 'random' or 'scripted'")

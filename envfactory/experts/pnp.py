@@ -21,10 +21,21 @@ class PickPlaceParams(TermParams):
     lift: float = Field(default=0.15, gt=0, le=2.0)  # carry height above the spawn point at least, m
     step: float = Field(default=0.04, gt=0, le=0.5)  # EE travel per action, m
     close_steps: int = Field(default=3, ge=1, le=100)  # actions spent closing before lifting
+    # the gripper command that holds the object (default: fully closed). A value just past contact
+    # keeps the commanded finger sweep, and so the room the safety check needs below it, short.
+    grip: float | None = None
 
 
 class PickPlaceExpert(Expert):
     Params = PickPlaceParams
+
+    @classmethod
+    def check(cls, params, spec) -> list[tuple[str, str]]:
+        gripper = spec.robot.gripper
+        if params.grip is not None and gripper is not None and not gripper.low <= params.grip <= gripper.high:
+            return [("grip", f"grip {params.grip:g} lies outside the gripper's range [{gripper.low:g}, "
+                             f"{gripper.high:g}]")]
+        return []
 
     def reset(self) -> None:
         self.phase = "approach"
@@ -38,6 +49,7 @@ class PickPlaceExpert(Expert):
         cube_state = state.objects[p.object]
         cube, ee = cube_state.position, state.ee_position
         gripper = motion.gripper
+        grip = gripper.closed if p.grip is None else p.grip
         if self.floor_z is None:
             self.floor_z = cube[2]
         rotation = motion.square_to(float(cube_state.rpy[2]))
@@ -73,16 +85,16 @@ class PickPlaceExpert(Expert):
                 self.phase = "lift"
                 self.hold_offset = cube - ee
             else:
-                return motion.toward(grasp, rotation, gripper.closed, p.step / 2)
+                return motion.toward(grasp, rotation, grip, p.step / 2)
         goal = env.goal
         ee_goal = goal - self.hold_offset
         carry_z = max(ee_goal[2], self.floor_z - self.hold_offset[2] + p.lift)
         if self.phase == "lift":
             # straight up first: the lift stage of the curriculum, and clear of the table
             if ee[2] < carry_z - 0.01:
-                return motion.toward(np.append(ee[:2], carry_z), state.ee_rotation, gripper.closed, p.step)
+                return motion.toward(np.append(ee[:2], carry_z), state.ee_rotation, grip, p.step)
             self.phase = "carry"
         if self.phase == "carry" and np.linalg.norm(ee[:2] - ee_goal[:2]) > 0.01:
-            return motion.toward(np.append(ee_goal[:2], carry_z), state.ee_rotation, gripper.closed, p.step)
+            return motion.toward(np.append(ee_goal[:2], carry_z), state.ee_rotation, grip, p.step)
         self.phase = "place"
-        return motion.toward(ee_goal, state.ee_rotation, gripper.closed, p.step)
+        return motion.toward(ee_goal, state.ee_rotation, grip, p.step)

@@ -340,7 +340,8 @@ def validate_config(config: dict, sources: SourceMap, family: FamilyFile) -> Loa
     resolved.pop("defaults", None)
     # NaN and infinity anywhere (term and expert params included) fail every comparison quietly
     non_finite = dict(non_finite_paths(resolved))
-    problems += [sources.problem(path, f"must be a finite number, got {value}") for path, value in non_finite.items()]
+    problems += [sources.problem(path, f"Input should be a finite number (got {value})")
+                 for path, value in non_finite.items()]
     skip = {*missing, *non_finite}
     spec = None
     try:

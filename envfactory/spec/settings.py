@@ -52,10 +52,11 @@ class RealSettings(Model):
     allow_motion: bool = False  # allow_real_robot_motion; ALLOW_REAL_ROBOT_MOTION=1 also allows
     # Upper bounds: a staleness or deadman limit of minutes is a gate switched off.
     connect_timeout_s: Positive = Field(default=5.0, le=120.0)
-    reconnect_tries: int = Field(default=3, ge=0, le=100)  # bounded, with exponential backoff
+    reconnect_tries: int = Field(default=10, ge=1, le=100)  # connection tries at reset, backoff 0.25 s doubling to 2 s
     joint_state_timeout_s: Positive = Field(default=0.5, le=5.0)
     cube_pose_timeout_s: Positive = Field(default=1.0, le=10.0)
     deadman_s: Positive = Field(default=1.5, le=10.0)  # no command for this long: the arm is stopped
+    follow_timeout_s: Positive = Field(default=1.0, le=10.0)  # a commanded arm that has not moved by then: abort
     reset_speed: Positive = Field(default=0.3, le=3.15)  # rad/s of the slowest-allowed move home at reset
     reset_timeout_s: Positive = Field(default=30.0, le=600.0)
     reset_tolerance: Positive = Field(default=0.02, le=0.5)  # rad: home counts as reached

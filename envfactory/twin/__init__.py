@@ -16,12 +16,15 @@ import time
 import numpy as np
 
 from envfactory.backends.rosbridge import messages
-from envfactory.twin.server import Faults, Received, RosbridgeServer
+from envfactory.twin.server import Faults, Node, Received, RosbridgeServer
 
 __all__ = ["Faults", "Received", "Twin"]
 
 JOINT_STATE_HZ = 50.0
 POSE_HZ = 30.0
+# xs_sdk's default mode config moves a joint group in a time profile: every command takes
+# profile_velocity = 2000 ms, whatever its length
+XS_SDK_PROFILE_S = 2.0
 
 
 def _sim_id(robot: str, task: str) -> str:
@@ -37,12 +40,18 @@ def _sim_id(robot: str, task: str) -> str:
 
 
 class Twin:
-    def __init__(self, robot: str, task: str = "push", host: str = "127.0.0.1", port: int = 0):
+    """`overrides` change the twin's spec (e.g. its topics); `topic_types` make its driver
+    register topics with other types (a misconfigured driver); `group_move_s` is how long
+    the xs_sdk stand-in takes for every group command (its time profile)."""
+
+    def __init__(self, robot: str, task: str = "push", host: str = "127.0.0.1", port: int = 0,
+                 overrides: tuple[str, ...] = (), topic_types: dict[str, str] | None = None,
+                 group_move_s: float = XS_SDK_PROFILE_S):
         import envfactory
         from envfactory.backends.pybullet import PyBulletBackend
         from envfactory.urdf_assembly import assemble
 
-        blueprint = envfactory.blueprint(_sim_id(robot, task), ["env.timing.realtime=true"])
+        blueprint = envfactory.blueprint(_sim_id(robot, task), ["env.timing.realtime=true", *overrides])
         spec = blueprint.spec
         self.spec = spec
         self.ros = spec.robot.ros
@@ -56,7 +65,9 @@ class Twin:
         self.state_names = spec.robot.state_names
         self.arm_names = spec.robot.arm_state_names
         self._arm_in_states = spec.robot.arm_state_indices
-        self.server = RosbridgeServer(self._on_publish, host, port)
+        self.group_move_s = group_move_s
+        self.server = RosbridgeServer(host, port)
+        self._add_nodes(robot, topic_types or {})
         self._loop = asyncio.new_event_loop()
         self._thread = threading.Thread(target=self._loop.run_forever, name="envfactory-twin", daemon=True)
         self._publishers = []
@@ -103,6 +114,25 @@ class Twin:
     def drop_connections(self) -> None:
         asyncio.run_coroutine_threadsafe(self.server.drop_connections(), self._loop).result(timeout=5)
 
+    def kill(self, down_for: float) -> None:
+        """The rosbridge server dies now and is back after `down_for` seconds (returns at once)."""
+        asyncio.run_coroutine_threadsafe(self.server.kill(down_for), self._loop)
+        deadline = time.monotonic() + 5.0
+        while self.server.running and time.monotonic() < deadline:
+            time.sleep(0.01)
+
+    def _add_nodes(self, robot: str, topic_types: dict[str, str]) -> None:
+        ros = self.ros
+        typed = lambda topic, type_name: topic_types.get(topic, type_name)  # noqa: E731
+        commands = {ros.arm_command.topic: (typed(ros.arm_command.topic, ros.arm_command.type), self._on_command)}
+        if ros.gripper_command is not None:
+            commands[ros.gripper_command.topic] = (typed(ros.gripper_command.topic, ros.gripper_command.type),
+                                                   self._on_command)
+        self.server.add_node(Node(f"/{robot}_driver", publishes={
+            ros.joint_states.topic: typed(ros.joint_states.topic, ros.joint_states.type)}, subscribes=commands))
+        self.server.add_node(Node("/cube_tracker", publishes={
+            t.topic: typed(t.topic, t.type) for t in ros.object_poses.values()}))
+
     def wait_for_subscribers(self, timeout: float = 5.0) -> None:
         deadline = time.monotonic() + timeout
         while not self.server.subscribed(self.ros.joint_states.topic):
@@ -119,10 +149,13 @@ class Twin:
 
     async def _publish_joint_state(self) -> None:
         topic = self.ros.joint_states.topic
+        if self.faults.is_silenced(topic):
+            return
         reading = self.sim.read_joints()
-        position, velocity = reading.position, reading.velocity
-        if topic in self.faults.malformed:
-            position = position[:-1]  # one joint short of the names it claims
+        position, velocity = reading.position, reading.velocity.copy()
+        if self.faults.take_malformed(topic):
+            position = position.copy()
+            position[-1] = float("nan")  # a driver glitch; the server sends it as null
         await self.server.publish(topic, messages.encode_joint_state(self.state_names, position, velocity,
                                                                      time.time()))
 
@@ -130,23 +163,25 @@ class Twin:
         for name, topic_spec in self.ros.object_poses.items():
             if name not in self.sim.objects:
                 continue
+            if self.faults.is_silenced(topic_spec.topic):
+                continue
             reading = self.sim.read_object(name)
-            quaternion = reading.quaternion * (3.0 if topic_spec.topic in self.faults.malformed else 1.0)
+            quaternion = reading.quaternion * (3.0 if self.faults.take_malformed(topic_spec.topic) else 1.0)
             await self.server.publish(topic_spec.topic, messages.encode_pose(self.ros.task_frame_id, reading.position,
                                                                              quaternion, time.time()))
 
     # ------------------------------------------------------------------ what it executes
 
-    def _on_publish(self, topic: str, msg: dict) -> None:
+    def _on_command(self, topic: str, msg: dict) -> None:
         ros = self.ros
+        if self.faults.ignore_commands:
+            return  # taken, never executed: a controller that is not running
         if topic == ros.arm_command.topic:
-            target, duration = messages.decode_arm(ros.arm_command, self.arm_names, msg,
-                                                   self.spec.env.timing.action_speed)
+            # a trajectory carries its duration; a group command moves over the driver's profile time
+            target, duration = messages.decode_arm(ros.arm_command, self.arm_names, msg, self.group_move_s)
             if target is None:  # the stop: hold where the arm is now
                 target = self.sim.read_joints().position[self._arm_in_states]
                 duration = 0.05
             self.sim.command_joints(target, max(duration, 0.05))
-        elif ros.gripper_command is not None and topic == ros.gripper_command.topic:
-            self.sim.command_gripper(messages.decode_gripper(ros.gripper_command, msg))
         else:
-            raise ValueError(f"no handler for topic {topic!r}")
+            self.sim.command_gripper(messages.decode_gripper(ros.gripper_command, msg))

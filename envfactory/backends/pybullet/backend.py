@@ -162,6 +162,9 @@ class PyBulletBackend:
         with self._lock:
             self._drive_gripper(value)
 
+    def recover(self) -> None:
+        pass  # a simulator has no faults to recover from
+
     def stop(self) -> None:
         """Hold the arm where it is now."""
         with self._lock:

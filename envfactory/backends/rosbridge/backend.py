@@ -4,25 +4,31 @@ protocol as the simulator.
 Every doubt stops the arm. Before anything is published the motion gate is
 checked again, and the joint states (and the poses of the task's objects)
 must be fresh by local receive time and well formed. A stale or malformed
-reading ends the episode with the reason and a stop. A deadman stops the arm
-when commands cease, and close() always sends the stop. Each arm command is
-a trajectory of bounded duration, so a robot that loses this client comes to
-rest at the end of the last segment on its own.
+reading, a lost connection, or an arm that does not follow its command ends
+the episode with the reason and one stop. A deadman stops the arm when
+commands cease, and close() sends the stop. Each arm command is a motion of
+bounded length, so a robot that loses this client comes to rest at the end of
+the last one on its own. reset() first recovers from whatever went wrong:
+it reconnects (bounded), clears the fault and waits for fresh readings.
 """
 
 from __future__ import annotations
 
 import logging
+import math
 import os
 import threading
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from envfactory.backends.base import BackendError, EpisodeAbort, JointReading, MotionRefused, ObjectReading
+from envfactory.backends.base import (BackendError, ConnectionLost, JointReading, MalformedFeed, MotionRefused,
+                                      ObjectReading, StaleFeed)
 from envfactory.backends.rosbridge import messages
+from envfactory.backends.rosbridge.feeds import Feed, duration
+from envfactory.backends.rosbridge.follow import FollowWatch
+from envfactory.backends.rosbridge.link import Link
 from envfactory.backends.rosbridge.transforms import FrameGraph
 from envfactory.spec.schema import EnvSpec
 
@@ -30,8 +36,10 @@ log = logging.getLogger("envfactory.rosbridge")
 
 MOTION_ENV_VAR = "ALLOW_REAL_ROBOT_MOTION"
 POLL_S = 0.02
-# reconnect backoff: roslibpy waits INITIAL, then FACTOR times longer each try, at most MAX
-RECONNECT_INITIAL_S, RECONNECT_FACTOR, RECONNECT_MAX_S = 0.25, 2.0, 2.0
+FIRST_CONNECT_TRIES = 3  # at construction: a robot that is not there is said so quickly
+# a group command (xs_sdk) carries no duration: the drive home goes out as segments this
+# long, each at most reset_speed x RESET_SEGMENT_S further than the last
+RESET_SEGMENT_S = 0.2
 
 
 def motion_allowed(flag: bool) -> bool:
@@ -46,17 +54,9 @@ def require_motion_gate(flag: bool, what: str) -> None:
         )
 
 
-@dataclass
-class _Latest:
-    """The newest good reading of one topic, and what went wrong since, if anything."""
-
-    values: tuple | None = None
-    received: float = 0.0  # time.monotonic() at receipt
-    error: str = ""
-
-
 class RosbridgeBackend:
     teleports_on_reset = False  # the arm drives home
+
     def __init__(self, spec: EnvSpec, urdf_path: Path, task_origin_world: np.ndarray, render_mode: str | None = None):
         robot, real = spec.robot, spec.env.real
         self.spec, self.real = spec, real
@@ -71,16 +71,16 @@ class RosbridgeBackend:
             raise BackendError("render_mode='human' opens a simulator window; a real robot has none")
         self.allow_motion = real.allow_motion
         require_motion_gate(self.allow_motion, f"refusing to connect to {robot.name!r}")
-        self.ros_spec = robot.ros
+        self.ros_spec = ros = robot.ros
         self.state_names = robot.state_names
         self.arm_names = robot.arm_state_names
         self._arm_in_states = robot.arm_state_indices
-        missing = [name for name in spec.task.objects if name not in self.ros_spec.object_poses]
+        missing = [name for name in spec.task.objects if name not in ros.object_poses]
         if missing:
             raise BackendError(f"robot {robot.name!r}: ros.object_poses has no topic for {missing}")
-        self.frames = FrameGraph(self.ros_spec.task_frame_id, self.ros_spec.static_transforms)
+        self.frames = FrameGraph(ros.task_frame_id, ros.static_transforms)
         target = real.cube_tracker_target_frame
-        if target and not self.ros_spec.use_tf:
+        if target and not ros.use_tf:
             try:
                 self.frames.to_task(target, np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]))
             except KeyError as exc:
@@ -88,172 +88,165 @@ class RosbridgeBackend:
                                    f"ros.static_transforms or set ros.use_tf") from None
 
         self._lock = threading.Lock()
-        self._joints = _Latest()
-        self._objects = {name: _Latest() for name in spec.task.objects}
+        self.joints = Feed(ros.joint_states.topic, real.joint_state_timeout_s, self._lock)
+        self.objects = {name: Feed(ros.object_poses[name].topic, real.cube_pose_timeout_s, self._lock)
+                        for name in spec.task.objects}
+        self.follow = FollowWatch(ros.arm_command.topic, real.follow_timeout_s)
         self._last_command = 0.0
+        self._last_target: np.ndarray | None = None
         self._deadman_armed = False
+        self._holding = False  # a stop went out and no motion since: another stop adds nothing
+        self._stop_owed = False  # a stop that found no connection goes out once there is one
         self._closed = False
-        self._connect()
+        subscriptions = {ros.joint_states.topic: (ros.joint_states.type, self._on_joint_state)}
+        for name in self.objects:
+            topic = ros.object_poses[name]
+            subscriptions[topic.topic] = (topic.type, lambda msg, name=name: self._on_pose(name, msg))
+        if ros.use_tf:
+            for name in ("/tf", "/tf_static"):
+                subscriptions[name] = ("tf2_msgs/TFMessage", self.frames.learn)
+        self.link = Link(real, ros, subscriptions)
+        self.link.open(FIRST_CONNECT_TRIES)
         try:
-            self._wait_for_first_readings()
+            self._wait_for_readings(since=-math.inf)
         except BackendError:
-            self._shutdown_connection()
+            self.link.close()
             raise
         self._deadman = threading.Thread(target=self._watch_deadman, name="envfactory-deadman", daemon=True)
         self._deadman.start()
 
-    # ------------------------------------------------------------------ connection
-
     @property
     def url(self) -> str:
-        return f"ws://{self.real.host}:{self.real.port}"
+        return self.link.url
 
-    def _connect(self) -> None:
-        import roslibpy
-
-        self.ros = roslibpy.Ros(self.real.host, self.real.port, transport="asyncio")
-        factory = self.ros.factory
-        # roslibpy retries forever by default; a bounded, backed-off retry never hangs a run
-        factory.maxRetries = self.real.reconnect_tries
-        factory.initialDelay, factory.maxDelay, factory.factor = RECONNECT_INITIAL_S, RECONNECT_MAX_S, RECONNECT_FACTOR
-        try:
-            self.ros.run(timeout=self.real.connect_timeout_s)
-        except Exception as exc:
-            self._shutdown_connection()
-            raise BackendError(f"could not reach rosbridge at {self.url} within {self.real.connect_timeout_s:g} s "
-                               f"({exc}): is rosbridge_server running?") from None
-        ros_spec = self.ros_spec
-        self._joint_topic = roslibpy.Topic(self.ros, ros_spec.joint_states.topic, ros_spec.joint_states.type)
-        self._joint_topic.subscribe(self._on_joint_state)
-        self._object_topics = {}
-        for name in self._objects:
-            topic_spec = ros_spec.object_poses[name]
-            topic = roslibpy.Topic(self.ros, topic_spec.topic, topic_spec.type)
-            topic.subscribe(lambda msg, name=name: self._on_pose(name, msg))
-            self._object_topics[name] = topic
-        if ros_spec.use_tf:
-            for name in ("/tf", "/tf_static"):
-                roslibpy.Topic(self.ros, name, "tf2_msgs/TFMessage").subscribe(self.frames.learn)
-        self._arm_topic = roslibpy.Topic(self.ros, ros_spec.arm_command.topic, ros_spec.arm_command.type)
-        self._arm_topic.advertise()
-        self._gripper_topic = None
-        if ros_spec.gripper_command is not None:
-            gripper = ros_spec.gripper_command
-            self._gripper_topic = roslibpy.Topic(self.ros, gripper.topic, gripper.type)
-            self._gripper_topic.advertise()
-
-    def _shutdown_connection(self) -> None:
-        try:
-            self.ros.close(timeout=1.0)
-        except Exception:  # closing a dead connection: nothing left to tell it
-            pass
-
-    def _await_connection(self) -> None:
-        """roslibpy reconnects in the background with backoff; wait a bounded time for it."""
-        if self.ros.is_connected:
-            return
-        budget = sum(min(RECONNECT_INITIAL_S * RECONNECT_FACTOR**i, RECONNECT_MAX_S)
-                     for i in range(self.real.reconnect_tries)) + 1.0
-        deadline = time.monotonic() + budget
-        while time.monotonic() < deadline:
-            if self.ros.is_connected:
-                return
-            time.sleep(POLL_S)
-        raise BackendError(f"lost the rosbridge connection to {self.url}; {self.real.reconnect_tries} reconnect "
-                           f"tries over {budget:.1f} s failed. The arm stops at the end of its last segment.")
+    @property
+    def _feeds(self) -> list[Feed]:
+        return [self.joints, *self.objects.values()]
 
     # ------------------------------------------------------------------ readings
 
     def _on_joint_state(self, msg: dict) -> None:
-        now = time.monotonic()
         try:
             values = messages.decode_joint_state(msg, self.state_names)
         except messages.MalformedMessage as exc:
-            with self._lock:
-                self._joints.error = f"malformed message on {self.ros_spec.joint_states.topic}: {exc}"
+            self.joints.fail(f"malformed message on {self.joints.topic}: {exc}")
             return
-        with self._lock:
-            self._joints.values, self._joints.received = values, now
+        self.joints.update(values)
+        self.follow.observe(values[0][self._arm_in_states])
 
     def _on_pose(self, name: str, msg: dict) -> None:
-        now = time.monotonic()
-        topic = self.ros_spec.object_poses[name].topic
+        feed = self.objects[name]
         try:
             frame, position, quaternion = messages.decode_pose(msg)
             position, quaternion = self.frames.to_task(frame, position, quaternion)
-        except (messages.MalformedMessage, KeyError) as exc:
-            with self._lock:
-                self._objects[name].error = f"unusable message on {topic}: {exc}"
+        except messages.MalformedMessage as exc:
+            feed.fail(f"malformed message on {feed.topic}: {exc}")
             return
-        with self._lock:
-            self._objects[name].values, self._objects[name].received = (position, quaternion), now
+        except KeyError as exc:
+            feed.fail(f"unusable pose on {feed.topic}: {exc.args[0]}")
+            return
+        feed.update((position, quaternion))
 
-    def _fresh(self, latest: _Latest, topic: str, limit: float) -> tuple[tuple, float]:
-        """The newest values and their receive time, or EpisodeAbort (after a stop) saying why
-        they cannot be trusted."""
-        with self._lock:
-            values, received, error = latest.values, latest.received, latest.error
-        reason = error
-        if not reason and values is None:
-            reason = f"nothing received on {topic} yet"
-        if not reason:
-            age = time.monotonic() - received
-            if age > limit:
-                reason = f"{topic} is stale: newest message {age:.2f} s old (limit {limit:g} s)"
-        if reason:
+    def _guarded(self, check):
+        """Run a check; any fault it finds stops the arm before it propagates."""
+        try:
+            if not self.link.connected:
+                raise ConnectionLost(f"lost the rosbridge connection to {self.url}")
+            return check()
+        except BackendError:
             self.stop()
-            raise EpisodeAbort(reason)
-        return values, received
+            raise
 
-    def _fresh_joints(self) -> tuple[tuple[np.ndarray, np.ndarray], float]:
-        return self._fresh(self._joints, self.ros_spec.joint_states.topic, self.real.joint_state_timeout_s)
+    def _fresh(self, feed: Feed) -> tuple[tuple, float]:
+        return self._guarded(feed.fresh)
 
-    def _fresh_object(self, name: str) -> tuple[tuple[np.ndarray, np.ndarray], float]:
-        return self._fresh(self._objects[name], self.ros_spec.object_poses[name].topic, self.real.cube_pose_timeout_s)
+    def _check_follow(self) -> None:
+        self._guarded(lambda: self.follow.check(time.monotonic()))
 
-    def _check_inputs(self) -> None:
-        self._fresh_joints()
-        for name in self._objects:
-            self._fresh_object(name)
+    def _check_inputs(self) -> np.ndarray:
+        """Everything a command relies on; returns the arm's position."""
+        (position, _), _ = self._fresh(self.joints)
+        for feed in self.objects.values():
+            self._fresh(feed)
+        self._check_follow()
+        return position[self._arm_in_states]
+
+    def _wait_for_readings(self, since: float) -> None:
+        """Until every feed has a good reading newer than `since`, within connect_timeout_s."""
+        wait = self.real.connect_timeout_s
+        deadline = time.monotonic() + wait
+        while True:
+            if not self.link.connected:
+                raise ConnectionLost(f"lost the rosbridge connection to {self.url} while waiting for readings")
+            for feed in self._feeds:
+                with self._lock:
+                    error = feed.error
+                if error:
+                    raise MalformedFeed(error)
+            silent = [feed.topic for feed in self._feeds if not feed.newer_than(since)]
+            if not silent:
+                return
+            if time.monotonic() > deadline:
+                break
+            time.sleep(POLL_S)
+        raise StaleFeed(f"connected to {self.url}, but nothing {'new ' if since > -math.inf else ''}arrived on "
+                        f"{silent} within {duration(wait)}: is the robot driver (and the cube tracker) running?")
 
     # ------------------------------------------------------------------ commands
 
-    def _publish(self, topic, msg: dict) -> None:
+    def _publish(self, topic: str, msg: dict) -> None:
         require_motion_gate(self.allow_motion, "refusing to publish a command")
-        if not self.ros.is_connected:
-            raise BackendError(f"lost the rosbridge connection to {self.url}: command not sent")
-        import roslibpy
-
-        topic.publish(roslibpy.Message(msg))
+        self.link.publish(topic, msg)
         with self._lock:
             self._last_command = time.monotonic()
+            self._holding = False
+
+    def _command_arm(self, q_from: np.ndarray, q_target, duration_s: float) -> None:
+        target = np.asarray(q_target, float)
+        msg = messages.encode_arm(self.ros_spec.arm_command, self.arm_names, target, duration_s)
+        self._guarded(lambda: self._publish(self.ros_spec.arm_command.topic, msg))
+        self._last_target = target
+        self.follow.commanded(q_from, target, time.monotonic())
 
     def command_joints(self, q_arm_target, duration: float) -> None:
-        self._check_inputs()
-        msg = messages.encode_arm(self.ros_spec.arm_command, self.arm_names, q_arm_target, duration)
-        self._publish(self._arm_topic, msg)
+        here = self._check_inputs()
+        self._command_arm(here, q_arm_target, duration)
         self._deadman_armed = True
 
     def command_gripper(self, value: float) -> None:
-        if self._gripper_topic is None:
+        gripper = self.ros_spec.gripper_command
+        if gripper is None:
             raise BackendError(f"robot {self.spec.robot.name!r} declares no ros.gripper_command")
         self._check_inputs()
-        self._publish(self._gripper_topic, messages.encode_gripper(self.ros_spec.gripper_command, value))
+        self._guarded(lambda: self._publish(gripper.topic, messages.encode_gripper(gripper, value)))
 
     def stop(self) -> None:
-        """Hold the arm where it is. Allowed with the gate closed: stopping is not motion."""
-        self._deadman_armed = False
+        """Hold the arm where it is, once per event. Allowed with the gate closed: stopping is not motion."""
         with self._lock:
-            values = self._joints.values
-        q_hold = values[0][self._arm_in_states] if values is not None else None
-        msg = messages.encode_arm_stop(self.ros_spec.arm_command, self.arm_names, q_hold)
-        if msg is None or not self.ros.is_connected:
-            log.warning("cannot send the stop (%s); the arm halts at the end of its last segment",
-                        "no joint state to hold" if msg is None else "not connected")
+            if self._holding:
+                return
+            self._holding = True
+        self._deadman_armed = False
+        self.follow.clear()
+        msg = messages.encode_arm_stop(self.ros_spec.arm_command, self.arm_names, self._hold_position())
+        if msg is None:
+            log.warning("no stop to send: no trustworthy position to hold and no command sent yet")
             return
-        import roslibpy
+        try:
+            self.link.publish(self.ros_spec.arm_command.topic, msg)
+        except ConnectionLost:
+            self._stop_owed = True
+            log.warning("cannot send the stop (not connected); the arm halts at the end of its last motion, "
+                        "and the stop goes out on reconnection")
 
-        self._arm_topic.publish(roslibpy.Message(msg))
+    def _hold_position(self) -> np.ndarray | None:
+        """Where a driver without a stop of its own holds: the arm's reading if it is fresh,
+        else the last commanded target (where the arm is headed anyway); never a stale reading."""
+        with self._lock:
+            values, received = self.joints.values, self.joints.received
+        if values is not None and time.monotonic() - received <= self.joints.limit:
+            return values[0][self._arm_in_states]
+        return self._last_target
 
     def _watch_deadman(self) -> None:
         while not self._closed:
@@ -266,61 +259,73 @@ class RosbridgeBackend:
 
     # ------------------------------------------------------------------ protocol
 
-    def reset(self, q_arm, gripper, objects) -> None:
-        """Drive home slowly and wait there; the objects stay where the user put them."""
+    def recover(self) -> None:
+        """Reconnect if the connection is gone, clear any fault, wait for fresh readings, and
+        deliver a stop that found no connection."""
         self._deadman_armed = False
-        self._await_connection()
-        with self._lock:  # a fault of the last episode must be seen afresh to count again
-            self._joints.error = ""
-            for latest in self._objects.values():
-                latest.error = ""
-        self._wait_for_first_readings()
-        (position, _), _ = self._fresh_joints()
-        home = np.asarray(q_arm, float)
-        distance = float(np.max(np.abs(position[self._arm_in_states] - home)))
-        duration = max(1.0, distance / self.real.reset_speed)
-        self._publish(self._arm_topic, messages.encode_arm(self.ros_spec.arm_command, self.arm_names, home, duration))
-        if gripper is not None and self._gripper_topic is not None:
-            self._publish(self._gripper_topic, messages.encode_gripper(self.ros_spec.gripper_command, gripper))
-        deadline = time.monotonic() + max(self.real.reset_timeout_s, duration + 2.0)
-        while True:
-            (position, _), _ = self._fresh_joints()
-            if np.max(np.abs(position[self._arm_in_states] - home)) < self.real.reset_tolerance:
-                break
-            if time.monotonic() > deadline:
-                self.stop()
-                raise BackendError(f"the arm did not reach home within {deadline:.0f} s of the reset command")
-            time.sleep(POLL_S)
-        for name in self._objects:
-            self._fresh_object(name)
-
-    def _wait_for_first_readings(self) -> None:
-        wait = self.real.connect_timeout_s
-        deadline = time.monotonic() + wait
-        while time.monotonic() < deadline:
+        self.follow.clear()
+        if not self.link.connected:
+            self.link.open(self.real.reconnect_tries)
+        since = min(feed.clear() for feed in self._feeds)
+        self._wait_for_readings(since)
+        if self._stop_owed:
+            self._stop_owed = False
             with self._lock:
-                silent = [self.ros_spec.joint_states.topic] if self._joints.values is None else []
-                silent += [self.ros_spec.object_poses[name].topic for name, latest in self._objects.items()
-                           if latest.values is None]
-            if not silent:
-                return
+                self._holding = False
+            self.stop()
+
+    def reset(self, q_arm, gripper, objects) -> None:
+        """Drive home at reset_speed and wait there; the objects stay where the user put them."""
+        self._deadman_armed = False
+        home = np.asarray(q_arm, float)
+        (position, _), _ = self._fresh(self.joints)
+        plan = self._drive_plan(position[self._arm_in_states], home)
+        timeout = max(self.real.reset_timeout_s, plan[-1][0] + plan[-1][2] + 2.0)
+        started = time.monotonic()
+        sent = 0
+        while True:
+            (position, _), _ = self._fresh(self.joints)
+            here = position[self._arm_in_states]
+            while sent < len(plan) and time.monotonic() - started >= plan[sent][0]:
+                _, target, segment_s = plan[sent]
+                self._command_arm(here, target, segment_s)
+                sent += 1
+                if sent == 1 and gripper is not None and self.ros_spec.gripper_command is not None:
+                    gripper_command = self.ros_spec.gripper_command
+                    self._guarded(lambda: self._publish(gripper_command.topic,
+                                                        messages.encode_gripper(gripper_command, gripper)))
+            self._check_follow()
+            if sent == len(plan) and np.max(np.abs(here - home)) < self.real.reset_tolerance:
+                break
+            if time.monotonic() - started > timeout:
+                self.stop()
+                raise BackendError(f"the arm did not reach home within {duration(timeout)} of the reset command")
             time.sleep(POLL_S)
-        raise BackendError(f"connected to {self.url}, but nothing arrived on {silent} within {wait:g} s: "
-                           f"is the robot driver (and the cube tracker) running?")
+        for feed in self.objects.values():
+            self._fresh(feed)
+        self._deadman_armed = False
+
+    def _drive_plan(self, start: np.ndarray, home: np.ndarray) -> list[tuple[float, np.ndarray, float]]:
+        """(send at s, target, duration s) for each command of the drive home at reset_speed."""
+        total = max(1.0, float(np.max(np.abs(home - start))) / self.real.reset_speed)
+        if self.ros_spec.arm_command.encoding == "joint_trajectory":
+            return [(0.0, home, total)]  # the trajectory itself carries the duration
+        count = max(1, math.ceil(total / RESET_SEGMENT_S))
+        step = total / count
+        return [(i * step, start + (home - start) * (i + 1) / count, step) for i in range(count)]
 
     def advance(self, seconds: float) -> None:
         deadline = time.monotonic() + seconds
         while time.monotonic() < deadline:
-            if not self.ros.is_connected:
-                raise BackendError(f"lost the rosbridge connection to {self.url} during the step")
+            self._check_follow()
             time.sleep(min(POLL_S, max(0.0, deadline - time.monotonic())))
 
     def read_joints(self) -> JointReading:
-        (position, velocity), stamp = self._fresh_joints()
+        (position, velocity), stamp = self._fresh(self.joints)
         return JointReading(position.copy(), velocity.copy(), stamp)
 
     def read_object(self, name: str) -> ObjectReading:
-        (position, quaternion), stamp = self._fresh_object(name)
+        (position, quaternion), stamp = self._fresh(self.objects[name])
         return ObjectReading(position.copy(), quaternion.copy(), stamp)
 
     def mark_goal(self, position) -> None:
@@ -339,4 +344,4 @@ class RosbridgeBackend:
             self.stop()
         finally:
             self._closed = True
-            self._shutdown_connection()
+            self.link.close()

@@ -31,6 +31,8 @@ def _duration_seconds(duration: dict) -> float:
 
 
 def _finite_floats(values, what: str, count: int | None = None) -> np.ndarray:
+    if isinstance(values, list) and any(v is None for v in values):
+        raise MalformedMessage(f"{what} holds null (a NaN or infinity on the robot side)")
     try:
         array = np.asarray(values, dtype=float).reshape(-1)
     except (TypeError, ValueError) as exc:
@@ -103,8 +105,8 @@ def encode_arm(command: ArmCommand, joints: list[str], q_target, duration: float
 
 
 def encode_arm_stop(command: ArmCommand, joints: list[str], q_hold) -> dict | None:
-    """The stop: an empty trajectory (the controller holds where it is), or, for group
-    commands that have no such message, the last known position."""
+    """The stop: an empty trajectory (the controller's own stop: it holds where it is), or,
+    for group commands that have no such message, a command to hold at `q_hold`."""
     if command.encoding == "joint_trajectory":
         return {"header": {"stamp": _stamp(0.0), "frame_id": ""}, "joint_names": list(joints), "points": []}
     if q_hold is None:
