@@ -304,7 +304,9 @@ def terms(modules: List[str] = typer.Argument(None, help="Term modules to import
         ("Experts (task.expert: {policy, params})", ("Name", "Params", "What it does"), catalog.expert_rows()),
     ]
     for title, columns, rows in tables:
-        table = Table(*columns, title=title, title_justify="left")
+        table = Table(title=title, title_justify="left")
+        for index, column in enumerate(columns):
+            table.add_column(column, no_wrap=index == 0)  # a term's name is what a spec types: never cut
         for row in rows:
             table.add_row(*row)
         console.print(table)

@@ -127,3 +127,20 @@ def test_validate_reports_a_user_id_that_clashes_with_a_builtin(tmp_path):
     result = runner.invoke(app, ["validate", str(broken)])
     assert result.exit_code == 1
     assert "duplicate_builtin_id.yaml:13" in result.output and "ur5e_reach.yaml:" in result.output
+
+
+def test_terms_lists_every_term_and_expert_with_params_size_and_unit():
+    from envfactory.experts import EXPERTS
+    from envfactory.terms import IMAGES, OBSERVATIONS, REWARDS, TERMINATIONS, catalog
+
+    result = runner.invoke(app, ["terms"])
+    assert result.exit_code == 0, result.output
+    lines = result.output.splitlines()
+    for name in [*OBSERVATIONS, *REWARDS, *TERMINATIONS, *IMAGES, *EXPERTS]:
+        assert any(f" {name} " in line for line in lines), name  # whole, never cut short
+    rows = {row[0]: row for row in catalog.observation_rows()}
+    assert rows["is_grasped"][1:3] == ("1", "0 or 1")
+    assert "distance: float = 0.05 (> 0, <= 0.5)" in rows["is_grasped"][3]
+    assert rows["joint_positions"][1:3] == ("one per joint_states entry", "rad or m per joint")
+    experts = {row[0]: row for row in catalog.expert_rows()}
+    assert "grip: float | None = None" in experts["pnp"][1]
