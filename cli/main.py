@@ -1,7 +1,13 @@
-"""The `envfactory` command: validate, list, describe, register, run."""
+"""The `envfactory` command: validate, list, describe, register, unregister, terms, run, twin.
+
+Bad input never ends in a traceback: every command reports the error in one
+message and exits 1 (`--debug` shows the traceback instead).
+"""
 
 from __future__ import annotations
 
+import functools
+import os
 import sys
 from pathlib import Path
 from typing import List, Optional
@@ -10,62 +16,160 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-app = typer.Typer(add_completion=False, no_args_is_help=True,
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="A config-driven factory of Gymnasium environments for robot arms.")
 # Tables stay whole when the output is piped or captured.
 _WIDTH = None if sys.stdout.isatty() else 140
 console = Console(width=_WIDTH)
 errors = Console(stderr=True, width=_WIDTH)
+_debug = {"on": False}
 
 
 def _fail(message: str, code: int = 1) -> None:
-    errors.print(f"[bold red]error:[/] {message}", highlight=False, markup=True)
+    errors.print(f"[bold red]error:[/] {message}", highlight=False, markup=True, soft_wrap=True)
     raise typer.Exit(code)
 
 
-@app.command()
+@app.callback()
+def _options(debug: bool = typer.Option(False, "--debug", help="Show the traceback of an unexpected error")):
+    _debug["on"] = debug or os.environ.get("ENVFACTORY_DEBUG") == "1"
+
+
+def guarded(command):
+    """Any error escaping a command becomes one clear message (the traceback with --debug)."""
+
+    @functools.wraps(command)
+    def run_guarded(*args, **kwargs):
+        from envfactory.spec.errors import SpecError
+
+        try:
+            return command(*args, **kwargs)
+        except (typer.Exit, typer.Abort, typer.TyperException, KeyboardInterrupt, SystemExit):
+            raise
+        except Exception as exc:
+            if _debug["on"]:
+                raise
+            if isinstance(exc, SpecError):
+                _fail(str(exc))
+            text = str(exc).strip().strip("'\"") or "no message"
+            _fail(f"{type(exc).__name__}: {text} (run with --debug for the traceback)")
+
+    return run_guarded
+
+
+def command(*args, **kwargs):
+    """app.command with the error guard."""
+
+    def wrap(function):
+        return app.command(*args, **kwargs)(guarded(function))
+
+    return wrap
+
+
+def _check_output(path: Path, suffixes: tuple[str, ...]) -> None:
+    """Refuse an output path before any work starts, not after it."""
+    if path.suffix.lower() not in suffixes:
+        _fail(f"{path}: the file name must end in one of {', '.join(suffixes)}")
+    if path.is_dir():
+        _fail(f"{path}: is a folder; give a file name")
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        _fail(f"{path}: the folder {parent} does not exist")
+    existed = path.exists()
+    try:
+        with open(path, "ab"):
+            pass
+    except OSError as exc:
+        _fail(f"{path}: cannot write here ({exc.strerror or exc})")
+    if not existed:
+        path.unlink(missing_ok=True)
+
+
+@command()
 def validate(paths: List[Path] = typer.Argument(None, help="Spec folders or family files; default: every spec.")):
-    """Compose and compile every ID of the given specs; report errors with file:line."""
+    """Compose and compile every ID of the given specs as make would; report errors with file:line."""
     import envfactory.registry as registry
-    from envfactory.compiler import compile_blueprint
-    from envfactory.spec.compose import load_env_spec
     from envfactory.spec.errors import SpecError
 
     targets: list[Path] = []
-    for path in paths or [registry.builtin_root(), *registry.environment_folders()]:
-        targets.extend(registry.family_files(path) if path.is_dir() else [path])
+    missing = [path for path in paths or [] if not path.exists()]
+    if missing:
+        _fail("; ".join(f"{path}: no such file or folder" for path in missing))
+    folders = paths or [registry.builtin_root(), *(folder for folder, _ in registry.user_folders())]
+    for path in folders:
+        if path.is_dir():
+            targets.extend(registry.family_files(path))
+        elif path.exists() or not paths:
+            targets.append(path)
     failures, checked = 0, 0
+    pending: dict = {}
     for path in targets:
         try:
-            for record in registry.scan_family(path, registry.search_roots(registry.folder_of(path))):
-                loaded = load_env_spec(record.family, (), dict(record.kwargs))
-                compile_blueprint(loaded, record.env_id, record.backend, record.goal_env)
-                checked += 1
+            records = registry.scan_family(path, registry.search_roots(registry.folder_of(path)))
+            clashes = [p for p in (registry.clash(r, pending) for r in records) if p is not None]
+            if clashes:
+                raise SpecError(clashes, path.stem)
+            registry.check_family(records)
+            pending.update({r.env_id: r for r in records})
+            checked += len(records)
         except SpecError as exc:
             failures += 1
-            errors.print(str(exc), highlight=False, markup=False)
+            errors.print(str(exc), highlight=False, markup=False, soft_wrap=True)
+    if not targets:
+        _fail(f"no family files (*.yaml) in {', '.join(map(str, folders))}")
     if failures:
         _fail(f"{failures} spec file(s) invalid, {checked} ID(s) valid")
     console.print(f"{checked} ID(s) in {len(targets)} spec file(s): valid")
 
 
-@app.command("list")
-def list_ids():
+@command("list")
+def list_ids(sources: bool = typer.Option(False, "--sources", help="Where the IDs come from: each spec folder")):
     """Every registered ID with its robot, task, backend and sizes."""
     import envfactory
     from envfactory.spec.errors import SpecError
 
+    if sources:
+        _list_sources()
+        return
     table = Table("ID", "Robot", "Task", "Backend", "Obs", "Action")
     for env_id, record in sorted(envfactory.records().items()):
         try:
             compiled = envfactory.blueprint(env_id)
         except SpecError as exc:
-            table.add_row(env_id, "?", "?", record.backend, "invalid", str(exc).splitlines()[1].strip())
+            table.add_row(env_id, "?", "?", record.backend, "invalid", str(exc.problems[0]) if exc.problems else "")
             continue
         obs = str(compiled.observation_size) + (" + goal 3+3" if compiled.goal_env else "")
         table.add_row(env_id, compiled.spec.robot.name, compiled.spec.task.name, compiled.backend, obs,
                       str(compiled.action.size))
     console.print(table)
+
+
+def _list_sources() -> None:
+    import envfactory
+    import envfactory.registry as registry
+    from envfactory.user_config import config_file
+
+    by_folder: dict[Path, list[str]] = {}
+    for env_id, record in envfactory.records().items():
+        by_folder.setdefault(registry.folder_of(record.family.path).resolve(), []).append(env_id)
+    table = Table("Source", "Folder", "IDs", title=f"spec folders (config file: {config_file()})")
+    folders = [(registry.builtin_root(), registry.BUILTIN_SOURCE), *registry.user_folders()]
+    for folder, source in folders:
+        ids = sorted(by_folder.get(folder.expanduser().resolve(), []))
+        state = f"{len(ids)}" if folder.is_dir() else "0 (missing folder)"
+        table.add_row(source, str(folder), state + (f": {', '.join(ids[:4])}{', …' if len(ids) > 4 else ''}"
+                                                    if ids else ""))
+    console.print(table)
+
+
+def _known(env_id: str) -> None:
+    """Refuse an unknown ID with the nearest registered ones, before any work."""
+    import envfactory.registry as registry
+
+    try:
+        registry.record(env_id)
+    except KeyError as exc:
+        _fail(str(exc).strip("'\""))
 
 
 def _parse_kwargs(items: List[str] | None) -> dict:
@@ -76,14 +180,17 @@ def _parse_kwargs(items: List[str] | None) -> dict:
         name, sep, value = item.partition("=")
         if not sep:
             _fail(f"--kwarg {item!r}: write name=value")
-        kwargs[name] = yaml.safe_load(value)
+        try:
+            kwargs[name] = yaml.safe_load(value)
+        except yaml.YAMLError as exc:
+            _fail(f"--kwarg {item!r}: the value is not valid YAML ({str(exc).splitlines()[0]})")
     return kwargs
 
 
 KWARG_HELP = "gym.make kwarg as name=value, repeatable"
 
 
-@app.command()
+@command()
 def describe(
     env_id: str,
     overrides: List[str] = typer.Argument(None, help="Hydra overrides, e.g. env.action.ee=true"),
@@ -92,48 +199,123 @@ def describe(
     """The observation index table, action table, reward terms and goal box of an ID."""
     import envfactory
     from envfactory.describe import render_description
-    from envfactory.spec.errors import SpecError
 
+    _known(env_id)
     kwargs = _parse_kwargs(kwarg)
-    try:
-        compiled = envfactory.blueprint(env_id, overrides or (), **kwargs)
-    except (SpecError, KeyError) as exc:
-        _fail(str(exc).strip("'\""))
-    render_description(compiled, console)
+    render_description(envfactory.blueprint(env_id, overrides or (), **kwargs), console)
 
 
-@app.command()
-def register(paths: List[Path] = typer.Argument(..., help="Folders of user specs")):
-    """Register user spec folders and smoke-build each new simulated ID (reset plus one step)."""
-    import gymnasium as gym
-
+@command()
+def register(
+    paths: List[Path] = typer.Argument(..., help="Folders of user specs"),
+    save: bool = typer.Option(True, "--save/--no-save", help="Record the folders in the user config file, so "
+                                                             "later processes register them too"),
+):
+    """Validate user spec folders, smoke-build each simulated ID (reset plus one step), and record them."""
     import envfactory
+    import envfactory.registry as registry
+    from envfactory import user_config
 
     failed = False
     for path in paths:
+        if not path.is_dir():
+            errors.print(f"{path}: no such spec folder", highlight=False, markup=False)
+            failed = True
+            continue
+        registry.unregister_folder(path)  # registered lazily at import: validate it in full now
         added, problems = envfactory.register_specs(path)
         for problem in problems:
             failed = True
-            errors.print(str(problem), highlight=False, markup=False)
-        for env_id in added:
-            if envfactory.records()[env_id].backend != "pybullet":
-                console.print(f"registered {env_id} (backend {envfactory.records()[env_id].backend}: not smoke-built, "
-                              f"it would need the robot)")
-                continue
-            try:
-                env = gym.make(env_id)
-                env.reset(seed=0)
-                env.step(env.action_space.sample())
-                env.close()
-                console.print(f"registered {env_id}: reset and step ok")
-            except Exception as exc:  # report, keep going with the other IDs
-                failed = True
-                errors.print(f"{env_id}: smoke build failed: {exc}", highlight=False, markup=False)
+            errors.print(str(problem), highlight=False, markup=False, soft_wrap=True)
+        failed |= not _smoke_build(added)
+        if not added and not problems:
+            errors.print(f"{path}: no family files (*.yaml) with IDs", highlight=False, markup=False)
+            failed = True
+        if save and added and not problems:
+            new = user_config.add_folder(path)
+            console.print(f"{'recorded' if new else 'already recorded'} {path.resolve()} in {user_config.config_file()}")
+        elif save and problems:
+            errors.print(f"{path}: not recorded in {user_config.config_file()}: fix the errors above and register "
+                         f"again", highlight=False, markup=False)
     if failed:
         raise typer.Exit(1)
 
 
-@app.command()
+def _smoke_build(env_ids: list[str]) -> bool:
+    import gymnasium as gym
+
+    import envfactory
+
+    ok = True
+    for env_id in env_ids:
+        backend = envfactory.records()[env_id].backend
+        if backend != "pybullet":
+            console.print(f"registered {env_id} (backend {backend}: not smoke-built, it would need the robot)")
+            continue
+        try:
+            env = gym.make(env_id)
+            try:
+                env.reset(seed=0)
+                env.step(env.action_space.sample())
+            finally:
+                env.close()
+            console.print(f"registered {env_id}: reset and step ok")
+        except Exception as exc:  # report, keep going with the other IDs
+            ok = False
+            errors.print(f"{env_id}: smoke build failed: {exc}", highlight=False, markup=False)
+    return ok
+
+
+@command()
+def unregister(paths: List[Path] = typer.Argument(..., help="Folders recorded by `envfactory register`")):
+    """Forget recorded spec folders: later processes no longer register their IDs."""
+    from envfactory import user_config
+
+    recorded = user_config.registered_folders()
+    for path in paths:
+        if user_config.remove_folder(path):
+            console.print(f"removed {path.resolve()} from {user_config.config_file()}")
+        else:
+            known = ", ".join(map(str, recorded)) or "none"
+            _fail(f"{path.resolve()} is not recorded in {user_config.config_file()} (recorded: {known})")
+
+
+@command()
+def terms(modules: List[str] = typer.Argument(None, help="Term modules to import first (as a spec's `terms:` "
+                                                         "list names them, relative to the current folder)")):
+    """Every observation, reward, termination and image term and every expert, with params, size and unit."""
+    from envfactory.terms import catalog, plugins
+
+    plugins.load_entry_points()
+    for name in modules or []:
+        try:
+            plugins.import_module(name, Path.cwd())
+        except Exception as exc:
+            _fail(f"cannot import term module {name!r}: {type(exc).__name__}: {exc}")
+    tables = [
+        ("Observation terms (task.observation)", ("Name", "Size", "Unit", "Params", "Goal-dependent", "Meaning"),
+         catalog.observation_rows()),
+        ("Reward terms (task.reward.sparse / dense: {term, weight, params})", ("Name", "Params", "Reads info",
+                                                                                "Meaning"), catalog.reward_rows()),
+        ("Termination terms (task.termination: {term, params, when})", ("Name", "Params", "Reads info", "Meaning"),
+         catalog.termination_rows()),
+        ("Image terms (scene.camera.terms, with use_kinect)", ("Name", "Shape", "Dtype", "Meaning"),
+         catalog.image_rows()),
+        ("Experts (task.expert: {policy, params})", ("Name", "Params", "What it does"), catalog.expert_rows()),
+    ]
+    for title, columns, rows in tables:
+        table = Table(title=title, title_justify="left")
+        for index, column in enumerate(columns):
+            table.add_column(column, no_wrap=index == 0)  # a term's name is what a spec types: never cut
+        for row in rows:
+            table.add_row(*row)
+        console.print(table)
+
+
+VIDEO_SUFFIXES = (".mp4", ".gif", ".webm", ".avi", ".mkv")
+
+
+@command()
 def run(
     env_id: str,
     episodes: int = typer.Option(5, "--episodes", "-n", min=1),
@@ -155,7 +337,12 @@ def run(
     from envfactory.experts import make_policy
     from envfactory.spec.errors import SpecError
 
+    _known(env_id)
     kwargs = _parse_kwargs(kwarg)
+    if policy not in ("scripted", "random"):
+        _fail(f"--policy {policy!r}: use 'scripted' or 'random'")
+    if video is not None:
+        _check_output(video, VIDEO_SUFFIXES)
     if allow_real_robot_motion:
         kwargs["allow_real_robot_motion"] = True
     try:
@@ -208,7 +395,7 @@ def _print_results(env_id: str, policy: str, results) -> None:
                   + (f"; {aborts} aborted by a fault" if aborts else ""))
 
 
-@app.command()
+@command()
 def twin(
     robot: str = typer.Argument(..., help="Robot name: ur5e or vx300s"),
     task: str = typer.Option("push", help="The task whose objects it simulates (push has the cube)"),

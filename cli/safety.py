@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from envfactory.cli.main import KWARG_HELP, _fail, _parse_kwargs, app, console
+from envfactory.cli.main import KWARG_HELP, _fail, _parse_kwargs, command, console
 
 
 def _robot_blueprint(name: str):
@@ -28,7 +28,7 @@ def _robot_blueprint(name: str):
     _fail(f"no robot or ID named {name!r} (robots: {', '.join(robots)})")
 
 
-@app.command("collision-pairs")
+@command("collision-pairs")
 def collision_pairs(
     robot: str = typer.Argument(..., help="Robot name (e.g. ur5e) or an env ID of it"),
     samples: int = typer.Option(20000, min=100, help="Random configurations to sample"),
@@ -48,7 +48,7 @@ def collision_pairs(
     console.print(f"{path}: {samples} samples in {time.perf_counter() - start:.1f} s")
 
 
-@app.command("safety-view")
+@command("safety-view")
 def safety_view(
     env_id: str,
     out: Path = typer.Option(Path("safety.png"), "--out", "-o", help="PNG to write"),

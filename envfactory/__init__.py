@@ -12,10 +12,9 @@ __all__ = ["SpecError", "blueprint", "make_env", "records", "register_specs"]
 
 
 def _register_on_import() -> None:
-    from envfactory.registry import register_builtin, register_from_environment
+    from envfactory.registry import register_on_import
 
-    register_builtin()
-    register_from_environment()
+    register_on_import()
 
 
 _register_on_import()

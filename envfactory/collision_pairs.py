@@ -15,7 +15,6 @@ stale instead of trusted.
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import json
 from pathlib import Path
@@ -198,38 +197,3 @@ def regenerate(compiled, samples: int = DEFAULT_SAMPLES, seed: int = 0) -> Path:
     collision = CollisionModel(kinematics, scene_obstacles(spec), dict(robot.safety.padding))
     write_pairs(path, robot.name, sample_pairs(collision, spec.env.safety.surface_margin, samples, seed))
     return path
-
-
-@functools.lru_cache(maxsize=32)
-def _safety_problems_cached(spec_json: str, asset_root: Path) -> tuple[tuple[str, str], ...]:
-    from envfactory.spec.errors import suggest
-    from envfactory.spec.schema import EnvSpec
-    from envfactory.urdf_assembly import assemble
-
-    spec = EnvSpec.model_validate_json(spec_json)
-    robot = spec.robot
-    try:
-        urdf = assemble(robot.model, asset_root, robot.name)
-        kinematics = Kinematics(urdf, robot, np.zeros(3))
-    except (OSError, ValueError, RuntimeError) as exc:
-        return (("robot.model", f"cannot build the robot's kinematics: {exc}"),)
-    links = {frame.name for frame in kinematics.model.frames}
-    problems = [(f"robot.safety.padding.{name}", f"the URDF has no link {name!r}{suggest(name, links)}")
-                for name in robot.safety.padding if name not in links]
-    if problems:
-        return tuple(problems)
-    collision = CollisionModel(kinematics, scene_obstacles(spec), dict(robot.safety.padding))
-    path = pairs_file(spec, asset_root)
-    if path is not None:
-        if not path.is_file():
-            return (("robot.safety.collision_pairs", f"no file {path}: run `envfactory collision-pairs {robot.name}`"),)
-        try:
-            read_pairs(path, collision, spec.env.safety.surface_margin)
-        except StalePairs as exc:
-            return (("robot.safety.collision_pairs", str(exc)),)
-    return ()
-
-
-def safety_problems(spec: EnvSpec, asset_root: Path) -> list[tuple[str, str]]:
-    """(dotted path, message) for every safety setting the URDF contradicts, and a stale pair list."""
-    return list(_safety_problems_cached(spec.model_dump_json(), asset_root))

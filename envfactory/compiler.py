@@ -14,13 +14,14 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, ValidationError
 
-from envfactory.collision_pairs import safety_problems
+from envfactory import backends, preflight
 from envfactory.experts import EXPERTS
 from envfactory.spec.compose import LoadedSpec, validation_problems
 from envfactory.spec.errors import Problem, SpecError, suggest
 from envfactory.spec.schema import EnvSpec
-from envfactory.terms import IMAGES, OBSERVATIONS, REWARDS, TERMINATIONS, Layout
-from envfactory.terms.library import Description, ImageTerm, ObservationTerm, RewardTerm
+from envfactory.terms import IMAGES, OBSERVATIONS, REWARDS, TERMINATIONS, Layout, plugins
+from envfactory.terms.library import Description, ImageTerm, ObservationTerm, RewardTerm, TerminationTerm
+from envfactory.terms.rewards import step_info_keys
 
 
 @dataclass(frozen=True)
@@ -60,7 +61,15 @@ class WeightedTerm:
     weight: float
     params: BaseModel
     bound: Any
-    active: bool = True  # terminations: whether this reward type uses it
+
+
+@dataclass(frozen=True)
+class TerminationSlot:
+    name: str
+    term: TerminationTerm
+    params: BaseModel
+    bound: Any
+    active: bool  # whether this reward type ends episodes on it (`when:` in the task)
 
 
 @dataclass(frozen=True)
@@ -105,7 +114,7 @@ class Blueprint:
     observation: tuple[ObservationSlot, ...]  # the full layout, as the standard env sees it
     action: ActionLayout
     rewards: tuple[WeightedTerm, ...]  # the set the reward type selects
-    terminations: tuple[WeightedTerm, ...]
+    terminations: tuple[TerminationSlot, ...]
     achieved_from: str  # "ee" or an object name
     info_keys: tuple[str, ...] = field(default=())
     images: tuple[ImageSlot, ...] = field(default=())  # use_kinect: camera terms, Dict keys beside the vector
@@ -205,7 +214,9 @@ def _action_layout(spec: EnvSpec) -> ActionLayout:
                 rows.append(ActionRow(f"absolute {axis}", lo, hi, f"EE {axis} ({robot.task_frame} frame)", "m"))
     else:
         for joint in robot.arm_joints:
-            rows.append(ActionRow(f"{joint.label or joint.name} {kind}", joint.lower, joint.upper, joint.name, "rad"))
+            # a delta row bounds the step (declared per joint, around zero); an absolute row the target
+            low, high = joint.delta_box if settings.delta else (joint.lower, joint.upper)
+            rows.append(ActionRow(f"{joint.label or joint.name} {kind}", low, high, joint.name, "rad"))
     if spec.task.gripper.in_action:
         gripper, entry = robot.gripper, robot.joint_states[robot.gripper_state_index]
         rows.append(ActionRow(gripper.label, gripper.low, gripper.high, entry.name, entry.unit))
@@ -258,9 +269,9 @@ def _observation(spec: EnvSpec, layout: Layout, loaded: LoadedSpec, problems: li
     return tuple(slots)
 
 
-def _weighted(refs: dict, table: dict, path: str, kind: str, layout: Layout, loaded: LoadedSpec,
-              problems: list[Problem], reward_type: str | None = None):
-    out = []
+def _resolved_terms(refs: dict, table: dict, path: str, kind: str, layout: Layout, loaded: LoadedSpec,
+                    problems: list[Problem]):
+    """(name, ref, term, params, bound) of every ref whose term, params and binding check out."""
     for name, ref in refs.items():
         term = _lookup(table, ref.term, f"{path}.{name}.term", kind, loaded, problems)
         if term is None:
@@ -269,12 +280,34 @@ def _weighted(refs: dict, table: dict, path: str, kind: str, layout: Layout, loa
         if params is None:
             continue
         bound = _bind(term, layout, params, f"{path}.{name}", loaded, problems)
-        if bound is None:
-            continue
-        when = getattr(ref, "when", "always")
-        active = when == "always" or (reward_type or "").lower() == when
-        out.append(WeightedTerm(name, term, getattr(ref, "weight", 1.0), params, bound, active))
-    return tuple(out)
+        if bound is not None:
+            yield name, ref, term, params, bound
+
+
+def _rewards(refs: dict, path: str, layout: Layout, loaded: LoadedSpec, problems: list[Problem]):
+    return tuple(WeightedTerm(name, term, ref.weight, params, bound)
+                 for name, ref, term, params, bound in _resolved_terms(refs, REWARDS, path, "reward", layout, loaded,
+                                                                      problems))
+
+
+def _terminations(spec: EnvSpec, layout: Layout, loaded: LoadedSpec, problems: list[Problem]):
+    reward_type = spec.env.reward_type.lower()
+    return tuple(TerminationSlot(name, term, params, bound, ref.when in ("always", reward_type))
+                 for name, ref, term, params, bound in _resolved_terms(spec.task.termination, TERMINATIONS,
+                                                                      "task.termination", "termination", layout,
+                                                                      loaded, problems))
+
+
+def _check_info_keys(spec: EnvSpec, rewards, terminations, loaded: LoadedSpec, problems: list[Problem]) -> None:
+    """Every step-info key a term reads must be one the step records."""
+    recorded = set(step_info_keys(spec)) | {t.term.info_keys[0] for t in rewards if t.term.measure}
+    for path, slots in (("task.reward", rewards), ("task.termination", terminations)):
+        for slot in slots:
+            for key in slot.term.info_keys:
+                if key not in recorded:
+                    problems.append(loaded.problem(f"{path}", f"term {slot.term.name!r} ({slot.name}) reads "
+                                                              f"step info {key!r}, which no step records "
+                                                              f"(recorded: {', '.join(sorted(recorded))})"))
 
 
 def _achieved_from(spec: EnvSpec, loaded: LoadedSpec, problems: list[Problem]) -> str:
@@ -316,35 +349,73 @@ def _check_expert(spec: EnvSpec, loaded: LoadedSpec, problems: list[Problem]) ->
                                        f"unknown expert {ref.policy!r}{suggest(ref.policy, EXPERTS)}"))
         return
     params = _params(expert.Params, ref.params, "task.expert.params", loaded, problems)
-    if params is not None and getattr(params, "object", None) not in (None, *spec.task.objects):
+    if params is None:
+        return
+    if getattr(params, "object", None) not in (None, *spec.task.objects):
         problems.append(loaded.problem("task.expert.params.object",
                                        f"'object: {params.object}' names no object of the task "
                                        f"(known: {list(spec.task.objects) or 'none'})"))
+    for name, message in expert.check(params, spec):
+        problems.append(loaded.problem(f"task.expert.params.{name}", message))
+
+
+def _check_backend(spec: EnvSpec, env_id: str, backend: str, loaded: LoadedSpec, problems: list[Problem]) -> None:
+    path = f"registration.ids.{env_id}.backend"
+    known = backends.available()
+    if backend not in known:
+        problems.append(loaded.problem(path, f"unknown backend {backend!r}{suggest(backend, known)}"))
+        return
+    if backend != "rosbridge":
+        return
+    ros = spec.robot.ros
+    if ros is None:
+        problems.append(loaded.problem(path, f"backend rosbridge needs the robot's topics: robot "
+                                             f"{spec.robot.name!r} declares no 'ros:' block"))
+        return
+    for name in spec.task.objects:
+        if name not in ros.object_poses:
+            problems.append(loaded.problem("robot.ros.object_poses", f"backend rosbridge needs a pose topic for "
+                                                                     f"object {name!r}"))
+    uses_gripper = spec.task.gripper.in_action or spec.gripper_at_reset is not None
+    if uses_gripper and ros.gripper_command is None:
+        problems.append(loaded.problem("robot.ros.gripper_command", "backend rosbridge needs a gripper command "
+                                                                    "topic: the task drives the gripper"))
+
+
+def _import_terms(loaded: LoadedSpec, problems: list[Problem]) -> None:
+    """The user's term modules, before any term is looked up."""
+    plugins.load_entry_points()
+    for index, name in enumerate(loaded.spec.terms):
+        try:
+            plugins.import_module(name, loaded.family.folder)
+        except Exception as exc:  # the module's own error, whatever its type
+            problems.append(loaded.problem(f"terms.{index}", f"cannot import term module {name!r}: "
+                                                             f"{type(exc).__name__}: {exc}"))
 
 
 def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: bool) -> Blueprint:
     spec = loaded.spec
     problems: list[Problem] = []
+    _import_terms(loaded, problems)
     action = _action_layout(spec)
     layout = Layout(spec.robot, spec.task, action.size, action.low, action.high)
     observation = _observation(spec, layout, loaded, problems)
     reward_set = "sparse" if spec.env.reward_type == "Sparse" else "dense"
-    rewards = _weighted(getattr(spec.task.reward, reward_set), REWARDS, f"task.reward.{reward_set}", "reward",
-                        layout, loaded, problems)
+    rewards = _rewards(getattr(spec.task.reward, reward_set), f"task.reward.{reward_set}", layout, loaded, problems)
     # the other set is compiled too, so a typo there is caught before anyone switches to it
     other = "dense" if reward_set == "sparse" else "sparse"
-    _weighted(getattr(spec.task.reward, other), REWARDS, f"task.reward.{other}", "reward", layout, loaded, problems)
-    terminations = _weighted(spec.task.termination, TERMINATIONS, "task.termination", "termination", layout,
-                             loaded, problems, reward_type=spec.env.reward_type)
+    _rewards(getattr(spec.task.reward, other), f"task.reward.{other}", layout, loaded, problems)
+    terminations = _terminations(spec, layout, loaded, problems)
+    _check_info_keys(spec, rewards, terminations, loaded, problems)
     achieved_from = _achieved_from(spec, loaded, problems)
     _check_expert(spec, loaded, problems)
     images = _images(spec, loaded, problems)
-    if not problems:  # the URDF is read only for a spec that is otherwise sound
-        asset_root = loaded.file_of("robot.model").parent
-        problems += [loaded.problem(path, message) for path, message in safety_problems(spec, asset_root)]
+    _check_backend(spec, env_id, backend, loaded, problems)
+    if not problems:
+        problems += preflight.check(spec, loaded.file_of("robot.model").parent, loaded.problem)
     if problems:
         raise SpecError(problems, env_id)
-    info_keys = tuple(sorted({key for t in rewards for key in t.term.info_keys}))
+    info_keys = tuple(sorted({key for t in (*rewards, *terminations) for key in t.term.info_keys}))
     return Blueprint(
         env_id=env_id,
         family=loaded.family.name,

@@ -90,11 +90,28 @@ def task_lines(compiled: Blueprint) -> list[str]:
         use = "action[-1], absolute" if task.gripper.in_action else "not in the action"
         lines.append(f"Gripper: {spec.gripper_at_reset} at reset, {use}")
     lift = task.goal.lift
-    if lift is not None:
-        state = "on" if lift.enabled else "off"
-        lines.append(f"Lift stage (multi_goal {state}): current goal = spawn + [0, 0, {lift.height:g}] until reached "
+    if lift is not None and lift.enabled:
+        lines.append(f"Lift stage (multi_goal): current goal = spawn + [0, 0, {lift.height:g}] until reached "
                      f"within tolerance, then the goal")
     return lines
+
+
+def value_at(spec, dotted: str):
+    """The value at a dotted spec path, or None where the path does not exist (an optional block unset)."""
+    node = spec
+    for part in dotted.split("."):
+        if node is None:
+            return None
+        node = node.get(part) if isinstance(node, dict) else getattr(node, part, None)
+    return node
+
+
+def kwarg_lines(compiled: Blueprint) -> list[str]:
+    """Every gym.make kwarg of the ID with the value it has here: kwargs and overrides show."""
+    spec = compiled.spec
+    aliases = {**spec.kwargs, **spec.task.kwargs}
+    values = [f"{name}={value_at(spec, path)!r}" for name, path in sorted(aliases.items())]
+    return ["Kwargs: " + ", ".join(values)]
 
 
 def safety_table(compiled: Blueprint) -> Table:
@@ -173,3 +190,5 @@ def render_description(compiled: Blueprint, console: Console) -> None:
     active = [f"{t.name} ({t.term.name})" for t in compiled.terminations if t.active]
     console.print(f"Termination: {', '.join(active) or 'none on this reward type'}; "
                   f"truncation at {compiled.max_episode_steps} steps")
+    for line in kwarg_lines(compiled):
+        console.print(line, highlight=False, soft_wrap=True)

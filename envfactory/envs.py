@@ -18,18 +18,14 @@ from envfactory.backends import backend_factory
 from envfactory.backends.base import BackendError, EpisodeAbort
 from envfactory.compiler import Blueprint
 from envfactory.goals import GoalSampler, LiftCurriculum
-from envfactory.kinematics import Kinematics
 from envfactory.managers import ImageManager, ObservationManager, RewardManager
 from envfactory.objects import ObjectSpawner, ObjectTracker
-from envfactory.collision_pairs import build_collision_model
 from envfactory.obstacles import table_bounds_xy
-from envfactory.safety import SafetyCheck
 from envfactory.state import EnvState
-from envfactory.urdf_assembly import assemble
+from envfactory.terms.rewards import STAGE_KEYS, STEP_FLAGS
+from envfactory.preflight import robot_geometry
 
 log = logging.getLogger("envfactory")
-
-STEP_FLAGS = ("action_out_of_bounds", "action_rejected", "goal_sampling_failed")
 
 
 class RobotEnv(gym.Env):
@@ -43,11 +39,9 @@ class RobotEnv(gym.Env):
         spec = blueprint.spec
         robot = spec.robot
         self.metadata = {**self.metadata, "render_fps": 1.0 / spec.env.timing.action_cycle_time}
-        mount = np.asarray(robot.mount, float)
         self.task_origin = np.asarray(robot.task_origin_world, float)
-        urdf = assemble(robot.model, blueprint.asset_root, robot.name)
-        self.kinematics = Kinematics(urdf, robot, mount - self.task_origin)
-        self.safety = SafetyCheck(build_collision_model(self.kinematics, spec, blueprint.asset_root), spec.env.safety)
+        geometry = robot_geometry(spec, blueprint.asset_root)
+        urdf, self.kinematics, self.safety = geometry.urdf, geometry.kinematics, geometry.safety
         self.actions = ActionAdapter(blueprint.action, self.kinematics, spec.workspace, spec.env.safety.max_joint_delta)
         self.home = np.asarray(robot.home, float)
         reset_gripper = spec.gripper_at_reset if spec.gripper_at_reset is not None else \
@@ -219,16 +213,14 @@ class RobotEnv(gym.Env):
 
     def _info(self, state: EnvState, achieved: np.ndarray, out_of_bounds: bool, rejection: str) -> dict:
         distance = float(np.linalg.norm(achieved - self._goal))
-        info = {
-            "action_out_of_bounds": float(out_of_bounds),
-            "action_rejected": float(bool(rejection)),
-            "goal_sampling_failed": float(self._goal_failed),
-            "rejection_reason": rejection,
-            "distance": distance,
-            "is_success": distance < self.blueprint.spec.task.goal.tolerance,
-        }
+        flags = (out_of_bounds, bool(rejection), self._goal_failed)
+        info = {key: float(value) for key, value in zip(STEP_FLAGS, flags, strict=True)}
+        info.update(rejection_reason=rejection, distance=distance,
+                    is_success=distance < self.blueprint.spec.task.goal.tolerance)
         if self.curriculum is not None:
             info.update(self.curriculum.info())
+        else:
+            info.update(zip(STAGE_KEYS, (0.0, self._goal.copy()), strict=True))  # no lift stage: never active
         info.update(self.rewards.measure(state))
         return info
 

@@ -7,6 +7,7 @@ import numpy as np
 from envfactory.kinematics import Kinematics
 from envfactory.safety import SafetyCheck
 from envfactory.spec.schema import GoalSpec
+from envfactory.terms.rewards import STAGE_KEYS
 
 
 class GoalSampler:
@@ -64,4 +65,4 @@ class LiftCurriculum:
         return self.goal if self.active else desired
 
     def info(self) -> dict:
-        return {"intermediate_active": float(self.active), "intermediate_goal": self.goal.copy()}
+        return dict(zip(STAGE_KEYS, (float(self.active), self.goal.copy()), strict=True))

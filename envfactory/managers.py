@@ -7,7 +7,7 @@ from typing import Iterable, Sequence
 import numpy as np
 from gymnasium import spaces
 
-from envfactory.compiler import ImageSlot, ObservationSlot, WeightedTerm
+from envfactory.compiler import ImageSlot, ObservationSlot, TerminationSlot, WeightedTerm
 from envfactory.state import EnvState
 
 
@@ -61,20 +61,28 @@ def info_columns(info: dict | Sequence[dict] | np.ndarray, keys: Iterable[str], 
     broadcast), or from one dict per goal (HER), shaped batch + the record's own shape."""
     if isinstance(info, dict):
         # one record for the whole batch: numpy broadcasting spreads it, no copies needed
-        return {key: np.asarray(info.get(key, 0.0), dtype=float) for key in keys}
+        return {key: np.asarray(_entry(info, key), dtype=float) for key in keys}
     infos = np.asarray(info, dtype=object).reshape(-1)
     count = int(np.prod(batch)) if batch else 1
     if infos.size != count:
         raise ValueError(f"got {infos.size} info dicts for a batch of {count} goals")
     columns = {}
     for key in keys:
-        stacked = np.array([np.asarray(item.get(key, 0.0), dtype=float) for item in infos])
+        stacked = np.array([np.asarray(_entry(item, key), dtype=float) for item in infos])
         columns[key] = stacked.reshape(batch + stacked.shape[1:])
     return columns
 
 
+def _entry(info: dict, key: str):
+    try:
+        return info[key]
+    except KeyError:
+        raise KeyError(f"step info lacks {key!r}, which a reward or termination term reads: pass the info dict the "
+                       f"step returned (info keys present: {sorted(info)})") from None
+
+
 class RewardManager:
-    def __init__(self, terms: Sequence[WeightedTerm], terminations: Sequence[WeightedTerm], tolerance: float,
+    def __init__(self, terms: Sequence[WeightedTerm], terminations: Sequence[TerminationSlot], tolerance: float,
                  info_keys: Sequence[str]):
         self.terms = tuple(terms)
         self.terminations = tuple(t for t in terminations if t.active)
@@ -97,9 +105,13 @@ class RewardManager:
 
     def terminated(self, achieved: np.ndarray, desired: np.ndarray, info) -> np.ndarray:
         achieved, desired = np.asarray(achieved, float), np.asarray(desired, float)
-        done = np.zeros(achieved.shape[:-1], dtype=bool)
+        batch = achieved.shape[:-1]
+        done = np.zeros(batch, dtype=bool)
+        if not self.terminations:
+            return done
+        columns = info_columns(info, self.info_keys, batch)
         for term in self.terminations:
-            done |= term.term.fn(achieved, desired, None, term.bound, self.tolerance)
+            done |= term.term.fn(achieved, desired, columns, term.bound, self.tolerance)
         return done
 
     def table(self) -> list[tuple[str, str, str, str, str]]:

@@ -1,31 +1,46 @@
 """Lazy registration of every env ID that the spec folders declare.
 
 Importing the package only reads each family file's `registration` block;
-composition and compilation wait for gym.make and are cached there.
+composition and compilation wait for gym.make and are cached there. A user
+folder can never break the import: a family file that cannot be read, or
+whose IDs clash, is skipped whole with one warning line, and the built-in
+IDs are registered first, always.
 """
 
 from __future__ import annotations
 
 import functools
+import logging
 import os
-import warnings
 from dataclasses import dataclass
 from importlib.resources import files
 from pathlib import Path
 from typing import Any, Iterable
 
 import gymnasium as gym
+from gymnasium.envs.registration import ENV_ID_RE
 from pydantic import ValidationError
 
+from envfactory import user_config
 from envfactory.spec.compose import FamilyFile, load_env_spec, validation_problems
-from envfactory.spec.errors import Problem, SpecError
+from envfactory.spec.errors import Problem, SpecError, suggest
 from envfactory.spec.schema import Registration
 from envfactory.spec.sources import SourceMap, load_plain
 
 ENTRY_POINT = "envfactory.registry:make_env"
 SPEC_PATH_VARIABLE = "ENVFACTORY_SPEC_PATH"
-# gym.make kwargs that configure the env object rather than the spec
-ENV_OPTIONS = ("render_mode",)
+# Bounded work: a family file is read whole at import, and validating one compiles each
+# distinct ID, so both are capped (and stated in the README).
+MAX_SPEC_BYTES = 256 * 1024
+MAX_IDS_PER_FAMILY = 200
+MAX_FAMILY_FILES = 500  # per folder
+
+BUILTIN_SOURCE = "built-in"
+CONFIG_SOURCE = "config"
+ENVIRONMENT_SOURCE = SPEC_PATH_VARIABLE
+CALL_SOURCE = "register_specs"
+
+log = logging.getLogger("envfactory")
 
 
 @dataclass(frozen=True)
@@ -36,10 +51,10 @@ class IdRecord:
     goal_env: bool
     kwargs: tuple[tuple[str, Any], ...]
     max_episode_steps: int
+    source: str = CALL_SOURCE  # how the folder joined: built-in, config, ENVFACTORY_SPEC_PATH, register_specs
 
 
 _records: dict[str, IdRecord] = {}
-_reported: list[SpecError] = []
 
 
 def builtin_root() -> Path:
@@ -49,7 +64,7 @@ def builtin_root() -> Path:
 
 def family_files(folder: Path) -> list[Path]:
     specs = folder / "specs" if (folder / "specs").is_dir() else folder
-    return sorted(p for p in specs.glob("*.yaml") if not p.name.startswith("_"))
+    return sorted(p for p in specs.glob("*.yaml") if not p.name.startswith("_") and p.is_file())
 
 
 def search_roots(folder: Path) -> tuple[Path, ...]:
@@ -60,110 +75,211 @@ def search_roots(folder: Path) -> tuple[Path, ...]:
 
 def folder_of(family_path: Path) -> Path:
     """The spec folder a family file belongs to (the parent of a specs/ subfolder)."""
-    return family_path.parent.parent if family_path.parent.name == "specs" else family_path.parent
+    return FamilyFile(family_path, ()).folder
 
 
-def scan_family(path: Path, search_roots: tuple[Path, ...]) -> list[IdRecord]:
+# ------------------------------------------------------------------ scanning
+
+
+def _id_problem(path: Path, env_id: str, message: str) -> Problem:
+    sources = SourceMap()
+    try:
+        sources.record_file(path, "")
+    except SpecError:
+        pass
+    return sources.problem(f"registration.ids.{env_id}", message)
+
+
+def scan_family(path: Path, search_roots: tuple[Path, ...], source: str = CALL_SOURCE) -> list[IdRecord]:
     """The IDs one family file declares, from its registration block alone."""
+    try:
+        size = path.stat().st_size
+    except OSError as exc:
+        raise SpecError([Problem("", f"cannot read: {exc.strerror}", str(path))], path.stem) from None
+    if size > MAX_SPEC_BYTES:
+        raise SpecError([Problem("", f"the file is {size / 1024:.0f} KiB; a spec file may hold at most "
+                                     f"{MAX_SPEC_BYTES // 1024} KiB (split the family)", str(path), 1)], path.stem)
+    sources = SourceMap()
+    sources.record_file(path, "")  # also refuses duplicate keys, which a plain load would merge silently
     data = load_plain(path)
     family = FamilyFile(path, search_roots)
     raw = data.get("registration")
     if raw is None:
         raise SpecError([Problem("registration", "missing: a family must declare the IDs it registers",
                                  str(path), 1)], path.stem)
+    ids = raw.get("ids") if isinstance(raw, dict) else None
+    if isinstance(ids, dict) and len(ids) > MAX_IDS_PER_FAMILY:
+        raise SpecError([sources.problem("registration.ids", f"{len(ids)} IDs; a family may declare at most "
+                                                             f"{MAX_IDS_PER_FAMILY} (split it into several files)")],
+                        path.stem)
     try:
         registration = Registration.model_validate(raw)
     except ValidationError as exc:
-        sources = SourceMap()
-        sources.record_file(path, "")
         problems = validation_problems(exc, sources, Registration)
         located = [sources.problem(f"registration.{p.path}" if p.path else "registration", p.message)
                    for p in problems]
         raise SpecError(located, path.stem) from None
+    bad = [env_id for env_id in registration.ids if not isinstance(env_id, str) or not ENV_ID_RE.fullmatch(env_id)]
+    if bad:
+        raise SpecError([sources.problem(f"registration.ids.{env_id}", f"{env_id!r} is not a valid gymnasium ID: use letters, "
+                                                        f"digits, '_', '-', '.', ':' and an optional 'ns/' prefix "
+                                                        f"and '-v<N>' suffix, e.g. 'MyReach-v0'") for env_id in bad],
+                        path.stem)
     return [
         IdRecord(env_id, family, entry.backend, entry.goal_env, tuple(sorted(entry.kwargs.items())),
-                 registration.max_episode_steps)
+                 registration.max_episode_steps, source)
         for env_id, entry in registration.ids.items()
     ]
 
 
-def _check_unique(record: IdRecord) -> None:
-    existing = _records.get(record.env_id)
+def clash(record: IdRecord, pending: dict[str, IdRecord]) -> Problem | None:
+    """The duplicate-ID problem of a record, naming both files and lines, or None."""
+    existing = _records.get(record.env_id) or pending.get(record.env_id)
     if existing is not None and existing.family.path.resolve() != record.family.path.resolve():
-        raise SpecError([Problem("registration.ids", f"duplicate env ID {record.env_id!r}: also declared in "
-                                 f"{existing.family.path}", str(record.family.path))], record.env_id)
+        file, line = _location(existing.family.path, record.env_id)
+        here = _id_problem(record.family.path, record.env_id, "")
+        return Problem(here.path, f"duplicate env ID {record.env_id!r}: already declared at {file}:{line}",
+                       here.file, here.line)
+    if existing is None and record.env_id in gym.registry:
+        entry = gym.registry[record.env_id].entry_point
+        return _id_problem(record.family.path, record.env_id,
+                           f"duplicate env ID {record.env_id!r}: gymnasium already has it (entry point {entry})")
+    return None
 
 
-def _register(record: IdRecord) -> None:
-    _records[record.env_id] = record
-    gym.register(id=record.env_id, entry_point=ENTRY_POINT, kwargs={"env_id": record.env_id},
-                 max_episode_steps=record.max_episode_steps)
+def _location(path: Path, env_id: str) -> tuple[str, int | None]:
+    problem = _id_problem(path, env_id, "")
+    return problem.file or str(path), problem.line
 
 
-def _check_family(records: list[IdRecord]) -> None:
-    """Compose and compile each ID, so nothing invalid is registered."""
+def check_family(records: list[IdRecord]) -> None:
+    """Compose and compile each distinct ID, so nothing invalid is registered. IDs that differ
+    only in name compile alike, so each (backend, goal_env, kwargs) is compiled once."""
     from envfactory.compiler import compile_blueprint
 
+    seen = set()
     for record in records:
-        loaded = load_env_spec(record.family, (), dict(record.kwargs))
+        key = (record.backend, record.goal_env, repr(record.kwargs))
+        if key in seen:
+            continue
+        seen.add(key)
+        loaded = load_env_spec(record.family, (), dict(record.kwargs), env_id=record.env_id)
         compile_blueprint(loaded, record.env_id, record.backend, record.goal_env)
 
 
-def register_specs(folder: str | Path, validate: bool = True) -> tuple[list[str], list[SpecError]]:
-    """Register every valid family in `folder`; return the new IDs and the problems of the rest."""
+def _register_family(records: list[IdRecord]) -> None:
+    """All of a family's IDs or none."""
+    done = []
+    try:
+        for record in records:
+            gym.register(id=record.env_id, entry_point=ENTRY_POINT, kwargs={"env_id": record.env_id},
+                         max_episode_steps=record.max_episode_steps)
+            done.append(record)
+            _records[record.env_id] = record
+    except Exception as exc:  # gymnasium's own checks: undo the family
+        for record in done:
+            gym.registry.pop(record.env_id, None)
+            _records.pop(record.env_id, None)
+        path = records[0].family.path
+        raise SpecError([Problem("registration.ids", f"gymnasium refused the IDs: {exc}", str(path))],
+                        path.stem) from None
+
+
+def register_specs(folder: str | Path, validate: bool = True, source: str = CALL_SOURCE
+                   ) -> tuple[list[str], list[SpecError]]:
+    """Register every valid family in `folder`; return the new IDs and the problems of the rest.
+
+    A family is registered whole or not at all. With `validate`, each ID is composed and
+    compiled first (as `make` would); without it only the registration block is read."""
     folder = Path(folder).expanduser()
     if not folder.is_dir():
-        error = SpecError([Problem("", "no such spec folder", str(folder))])
-        return [], [error]
+        return [], [SpecError([Problem("", "no such spec folder", str(folder))])]
     roots = search_roots(folder)
     added, problems = [], []
-    for path in family_files(folder):
+    pending: dict[str, IdRecord] = {}
+    paths = family_files(folder)
+    if len(paths) > MAX_FAMILY_FILES:
+        return [], [SpecError([Problem("", f"{len(paths)} family files; a spec folder may hold at most "
+                                           f"{MAX_FAMILY_FILES}", str(folder))])]
+    for path in paths:
         try:
-            records = scan_family(path, roots)
-            for record in records:
-                _check_unique(record)
-            if validate:
-                _check_family(records)
+            records = scan_family(path, roots, source)
+            clashes = [p for p in (clash(r, pending) for r in records) if p is not None]
+            if clashes:
+                raise SpecError(clashes, path.stem)
+            fresh = [r for r in records if r.env_id not in _records]
+            if validate and fresh:
+                check_family(fresh)
+            _register_family(fresh)
         except SpecError as exc:
             problems.append(exc)
             continue
-        for record in records:
-            if record.env_id not in _records:
-                _register(record)
-                added.append(record.env_id)
-    _reported.extend(problems)
+        pending.update({r.env_id: r for r in records})
+        added += [r.env_id for r in fresh]
     return added, problems
 
 
-def register_builtin() -> None:
-    register_specs(builtin_root(), validate=False)
+def unregister_folder(folder: str | Path) -> list[str]:
+    """Remove this process's IDs from a folder; the IDs removed."""
+    folder = Path(folder).expanduser().resolve()
+    gone = [env_id for env_id, r in _records.items() if folder_of(r.family.path).resolve() == folder]
+    for env_id in gone:
+        _records.pop(env_id)
+        gym.registry.pop(env_id, None)
+    _blueprint_cached.cache_clear()
+    return gone
+
+
+# ------------------------------------------------------------------ on import
 
 
 def environment_folders() -> list[Path]:
     return [Path(f) for f in os.environ.get(SPEC_PATH_VARIABLE, "").split(os.pathsep) if f]
 
 
-def register_from_environment() -> None:
-    for folder in environment_folders():
-        _, problems = register_specs(folder)
+def user_folders() -> list[tuple[Path, str]]:
+    """Every user folder with how it joined: recorded by `envfactory register`, then the variable."""
+    try:
+        recorded = user_config.registered_folders()
+    except user_config.ConfigError as exc:
+        log.warning("envfactory: ignoring the config file: %s", exc)
+        recorded = []
+    return [*((f, CONFIG_SOURCE) for f in recorded), *((f, ENVIRONMENT_SOURCE) for f in environment_folders())]
+
+
+def one_line(error: SpecError) -> str:
+    """The first problem of a spec error on one line, with a count of the rest."""
+    first = str(error.problems[0]) if error.problems else str(error)
+    first = " ".join(first.split())
+    more = len(error.problems) - 1
+    return first + (f" (+{more} more)" if more > 0 else "")
+
+
+def register_on_import() -> None:
+    """Built-ins first, always; then every user folder, lazily, each bad file skipped with one warning."""
+    _, problems = register_specs(builtin_root(), validate=False, source=BUILTIN_SOURCE)
+    for problem in problems:  # a broken installation: say so, never fail the import
+        log.warning("envfactory: built-in spec skipped: %s", one_line(problem))
+    for folder, source in user_folders():
+        try:
+            _, problems = register_specs(folder, validate=False, source=source)
+        except Exception as exc:  # never let a user folder break the import
+            problems = [SpecError([Problem("", f"unreadable: {exc}", str(folder))])]
         for problem in problems:
-            warnings.warn(f"{SPEC_PATH_VARIABLE}: {problem}", stacklevel=3)
+            log.warning("envfactory: %s spec skipped: %s", source, one_line(problem))
+
+
+# ------------------------------------------------------------------ lookups
 
 
 def records() -> dict[str, IdRecord]:
     return dict(_records)
 
 
-def reported_problems() -> list[SpecError]:
-    return list(_reported)
-
-
 def record(env_id: str) -> IdRecord:
     try:
         return _records[env_id]
     except KeyError:
-        from envfactory.spec.errors import suggest
-
         raise KeyError(f"unknown env ID {env_id!r}{suggest(env_id, _records)}") from None
 
 
@@ -180,7 +296,7 @@ def _blueprint_cached(env_id: str, overrides: tuple[str, ...], frozen_kwargs: tu
     from envfactory.compiler import compile_blueprint
 
     entry = record(env_id)
-    loaded = load_env_spec(entry.family, overrides, dict(entry.kwargs), dict(kwargs_items))
+    loaded = load_env_spec(entry.family, overrides, dict(entry.kwargs), dict(kwargs_items), env_id=env_id)
     return compile_blueprint(loaded, env_id, entry.backend, entry.goal_env)
 
 

@@ -15,6 +15,8 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from envfactory.spec.errors import suggest
+
 if TYPE_CHECKING:
     from envfactory.spec.schema import ModelSpec, UrdfPart
 
@@ -37,27 +39,78 @@ def _output_dir() -> Path:
     return _cache_dir
 
 
-def resolve_part_path(part: "UrdfPart", asset_root: Path) -> Path:
+class AssemblyError(ValueError):
+    """A robot model that cannot be assembled; `path` is the spec path to blame."""
+
+    def __init__(self, path: str, message: str):
+        super().__init__(message)
+        self.path = path
+
+
+# Mesh formats both PyBullet and Pinocchio's geometry loader read.
+MESH_FORMATS = (".obj", ".stl", ".dae")
+
+
+def resolve_part_path(part: "UrdfPart", asset_root: Path, where: str = "robot.model.parts.0") -> Path:
     if part.airo_models is not None:
+        import airo_models
+
         try:
-            import airo_models
-        except ImportError as exc:  # pragma: no cover - airo-models is a hard dependency
-            raise RuntimeError("airo-models is required for robot parts named 'airo_models'") from exc
-        return Path(airo_models.get_urdf_path(part.airo_models))
+            return Path(airo_models.get_urdf_path(part.airo_models))
+        except ValueError as exc:
+            raise AssemblyError(f"{where}.airo_models", f"airo-models has no robot {part.airo_models!r}: {exc}") from None
     path = Path(part.urdf)
-    return path if path.is_absolute() else (asset_root / path)
+    path = path if path.is_absolute() else (asset_root / path)
+    if not path.is_file():
+        raise AssemblyError(f"{where}.urdf", f"no URDF file at {path}")
+    return path
 
 
-def _load_part(path: Path) -> ET.Element:
-    text = path.read_text()
+def _resolve_mesh(filename: str, urdf_path: Path, packages: dict[str, str], asset_root: Path, where: str) -> Path:
+    """A mesh reference as a file path: relative to its URDF, file://, or package:// through
+    the packages the robot YAML declares."""
+    if filename.startswith("package://"):
+        package, _, rest = filename.removeprefix("package://").partition("/")
+        if package not in packages:
+            declared = ", ".join(sorted(packages)) or "none"
+            raise AssemblyError("robot.model.packages", f"{where} references {filename!r}: declare its package, e.g. "
+                                                        f"'packages: {{{package}: <folder>}}' (declared: {declared})")
+        folder = Path(packages[package])
+        return (folder if folder.is_absolute() else asset_root / folder).resolve() / rest
+    filename = filename.removeprefix("file://")
+    path = Path(filename)
+    return path if path.is_absolute() else (urdf_path.parent / path).resolve()
+
+
+def _load_part(path: Path, packages: dict[str, str], asset_root: Path, where: str) -> ET.Element:
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise AssemblyError(where, f"cannot read the URDF {path}: {exc}") from None
     text = _UNDECLARED_ELEMENT.sub("", text)
     text = _UNDECLARED_ATTRIBUTE.sub("", text)
-    root = ET.fromstring(text)
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as exc:
+        raise AssemblyError(where, f"the URDF {path} is not valid XML: {exc}") from None
+    if root.tag != "robot":
+        raise AssemblyError(where, f"the URDF {path} has <{root.tag}> at its root, not <robot>")
+    for element in root.findall("link"):
+        if not element.get("name"):
+            raise AssemblyError(where, f"the URDF {path} has a <link> without a name")
+    for joint in root.findall("joint"):
+        ends = [joint.find(tag) for tag in ("parent", "child")]
+        if not joint.get("name") or any(end is None or not end.get("link") for end in ends):
+            raise AssemblyError(where, f"the URDF {path} has a joint {joint.get('name')!r} without a name, "
+                                       f"<parent link=...> or <child link=...>")
     for mesh in root.iter("mesh"):
-        filename = mesh.get("filename", "")
-        if filename.startswith("package://") or Path(filename).is_absolute():
-            continue
-        mesh.set("filename", str((path.parent / filename).resolve()))
+        mesh_path = _resolve_mesh(mesh.get("filename", ""), path, packages, asset_root, f"{where} ({path.name})")
+        if mesh_path.suffix.lower() not in MESH_FORMATS:
+            raise AssemblyError(where, f"mesh {mesh_path} in {path.name}: format {mesh_path.suffix or '(none)'} is "
+                                       f"not loadable (valid: {', '.join(MESH_FORMATS)})")
+        if not mesh_path.is_file():
+            raise AssemblyError(where, f"mesh {mesh.get('filename')!r} in {path.name} not found (looked at {mesh_path})")
+        mesh.set("filename", str(mesh_path))
     return root
 
 
@@ -109,14 +162,18 @@ def assemble(model: "ModelSpec", asset_root: Path, robot_name: str) -> Path:
     robot = ET.Element("robot", name=robot_name)
     link_names: set[str] = set()
     for index, part in enumerate(model.parts):
-        part_root = _load_part(resolve_part_path(part, asset_root))
+        where = f"robot.model.parts.{index}"
+        part_root = _load_part(resolve_part_path(part, asset_root, where), model.packages, asset_root, where)
         _rename(part_root, part.prefix)
         names = {link.get("name") for link in part_root.findall("link")}
         clash = names & link_names
         if clash:
-            raise ValueError(f"model.parts[{index}] repeats link names {sorted(clash)}: give the part a prefix")
+            raise AssemblyError(f"{where}.prefix", f"part repeats link names {sorted(clash)}: give it a prefix")
         if index > 0:
-            child = _root_link(part_root)
+            if part.parent not in link_names:
+                raise AssemblyError(f"{where}.parent", f"no link named {part.parent!r} in the parts before it"
+                                                       f"{suggest(part.parent, link_names)}")
+            child = _root_link(part_root, where)
             robot.append(
                 _fixed_joint(f"{part.prefix}mount", part.parent, child, part.xyz, part.rpy)
             )
@@ -126,7 +183,10 @@ def assemble(model: "ModelSpec", asset_root: Path, robot_name: str) -> Path:
 
     for frame_name, frame in model.frames.items():
         if frame.parent not in link_names:
-            raise ValueError(f"model.frames.{frame_name}.parent: no link named {frame.parent!r}")
+            raise AssemblyError(f"robot.model.frames.{frame_name}.parent",
+                                f"no link named {frame.parent!r}{suggest(frame.parent, link_names)}")
+        if frame_name in link_names:
+            raise AssemblyError(f"robot.model.frames.{frame_name}", f"the URDF already has a link {frame_name!r}")
         ET.SubElement(robot, "link", name=frame_name)
         robot.append(_fixed_joint(f"{frame_name}_joint", frame.parent, frame_name, frame.xyz, frame.rpy))
     _give_links_inertia(robot)
@@ -137,9 +197,9 @@ def assemble(model: "ModelSpec", asset_root: Path, robot_name: str) -> Path:
     return path
 
 
-def _root_link(root: ET.Element) -> str:
+def _root_link(root: ET.Element, where: str) -> str:
     children = {joint.find("child").get("link") for joint in root.findall("joint")}
     roots = [link.get("name") for link in root.findall("link") if link.get("name") not in children]
     if len(roots) != 1:
-        raise ValueError(f"a URDF part must have one root link, found {roots}")
+        raise AssemblyError(where, f"a URDF part must have one root link, found {roots}")
     return roots[0]

@@ -1,3 +1,9 @@
+import os
+import tempfile
+
+# Tests never read or write the user's own config (spec folders recorded by `envfactory register`).
+os.environ["ENVFACTORY_CONFIG_DIR"] = tempfile.mkdtemp(prefix="envfactory-test-config-")
+
 import gymnasium as gym
 import pytest
 

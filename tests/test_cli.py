@@ -1,3 +1,5 @@
+from pathlib import Path
+
 from typer.testing import CliRunner
 
 from envfactory.cli.main import app
@@ -66,3 +68,79 @@ def test_run_real_id_without_the_gate_is_refused(monkeypatch):
     result = runner.invoke(app, ["run", "VX300SReacherReal-v0", "-n", "1"])
     assert result.exit_code == 1
     assert "real-robot motion is not allowed" in result.output
+
+
+def test_bad_input_never_prints_a_traceback(tmp_path):
+    cases = [
+        (["validate", str(tmp_path / "missing")], "no such file or folder"),
+        (["describe", "UR5eReacherSim-v0", "-k", "delta_coeff=["], "not valid YAML"),
+        (["describe", "UR5eReacherSim-v0", "-k", "delta_coeff=.nan"], "finite number"),
+        (["describe", "UR5eReacherSim-v0", "task.goal=["], "composition failed"),
+        (["run", "UR5eReacherSim-v0", "--policy", "clever"], "use 'scripted' or 'random'"),
+        (["unregister", str(tmp_path)], "is not recorded"),
+    ]
+    for args, expected in cases:
+        result = runner.invoke(app, args)
+        assert result.exit_code == 1, (args, result.output)
+        assert expected in result.output, (args, result.output)
+        # an escaped exception would be an Exception; a clean exit is SystemExit (a BaseException)
+        assert "Traceback" not in result.output and not isinstance(result.exception, Exception), (args, result.exception)
+
+
+def test_video_path_is_checked_before_any_episode(tmp_path):
+    for path, expected in ((tmp_path / "no" / "dir" / "out.mp4", "does not exist"),
+                           (Path("/proc/out.mp4"), "cannot write here"),
+                           (tmp_path, "must end in one of"),
+                           (tmp_path / "out.txt", "must end in one of")):
+        result = runner.invoke(app, ["run", "UR5eReacherSim-v0", "-n", "3", "--video", str(path)])
+        assert result.exit_code == 1 and expected in result.output, result.output
+        assert "success rate" not in result.output  # refused before the episodes ran
+
+
+def test_unexpected_error_is_one_line_and_debug_shows_the_traceback(monkeypatch):
+    import envfactory
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(envfactory, "blueprint", broken)
+    result = runner.invoke(app, ["describe", "UR5eReacherSim-v0"])
+    assert result.exit_code == 1 and "RuntimeError: boom (run with --debug" in result.output
+    debug = runner.invoke(app, ["--debug", "describe", "UR5eReacherSim-v0"])
+    assert isinstance(debug.exception, RuntimeError)
+
+
+def test_describe_reflects_kwargs_and_overrides():
+    on = runner.invoke(app, ["describe", "UR5ePnPSim-v0"]).output
+    assert "Lift stage" in on and "multi_goal=True" in on
+    for args in (["-k", "multi_goal=false"], ["multi_goal=false"], ["task.goal.lift.enabled=false"]):
+        off = runner.invoke(app, ["describe", "UR5ePnPSim-v0", *args])
+        assert off.exit_code == 0, off.output
+        assert "Lift stage" not in off.output and "multi_goal=False" in off.output, args
+        assert "current goal" not in off.output
+    coeff = runner.invoke(app, ["describe", "UR5eReacherSim-v0", "-k", "delta_coeff=0.03", "-k", "max_joint_delta=0.2"])
+    assert "delta × 0.03" in coeff.output and "max_joint_delta=0.2" in coeff.output and "delta_coeff=0.03" in coeff.output
+
+
+def test_validate_reports_a_user_id_that_clashes_with_a_builtin(tmp_path):
+    broken = Path(__file__).parent / "broken_specs" / "duplicate_builtin_id.yaml"
+    result = runner.invoke(app, ["validate", str(broken)])
+    assert result.exit_code == 1
+    assert "duplicate_builtin_id.yaml:13" in result.output and "ur5e_reach.yaml:" in result.output
+
+
+def test_terms_lists_every_term_and_expert_with_params_size_and_unit():
+    from envfactory.experts import EXPERTS
+    from envfactory.terms import IMAGES, OBSERVATIONS, REWARDS, TERMINATIONS, catalog
+
+    result = runner.invoke(app, ["terms"])
+    assert result.exit_code == 0, result.output
+    lines = result.output.splitlines()
+    for name in [*OBSERVATIONS, *REWARDS, *TERMINATIONS, *IMAGES, *EXPERTS]:
+        assert any(f" {name} " in line for line in lines), name  # whole, never cut short
+    rows = {row[0]: row for row in catalog.observation_rows()}
+    assert rows["is_grasped"][1:3] == ("1", "0 or 1")
+    assert "distance: float = 0.05 (> 0, <= 0.5)" in rows["is_grasped"][3]
+    assert rows["joint_positions"][1:3] == ("one per joint_states entry", "rad or m per joint")
+    experts = {row[0]: row for row in catalog.expert_rows()}
+    assert "grip: float | None = None" in experts["pnp"][1]

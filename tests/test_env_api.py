@@ -96,8 +96,16 @@ def test_sparse_terminates_at_goal_and_dense_does_not(make):
     for reward_type, expect_termination in (("Sparse", True), ("Dense", False)):
         env = make("UR5eReacherGoalSim-v0", reward_type=reward_type).unwrapped
         goal = np.array([[0.6, 0.0, 0.9]])
-        assert env.compute_terminated(goal, goal, [{}])[0] == expect_termination
-        assert env.compute_reward(goal, goal + [0, 0, 0.5], [{}])[0] == pytest.approx(-1.0 if reward_type == "Sparse" else -1.5)
+        _, info = env.reset(seed=0)  # a step's info: every key the terms read, flags at 0
+        assert env.compute_terminated(goal, goal, [info])[0] == expect_termination
+        assert env.compute_reward(goal, goal + [0, 0, 0.5], [info])[0] == pytest.approx(-1.0 if reward_type == "Sparse" else -1.5)
+
+
+def test_missing_step_info_is_an_error_not_a_silent_zero(make):
+    env = make("UR5eReacherGoalSim-v0", reward_type="Dense").unwrapped
+    goal = np.array([[0.6, 0.0, 0.9]])
+    with pytest.raises(KeyError, match="step info lacks 'action_out_of_bounds'"):
+        env.compute_reward(goal, goal, [{}])
 
 
 def test_rgb_render_headless(make):

@@ -6,7 +6,7 @@ Positions are in the task frame; joint vectors are in /joint_states order.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Protocol
+from typing import Protocol
 
 import numpy as np
 
@@ -108,5 +108,3 @@ class Backend(Protocol):
     def close(self) -> None:
         ...
 
-
-BackendFactory = Callable[..., Backend]

@@ -113,6 +113,11 @@ class Expert:
 
     Params: type = None
 
+    @classmethod
+    def check(cls, params, spec) -> list[tuple[str, str]]:
+        """(param, message) for each param the robot or task contradicts; the compiler reports them."""
+        return []
+
     def __init__(self, env, params):
         self.env = env
         self.params = params

@@ -16,11 +16,11 @@ from envfactory.terms.library import TermParams
 
 class PickPlaceParams(TermParams):
     object: str = "cube"
-    grasp_height: float = 0.0  # EE height above the cube centre when closing, m
-    clearance: float = Field(default=0.08, gt=0)  # EE height above the cube centre on the way in, m
-    lift: float = Field(default=0.15, gt=0)  # carry height above the spawn point at least, m
-    step: float = Field(default=0.04, gt=0)  # EE travel per action, m
-    close_steps: int = Field(default=3, ge=1)  # actions spent closing before lifting
+    grasp_height: float = Field(default=0.0, ge=-0.5, le=0.5)  # EE height above the cube centre when closing, m
+    clearance: float = Field(default=0.08, gt=0, le=1.0)  # EE height above the cube centre on the way in, m
+    lift: float = Field(default=0.15, gt=0, le=2.0)  # carry height above the spawn point at least, m
+    step: float = Field(default=0.04, gt=0, le=0.5)  # EE travel per action, m
+    close_steps: int = Field(default=3, ge=1, le=100)  # actions spent closing before lifting
     # the gripper command that holds the object (default: fully closed). A value just past contact
     # keeps the commanded finger sweep, and so the room the safety check needs below it, short.
     grip: float | None = None
@@ -28,6 +28,14 @@ class PickPlaceParams(TermParams):
 
 class PickPlaceExpert(Expert):
     Params = PickPlaceParams
+
+    @classmethod
+    def check(cls, params, spec) -> list[tuple[str, str]]:
+        gripper = spec.robot.gripper
+        if params.grip is not None and gripper is not None and not gripper.low <= params.grip <= gripper.high:
+            return [("grip", f"grip {params.grip:g} lies outside the gripper's range [{gripper.low:g}, "
+                             f"{gripper.high:g}]")]
+        return []
 
     def reset(self) -> None:
         self.phase = "approach"

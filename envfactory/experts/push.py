@@ -15,11 +15,11 @@ from envfactory.terms.library import TermParams
 
 class PushParams(TermParams):
     object: str = "cube"
-    paddle: float = Field(default=0.02, gt=0)  # from the EE to the pushing face of the gripper, plus a margin, m
-    height: float = 0.0  # EE height above the cube centre while pushing, m
-    clearance: float = Field(default=0.08, gt=0)  # EE height above the cube centre when moving around it, m
-    step: float = Field(default=0.03, gt=0)  # EE travel per action, m
-    lateral_tolerance: float = Field(default=0.012, gt=0)  # off-line distance that calls for a re-approach, m
+    paddle: float = Field(default=0.02, gt=0, le=0.5)  # from the EE to the pushing face of the gripper, plus a margin, m
+    height: float = Field(default=0.0, ge=-0.5, le=0.5)  # EE height above the cube centre while pushing, m
+    clearance: float = Field(default=0.08, gt=0, le=1.0)  # EE height above the cube centre when moving around it, m
+    step: float = Field(default=0.03, gt=0, le=0.5)  # EE travel per action, m
+    lateral_tolerance: float = Field(default=0.012, gt=0, le=0.5)  # off-line distance that calls for a re-approach, m
 
 
 class PushExpert(Expert):

@@ -18,9 +18,13 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 from pydantic import BaseModel, ValidationError
 
+from envfactory.spec.base import split_located
 from envfactory.spec.errors import Problem, SpecError, suggest
+from envfactory.spec.numbers import non_finite_paths
+from envfactory.spec.plausibility import scene_problems
 from envfactory.spec.schema import EnvSpec
 from envfactory.spec.sources import SourceMap, parse_yaml
+from envfactory.spec.tree import leaves
 
 MISSING = "???"
 
@@ -35,6 +39,11 @@ class FamilyFile:
     @property
     def name(self) -> str:
         return self.path.stem
+
+    @property
+    def folder(self) -> Path:
+        """The spec folder the file belongs to (the parent of a specs/ subfolder)."""
+        return self.path.parent.parent if self.path.parent.name == "specs" else self.path.parent
 
 
 @dataclass(frozen=True)
@@ -156,20 +165,47 @@ def _compose_cached(family: FamilyFile, overrides: tuple[str, ...]) -> Composed:
 # ------------------------------------------------------------------ kwargs
 
 
-def apply_kwargs(config: dict, sources: SourceMap, kwargs: dict[str, Any], origin: str) -> None:
+def apply_kwargs(config: dict, sources: SourceMap, kwargs: dict[str, Any], origin: str,
+                 written_at: str | None = None) -> None:
+    """Set each kwarg at the spec path its alias names. `written_at` is the dotted path of the
+    mapping the kwargs were written in (a registration entry), so errors name its file and line."""
     aliases = {**config.get("kwargs", {}), **config.get("task", {}).get("kwargs", {})}
     problems = []
     for name, value in kwargs.items():
+        where = sources.locate(f"{written_at}.{name}") if written_at else Problem("", "", origin)
+        file, line = (where.file, where.line) if where.line is not None else (origin, None)
         if name not in aliases:
             problems.append(
-                Problem("", f"unknown kwarg {name!r}{suggest(name, aliases)}; valid kwargs: {', '.join(sorted(aliases))}",
-                        origin)
+                Problem(f"{written_at}.{name}" if written_at else "", f"unknown kwarg {name!r}{suggest(name, aliases)}; "
+                        f"valid kwargs: {', '.join(sorted(aliases))}", file, line)
             )
             continue
         _set_path(config, aliases[name], value)
-        sources.note(aliases[name], f"{origin} {name}={value!r}")
+        if line is not None:  # errors at the aliased path point at where the kwarg was written
+            sources.note(aliases[name], file, line)
+        else:
+            sources.note(aliases[name], f"{origin} {name}={value!r}")
     if problems:
         raise SpecError(problems)
+
+
+def _kwarg_overrides(family: FamilyFile, overrides: tuple[str, ...]) -> tuple[tuple[str, ...], dict[str, Any]]:
+    """Split `multi_goal=false`-style overrides (a kwarg name, no dots) from Hydra's own."""
+    if not overrides:
+        return overrides, {}
+    config = _compose_cached(family, ()).config
+    aliases = {**config.get("kwargs", {}), **config.get("task", {}).get("kwargs", {})}
+    hydra, kwargs = [], {}
+    for override in overrides:
+        key, sep, value = override.partition("=")
+        if sep and key in aliases:
+            try:
+                kwargs[key] = yaml.safe_load(value)
+            except yaml.YAMLError:
+                kwargs[key] = value
+        else:
+            hydra.append(override)
+    return tuple(hydra), kwargs
 
 
 def _set_path(config: dict, dotted: str, value: Any) -> None:
@@ -183,18 +219,19 @@ def _set_path(config: dict, dotted: str, value: Any) -> None:
 # ------------------------------------------------------------------ validation
 
 
-def _missing_paths(node: Any, prefix: str = "") -> Iterable[str]:
-    if isinstance(node, dict):
-        for key, value in node.items():
-            yield from _missing_paths(value, f"{prefix}.{key}" if prefix else str(key))
-    elif isinstance(node, list):
-        for index, value in enumerate(node):
-            yield from _missing_paths(value, f"{prefix}.{index}")
-    elif node == MISSING:
-        yield prefix
+def _missing_paths(node: Any) -> Iterable[str]:
+    return (path for path, value in leaves(node) if value == MISSING)
+
+
+def _has_interpolation(node: Any) -> bool:
+    return any(isinstance(value, str) and "${" in value for _, value in leaves(node))
 
 
 def _resolve(config: dict, sources: SourceMap) -> dict:
+    # OmegaConf wraps every node: on a family of many IDs that costs more than the rest
+    # of loading, so it runs only when there is something to resolve
+    if not _has_interpolation(config):
+        return config
     try:
         return OmegaConf.to_container(OmegaConf.create(config), resolve=True)
     except OmegaConfBaseException as exc:
@@ -231,12 +268,15 @@ def validation_problems(exc: ValidationError, sources: SourceMap, model: type[Ba
     for error in exc.errors():
         loc = tuple(part for part in error["loc"] if not str(part).startswith("function-"))
         path = ".".join(str(part) for part in loc)
-        message = error["msg"]
+        message = error["msg"].removeprefix("Value error, ")
+        below, message = split_located(message)
+        if below:
+            loc, path = loc + tuple(below.split(".")), ".".join(filter(None, [path, below]))
         if error["type"] == "extra_forbidden":
             message = f"unknown key {loc[-1]!r}{suggest(str(loc[-1]), _fields_at(model, loc[:-1]))}"
         elif error["type"] == "missing":
             message = "missing value"
-        elif "input" in error and error["type"] not in ("model_type", "dict_type"):
+        elif "input" in error and not below and not isinstance(error["input"], (dict, list)):
             message += f" (got {error['input']!r})"
         problems.append(sources.problem(path, message))
     return problems
@@ -263,17 +303,33 @@ def load_env_spec(
     overrides: Iterable[str] = (),
     id_kwargs: dict[str, Any] | None = None,
     kwargs: dict[str, Any] | None = None,
+    env_id: str | None = None,
 ) -> LoadedSpec:
-    composed = _compose_cached(family, tuple(overrides))
+    overrides, override_kwargs = _kwarg_overrides(family, tuple(overrides))
+    composed = _compose_cached(family, overrides)
     config = copy.deepcopy(composed.config)
     sources = copy.deepcopy(composed.sources)
     try:
+        if override_kwargs:
+            apply_kwargs(config, sources, override_kwargs, "override")
         if id_kwargs:
-            apply_kwargs(config, sources, id_kwargs, "registered kwarg")
+            apply_kwargs(config, sources, id_kwargs, "registered kwarg",
+                         f"registration.ids.{env_id}.kwargs" if env_id else None)
         if kwargs:
             apply_kwargs(config, sources, kwargs, "gym.make kwarg")
     except SpecError as exc:
         raise SpecError(exc.problems, family.name) from None
+    return validate_config(config, sources, family)
+
+
+def composed_config(family: FamilyFile) -> tuple[dict, SourceMap]:
+    """A private copy of the family's composed config (no overrides) and its source map."""
+    composed = _compose_cached(family, ())
+    return copy.deepcopy(composed.config), copy.deepcopy(composed.sources)
+
+
+def validate_config(config: dict, sources: SourceMap, family: FamilyFile) -> LoadedSpec:
+    """Validate a composed config (which this consumes) into a spec, or raise every problem at once."""
     # Report every ??? and every other problem in one go: drop the missing
     # keys so validation still runs, then keep one message per missing path.
     missing = list(_missing_paths(config))
@@ -282,10 +338,18 @@ def load_env_spec(
     problems = [sources.problem(path, "missing value (???)") for path in missing]
     resolved = _resolve(config, sources)
     resolved.pop("defaults", None)
+    # NaN and infinity anywhere (term and expert params included) fail every comparison quietly
+    non_finite = dict(non_finite_paths(resolved))
+    problems += [sources.problem(path, f"Input should be a finite number (got {value})")
+                 for path, value in non_finite.items()]
+    skip = {*missing, *non_finite}
+    spec = None
     try:
         spec = EnvSpec.model_validate(resolved)
     except ValidationError as exc:
-        problems += [p for p in validation_problems(exc, sources, EnvSpec) if p.path not in missing]
+        problems += [p for p in validation_problems(exc, sources, EnvSpec) if p.path not in skip]
+    if spec is not None and not problems:
+        problems += scene_problems(spec, sources.problem)
     if problems:
         raise SpecError(problems, family.name)
     return LoadedSpec(spec, sources, family)

@@ -19,7 +19,7 @@ from envfactory.terms.objects import bind_object
 
 class GraspParams(TermParams):
     object: str
-    distance: float = Field(default=0.05, gt=0)  # grasp_dist_thresh: farthest EE-to-object distance
+    distance: float = Field(default=0.05, gt=0, le=0.5)  # grasp_dist_thresh: farthest EE-to-object distance
     threshold: float | None = None  # a gripper joint value; the robot's gripper.grasp_threshold if unset
 
 
@@ -59,8 +59,9 @@ def _describe(layout, params) -> Description:
 
 
 @observation_term(size=fixed(1), bounds=constant_bounds(0.0, 1.0), describe=_describe, params=GraspParams,
-                  bind=bind_grasp)
+                  bind=bind_grasp, unit="0 or 1")
 def is_grasped(state, test):
+    """1 when the object is within `distance` of the EE and the gripper is closed past its threshold."""
     return grasped(state, test)
 
 

@@ -7,19 +7,20 @@ params model that rejects unknown or ill-typed params.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Callable
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 
 
-class NoParams(BaseModel):
+class TermParams(BaseModel):
+    """Params of a term or an expert: unknown keys are errors."""
+
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 
-class TermParams(NoParams):
-    pass
+NoParams = TermParams
 
 
 @dataclass(frozen=True)
@@ -56,23 +57,35 @@ class ObservationTerm:
     # Checks the params against the robot and task (ValueError names what is
     # wrong) and returns what `fn` receives, with robot facts resolved once.
     bind: Callable[[Layout, Any], Any] = unchanged
+    unit: str = ""  # for `envfactory terms`; the describe table gives the resolved one
+
+    @property
+    def size_doc(self) -> str:
+        return getattr(self.size, "doc", "depends on the robot")
 
 
 @dataclass(frozen=True)
-class RewardTerm:
-    """Vectorised over a batch: fn(achieved, desired, info_columns, bound params, tolerance) -> (N,).
+class GoalTerm:
+    """Pure in the goals and the step's info, vectorised over a batch:
+    fn(achieved, desired, info, bound params, tolerance) -> (N,), so HER can relabel it."""
+
+    name: str
+    fn: Callable
+    description: str
+    params: type[BaseModel] = NoParams
+    info_keys: tuple[str, ...] = ()  # step info the term reads
+    bind: Callable[[Layout, Any], Any] = unchanged
+
+
+@dataclass(frozen=True)
+class RewardTerm(GoalTerm):
+    """A reward: fn returns (N,) floats, weighted in the task.
 
     A term that depends on the env state rather than the goals has `measure`:
     the step evaluates it on the state and records it in info under
     `info_keys[0]`, so `fn` (reading info) stays exact when HER relabels goals.
     """
 
-    name: str
-    fn: Callable
-    description: str
-    params: type[BaseModel] = NoParams
-    info_keys: tuple[str, ...] = ()
-    bind: Callable[[Layout, Any], Any] = unchanged
     measure: Callable[[Any, Any], float] | None = None
 
 
@@ -91,7 +104,7 @@ class ImageTerm:
 OBSERVATIONS: dict[str, ObservationTerm] = {}
 IMAGES: dict[str, ImageTerm] = {}
 REWARDS: dict[str, RewardTerm] = {}
-TERMINATIONS: dict[str, RewardTerm] = {}
+TERMINATIONS: dict[str, "TerminationTerm"] = {}
 
 
 def _register(table: dict, term) -> None:
@@ -124,16 +137,32 @@ def reward_term(**spec) -> Callable:
     return wrap
 
 
+@dataclass(frozen=True)
+class TerminationTerm(GoalTerm):
+    """Ends the episode: fn returns (N,) bools; a goal env's compute_terminated stays exact
+    under relabelling."""
+
+
 def termination_term(**spec) -> Callable:
     def wrap(fn):
-        _register(TERMINATIONS, RewardTerm(name=spec.pop("name", fn.__name__), fn=fn, **spec))
+        _register(TERMINATIONS, TerminationTerm(name=spec.pop("name", fn.__name__), fn=fn, **spec))
         return fn
 
     return wrap
 
 
 def fixed(size: int) -> Callable[[Layout, Any], int]:
-    return lambda layout, params: size
+    def sized(layout, params):
+        return size
+
+    sized.doc = str(size)
+    return sized
+
+
+def size_of(doc: str, function: Callable[[Layout, Any], int]) -> Callable[[Layout, Any], int]:
+    """A size that depends on the robot or the action, with the words `envfactory terms` shows."""
+    function.doc = doc
+    return function
 
 
 def constant_bounds(low, high) -> Callable:
@@ -144,12 +173,3 @@ def constant_bounds(low, high) -> Callable:
 
     return bounds
 
-
-@dataclass
-class InfoColumns:
-    """Step-time flags that rewards read, as arrays over a batch."""
-
-    columns: dict[str, np.ndarray] = field(default_factory=dict)
-
-    def __getitem__(self, key: str) -> np.ndarray:
-        return self.columns[key]

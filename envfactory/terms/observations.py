@@ -11,10 +11,24 @@ from envfactory.terms.library import (
     constant_bounds,
     fixed,
     observation_term,
+    size_of,
 )
 
 TWO_PI = 6.2832
-MAX_GOAL_DISTANCE = 2.10
+
+
+def ee_extent(layout) -> np.ndarray:
+    """How far apart two points within the robot's EE bounds can lie on each axis."""
+    low, high = (np.asarray(b, float) for b in layout.robot.ee_bounds)
+    return high - low
+
+
+def goal_distance_bounds(layout, params, size):
+    # the largest EE-bounds extent, as the original's UR5e figure (2.10 m) was
+    return np.zeros(size), np.full(size, float(np.max(ee_extent(layout))))
+
+
+joint_state_count = size_of("one per joint_states entry", lambda layout, params: len(layout.robot.joint_states))
 
 
 class FromPoint(TermParams):
@@ -54,8 +68,10 @@ def _joint_units(layout, per_second: bool) -> str:
     size=fixed(3),
     bounds=lambda layout, params, size: tuple(np.array(b, float) for b in layout.robot.ee_bounds),
     describe=lambda layout, params: Description("EE position", "Pinocchio FK", "m"),
+    unit="m",
 )
 def ee_position(state, params):
+    """EE position in the task frame (bounds: robot.ee_bounds)."""
     return state.ee_position
 
 
@@ -63,8 +79,10 @@ def ee_position(state, params):
     size=fixed(3),
     bounds=constant_bounds(-TWO_PI, TWO_PI),
     describe=lambda layout, params: Description("EE rpy", "Pinocchio FK", "rad"),
+    unit="rad",
 )
 def ee_rpy(state, params):
+    """EE roll, pitch, yaw in the task frame."""
     return state.ee_rpy
 
 
@@ -77,8 +95,10 @@ def ee_rpy(state, params):
     params=FromPoint,
     goal_dependent=True,
     bind=_bind_point,
+    unit="unitless",
 )
 def goal_direction(state, params):
+    """Unit vector from the EE or an object to the current goal."""
     offset = state.current_goal - state.position_of(params.from_)
     norm = np.linalg.norm(offset)
     return offset / norm if norm > 1e-9 else np.zeros(3)
@@ -86,7 +106,7 @@ def goal_direction(state, params):
 
 @observation_term(
     size=fixed(1),
-    bounds=constant_bounds(0.0, MAX_GOAL_DISTANCE),
+    bounds=goal_distance_bounds,
     describe=lambda layout, params: Description(
         f"Euclidean distance {_point_label(params.from_)} → {_goal_label(layout)}",
         f"‖goal − {_point_symbol(params.from_)}‖",
@@ -95,13 +115,15 @@ def goal_direction(state, params):
     params=FromPoint,
     goal_dependent=True,
     bind=_bind_point,
+    unit="m",
 )
 def goal_distance(state, params):
+    """Distance from the EE or an object to the current goal (bound: the largest ee_bounds extent)."""
     return np.linalg.norm(state.current_goal - state.position_of(params.from_))
 
 
 @observation_term(
-    size=lambda layout, params: len(layout.robot.joint_states),
+    size=joint_state_count,
     bounds=lambda layout, params, size: (
         np.array([entry.position[0] for entry in layout.robot.joint_states]),
         np.array([entry.position[1] for entry in layout.robot.joint_states]),
@@ -109,22 +131,26 @@ def goal_distance(state, params):
     describe=lambda layout, params: Description(
         "Current joint positions", f"{layout.robot.joint_states_topic}.position", _joint_units(layout, False)
     ),
+    unit="rad or m per joint",
 )
 def joint_positions(state, params):
+    """Joint positions in /joint_states order (bounds: robot.joint_states position)."""
     return state.joint_positions
 
 
 @observation_term(
-    size=lambda layout, params: layout.action_size,
+    size=size_of("the action size", lambda layout, params: layout.action_size),
     bounds=lambda layout, params, size: (layout.action_low.copy(), layout.action_high.copy()),
     describe=lambda layout, params: Description("Previous action", "cached", "matches action space"),
+    unit="as the action",
 )
 def previous_action(state, params):
+    """The action of the previous step (after clipping)."""
     return state.previous_action
 
 
 @observation_term(
-    size=lambda layout, params: len(layout.robot.joint_states),
+    size=joint_state_count,
     bounds=lambda layout, params, size: (
         np.array([entry.velocity[0] for entry in layout.robot.joint_states]),
         np.array([entry.velocity[1] for entry in layout.robot.joint_states]),
@@ -132,6 +158,8 @@ def previous_action(state, params):
     describe=lambda layout, params: Description(
         "Current joint velocities", f"{layout.robot.joint_states_topic}.velocity", _joint_units(layout, True)
     ),
+    unit="rad/s or m/s per joint",
 )
 def joint_velocities(state, params):
+    """Joint velocities in /joint_states order (bounds: robot.joint_states velocity)."""
     return state.joint_velocities

@@ -14,7 +14,21 @@ import numpy as np
 
 from envfactory.terms.library import TermParams, reward_term, termination_term
 
+# Step info the env records at every step, declared here once: the step writes these keys
+# and the terms below read them. A goal env's compute_reward(achieved, desired, info)
+# needs the info the step returned; a missing key is an error, never a silent 0.
+STEP_FLAGS = {
+    "action_out_of_bounds": "1 if the action left the joint or workspace bounds",
+    "action_rejected": "1 if the safety check rejected the action",
+    "goal_sampling_failed": "1 if no reachable goal was found at reset",
+}
+# recorded at every step, also without a lift stage (then never active)
 STAGE_KEYS = ("intermediate_active", "intermediate_goal")
+
+
+def step_info_keys(spec) -> tuple[str, ...]:
+    """The info keys every step of an env of this spec records for the reward terms."""
+    return (*STEP_FLAGS, *STAGE_KEYS)
 
 
 class GoalChoice(TermParams):
@@ -71,9 +85,8 @@ def _info_flag(key: str, description: str):
     return reward_term(description=description, info_keys=(key,))(flag)
 
 
-action_out_of_bounds = _info_flag("action_out_of_bounds", "1 if the action left the joint or workspace bounds")
-action_rejected = _info_flag("action_rejected", "1 if the safety check rejected the action")
-goal_sampling_failed = _info_flag("goal_sampling_failed", "1 if no reachable goal was found at reset")
+for _key, _description in STEP_FLAGS.items():
+    _info_flag(_key, _description)
 
 
 @termination_term(name="goal_reached", description="‖achieved − goal‖ < tolerance")

@@ -66,6 +66,7 @@ class PyBulletBackend:
         index = {info[1].decode(): info[0] for info in infos}
         link_index = {info[12].decode(): info[0] for info in infos}
         self._arm = [index[j.name] for j in self.robot.arm_joints]
+        self._efforts, self._velocities = self.robot.arm_efforts, self.robot.arm_velocities
         self._state_joints = [index[e.urdf_joint] for e in self.robot.joint_states]
         # Unactuated joints would otherwise hold still under PyBullet's default velocity motors.
         for joint in index.values():
@@ -114,7 +115,7 @@ class PyBulletBackend:
 
     def _hold_arm(self, q_arm) -> None:
         p.setJointMotorControlArray(self.body, self._arm, p.POSITION_CONTROL, targetPositions=list(q_arm),
-                                    forces=[self.robot.arm_force] * len(self._arm), physicsClientId=self.client)
+                                    forces=self._efforts, physicsClientId=self.client)
 
     def _drive_gripper(self, value: float) -> None:
         gripper = self.robot.gripper
@@ -149,10 +150,11 @@ class PyBulletBackend:
         c = self.client
         with self._lock:
             current = [s[0] for s in p.getJointStates(self.body, self._arm, physicsClientId=c)]
-            for joint, target, now in zip(self._arm, q_arm_target, current):
-                speed = min(max(abs(target - now) / duration, 1e-3), self.robot.arm_max_velocity)
+            for joint, target, now, effort, fastest in zip(self._arm, q_arm_target, current, self._efforts,
+                                                           self._velocities):
+                speed = min(max(abs(target - now) / duration, 1e-3), fastest)
                 p.setJointMotorControl2(self.body, joint, p.POSITION_CONTROL, targetPosition=float(target),
-                                        force=self.robot.arm_force, maxVelocity=speed, physicsClientId=c)
+                                        force=effort, maxVelocity=speed, physicsClientId=c)
 
     def command_gripper(self, value: float) -> None:
         if self._gripper is None:

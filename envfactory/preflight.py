@@ -1,0 +1,232 @@
+"""What `make` would find out, found without physics: the URDF assembles and loads,
+every joint, frame and link the spec names exists, the home pose clears the table,
+and the goal and spawn points are within the arm's reach.
+
+The env builds its kinematics and safety check through `robot_geometry`, so what
+is checked here is what runs there.
+"""
+
+from __future__ import annotations
+
+import functools
+import itertools
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from envfactory.spec.errors import Problem, suggest
+from envfactory.spec.schema import EnvSpec
+
+# The goal box is probed at its centre and corners; at least this many must be reachable.
+MIN_REACHABLE_PROBES = 1
+# Slack on the URDF's joint limits: YAML limits rounded to two decimals (1.26 for 1.2566).
+LIMIT_SLACK = 0.005
+
+
+@dataclass(frozen=True)
+class RobotGeometry:
+    urdf: Path
+    kinematics: object  # envfactory.kinematics.Kinematics
+    safety: object  # envfactory.safety.SafetyCheck
+
+
+def robot_geometry(spec: EnvSpec, asset_root: Path) -> RobotGeometry:
+    """The assembled URDF, the kinematics and the safety check of a spec's robot in its scene."""
+    from envfactory.collision_pairs import build_collision_model
+    from envfactory.kinematics import Kinematics
+    from envfactory.safety import SafetyCheck
+    from envfactory.urdf_assembly import assemble
+
+    robot = spec.robot
+    task_origin = np.asarray(robot.task_origin_world, float)
+    urdf = assemble(robot.model, asset_root, robot.name)
+    kinematics = Kinematics(urdf, robot, np.asarray(robot.mount, float) - task_origin)
+    collision = build_collision_model(kinematics, spec, asset_root)
+    return RobotGeometry(urdf, kinematics, SafetyCheck(collision, spec.env.safety))
+
+
+def check(spec: EnvSpec, asset_root: Path, report) -> list[Problem]:
+    """Every problem `make` or `reset` would hit in the robot model and the reach of the task."""
+    key = (spec.robot.model_dump_json(), spec.task.model_dump_json(), spec.scene.model_dump_json(),
+           spec.env.safety.model_dump_json(), spec.workspace.model_dump_json(), str(asset_root))
+    return [report(path, message) for path, message in _check_cached(key, spec, asset_root)]
+
+
+def _check_cached(key, spec, asset_root):
+    return _check_by_key(key, _Carrier(spec, asset_root))
+
+
+class _Carrier:
+    """Carries the spec into the cache without making it part of the key."""
+
+    def __init__(self, spec, asset_root):
+        self.spec, self.asset_root = spec, asset_root
+
+    def __hash__(self):
+        return 0
+
+    def __eq__(self, other):
+        return isinstance(other, _Carrier)
+
+
+@functools.lru_cache(maxsize=64)
+def _check_by_key(key, carrier: _Carrier) -> tuple[tuple[str, str], ...]:
+    spec, asset_root = carrier.spec, carrier.asset_root
+    from envfactory.urdf_assembly import AssemblyError, assemble
+
+    try:
+        urdf = assemble(spec.robot.model, asset_root, spec.robot.name)
+    except AssemblyError as exc:
+        return ((exc.path, str(exc)),)
+    import pinocchio as pin
+
+    try:
+        model = pin.buildModelFromUrdf(str(urdf))
+    except Exception as exc:  # Pinocchio raises plain RuntimeError/ValueError with its own text
+        return (("robot.model", f"Pinocchio cannot load the assembled URDF: {exc}"),)
+    problems = _name_problems(spec, model)
+    if problems:
+        return tuple(problems)
+    from envfactory.collision_pairs import StalePairs, pairs_file
+
+    problems = _padding_problems(spec, model)
+    pairs = pairs_file(spec, asset_root)
+    if pairs is not None and not pairs.is_file():
+        problems.append(("robot.safety.collision_pairs", f"no file {pairs}: run `envfactory collision-pairs "
+                                                         f"{spec.robot.name}`"))
+    if problems:
+        return tuple(problems)
+    try:
+        robot_shape = spec.robot.model_dump_json(include=GEOMETRY_FIELDS)
+        geometry = _shared_geometry((robot_shape, spec.scene.model_dump_json(), spec.env.safety.model_dump_json(),
+                                     str(asset_root)), carrier)
+        geometry.safety.forget()
+    except StalePairs as exc:
+        return (("robot.safety.collision_pairs", str(exc)),)
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError, RuntimeError) as exc:
+        # a model whose numbers break the kinematics or the collision geometry
+        return (("robot.model", f"the kinematics or collision geometry fail on this robot model: {exc}"),)
+    links = geometry.safety.collision.links
+    bare = [(f"robot.safety.padding.{name}", f"link {name!r} has no collision geometry: its padding would change "
+                                             f"nothing (links with geometry: {', '.join(links)})")
+            for name in spec.robot.safety.padding if name not in links]
+    if bare:
+        return tuple(bare)
+    try:
+        return tuple(_pose_problems(spec, geometry) + _reach_problems(spec, geometry))
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        return (("robot.model", f"the kinematics fail on this robot model: {exc}"),)
+
+
+# The robot fields the kinematics and the collision model are built from; the others (home,
+# bounds, topics, labels) leave a shared geometry valid.
+GEOMETRY_FIELDS = {"name", "model", "mount", "pedestal", "task_frame", "arm_joints", "ee_frame", "gripper", "safety"}
+
+
+@functools.lru_cache(maxsize=8)
+def _shared_geometry(key, carrier: _Carrier) -> RobotGeometry:
+    """One robot-in-scene geometry per key for the checks here (building the collision model is
+    the slow part); an env builds its own, since the safety check remembers its last motion."""
+    return robot_geometry(carrier.spec, carrier.asset_root)
+
+
+def _name_problems(spec: EnvSpec, model) -> list[tuple[str, str]]:
+    robot = spec.robot
+    joints = {model.names[i]: i for i in range(1, model.njoints)}
+    frames = {frame.name for frame in model.frames}
+    problems = []
+
+    def joint(path: str, name: str, need_limits: tuple[float, float] | None = None) -> None:
+        if name not in joints:
+            problems.append((path, f"the URDF has no joint {name!r}{suggest(name, joints)}"))
+            return
+        j = model.joints[joints[name]]
+        if j.nq != 1:
+            problems.append((path, f"joint {name!r} must have one degree of freedom (a revolute or prismatic "
+                                   f"joint; continuous joints are not supported)"))
+            return
+        if need_limits is not None:
+            low, high = model.lowerPositionLimit[j.idx_q], model.upperPositionLimit[j.idx_q]
+            if need_limits[0] < low - LIMIT_SLACK or need_limits[1] > high + LIMIT_SLACK:
+                problems.append((path.rsplit(".", 1)[0], f"limits [{need_limits[0]:g}, {need_limits[1]:g}] of "
+                                                         f"{name!r} exceed the URDF's [{low:.4g}, {high:.4g}]"))
+
+    for index, arm_joint in enumerate(robot.arm_joints):
+        joint(f"robot.arm_joints.{index}.name", arm_joint.name, (arm_joint.lower, arm_joint.upper))
+    for index, entry in enumerate(robot.joint_states):
+        joint(f"robot.joint_states.{index}.{'urdf' if entry.urdf else 'name'}", entry.urdf_joint)
+    if robot.gripper is not None:
+        gripper = robot.gripper
+        joint("robot.gripper.joint", gripper.joint, (gripper.low, gripper.high))
+        for name, gain in gripper.mimic.items():
+            follows = sorted((gain * gripper.low, gain * gripper.high))
+            joint(f"robot.gripper.mimic.{name}.gain", name, (follows[0], follows[1]))
+        for index, link in enumerate(robot.gripper.pads.links):
+            if link not in frames:
+                problems.append((f"robot.gripper.pads.links.{index}", f"the URDF has no link {link!r}"
+                                                                      f"{suggest(link, frames)}"))
+    if robot.ee_frame not in frames:
+        problems.append(("robot.ee_frame", f"the URDF has no frame {robot.ee_frame!r}{suggest(robot.ee_frame, frames)}"))
+    return problems
+
+
+def _padding_problems(spec: EnvSpec, model) -> list[tuple[str, str]]:
+    """A padded link the URDF lacks would silently keep no extra clearance."""
+    links = {frame.name for frame in model.frames}
+    return [(f"robot.safety.padding.{name}", f"the URDF has no link {name!r}{suggest(name, links)}")
+            for name in spec.robot.safety.padding if name not in links]
+
+
+def _pose_problems(spec: EnvSpec, geometry: RobotGeometry) -> list[tuple[str, str]]:
+    home = np.asarray(spec.robot.home, float)
+    gripper = spec.gripper_at_reset
+    gripper = spec.robot.gripper.open if gripper is None and spec.robot.gripper is not None else (gripper or 0.0)
+    verdict = geometry.safety.check(home, home, gripper)  # a motion of length zero: the home pose itself
+    if not verdict.accepted:
+        return [("robot.home", f"the home pose is unsafe ({verdict.reason}; the margin is "
+                               f"{spec.env.safety.surface_margin:g} m): every reset would start there")]
+    return []
+
+
+def _probes(low: np.ndarray, high: np.ndarray) -> list[np.ndarray]:
+    corners = [np.array(c) for c in itertools.product(*zip(low, high))]
+    return [(low + high) / 2, *corners]
+
+
+def _reach_problems(spec: EnvSpec, geometry: RobotGeometry) -> list[tuple[str, str]]:
+    kinematics, safety = geometry.kinematics, geometry.safety
+    home = np.asarray(spec.robot.home, float)
+    goal = spec.task.goal
+    problems = []
+    ee_goal = goal.achieved.partition(".")[0] == "ee"
+
+    def solve(point):
+        return kinematics.solve_ik(home, point)
+
+    low, high = (np.asarray(b, float) for b in goal.box)
+    probes = [np.asarray(goal.static_goal, float)] if not goal.random else _probes(low, high)
+    misses = []
+    reached = 0
+    for point in probes:
+        solution = solve(point)
+        # an EE goal is sampled only where the arm can stand clear of the table; an object
+        # goal is reached by the object, the EE only needs to get there
+        if solution.success and (not ee_goal or safety.pose_is_clear(solution.q_arm)):
+            reached += 1
+        else:
+            misses.append(solution.position_error)
+    if reached < min(MIN_REACHABLE_PROBES, len(probes)):
+        where = "task.goal.static" if not goal.random and goal.static is not None else "task.goal.box"
+        problems.append((where, f"the arm reaches none of the {len(probes)} probe points of the goal "
+                                f"{'box (centre and corners)' if goal.random else ''} (closest IK miss "
+                                f"{min(misses):.3f} m{', or the pose comes too near the table' if ee_goal else ''}); "
+                                f"valid: a goal within reach of robot {spec.robot.name!r}"))
+    for name, obj in spec.task.objects.items():
+        position = np.asarray(obj.spawn.position, float)
+        solution = solve(position)
+        if not solution.success:
+            problems.append((f"task.objects.{name}.spawn.position",
+                             f"the arm cannot reach {name} at its spawn point {list(np.round(position, 3))} "
+                             f"(IK misses by {solution.position_error:.3f} m)"))
+    return problems
