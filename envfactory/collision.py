@@ -35,6 +35,21 @@ class Shape:
     padding: float
 
 
+_AXES = {"X": np.array([1.0, 0.0, 0.0]), "Y": np.array([0.0, 1.0, 0.0]), "Z": np.array([0.0, 0.0, 1.0])}
+
+
+def _revolute_axis(joint_model) -> np.ndarray | None:
+    """The unit axis of a revolute joint in its own frame, or None if it is not one we can read."""
+    kind = joint_model.shortname()
+    for prefix in ("JointModelRUB", "JointModelR"):
+        if kind.startswith(prefix) and kind[len(prefix):] in _AXES:
+            return _AXES[kind[len(prefix):]]
+    if kind in ("JointModelRevoluteUnaligned", "JointModelRevoluteUnboundedUnaligned"):
+        axis = np.asarray(joint_model.extract().axis, float)
+        return axis / np.linalg.norm(axis)
+    return None
+
+
 def _shape_points(geometry) -> np.ndarray:
     """Points whose convex hull is the shape (cylinders and spheres: their capsule's axis)."""
     if isinstance(geometry, coal.Box):
@@ -197,22 +212,38 @@ class CollisionModel:
 
     def _lever(self, shape: Shape, drivers, above: int = 0) -> np.ndarray:
         """How far any point of the shape can move per unit change of each coordinate, relative to
-        joint `above` (the base by default): for a revolute joint, the summed link lengths from its
-        axis to the farthest point of the capsule. The gripper column is replaced by a measured sweep."""
+        joint `above` (the base by default). A revolute joint moves a point by its distance from the
+        joint's axis, bounded by the offset of the next joint down the chain from that axis plus the
+        summed link lengths from there to the farthest point of the capsule. The gripper column is
+        replaced by a measured sweep."""
         model = self.kinematics.model
         lever = np.zeros(self.coordinates)
-        reach = max(np.linalg.norm(shape.capsule_start), np.linalg.norm(shape.capsule_end)) + shape.radius
+        ends = (shape.capsule_start, shape.capsule_end)
+        reach = max(np.linalg.norm(end) for end in ends) + shape.radius  # from the current joint's origin
+        child_offset, child_reach = None, 0.0  # the joint below, seen from the current one
         joint = shape.joint
         while joint > above:
             kind = model.joints[joint].shortname()
             prismatic = "Prismatic" in kind or kind.startswith("JointModelP")
             if joint in drivers:
                 coordinate, gain = drivers[joint]
-                lever[coordinate] += abs(gain) * (1.0 if prismatic else reach)
+                axis = _revolute_axis(model.joints[joint])
+                if prismatic:
+                    arm = 1.0
+                elif axis is None:
+                    arm = reach
+                elif child_offset is None:  # the shape's own joint: its points are fixed in this frame
+                    arm = max(np.linalg.norm(np.cross(end, axis)) for end in ends) + shape.radius
+                else:
+                    arm = min(reach, float(np.linalg.norm(np.cross(child_offset, axis))) + child_reach)
+                lever[coordinate] += abs(gain) * arm
+            child_offset, child_reach = model.jointPlacements[joint].translation, reach
             if prismatic:  # the slide lengthens every lever above it by its travel
-                reach += max(abs(model.lowerPositionLimit[model.idx_qs[joint]]),
+                travel = max(abs(model.lowerPositionLimit[model.idx_qs[joint]]),
                              abs(model.upperPositionLimit[model.idx_qs[joint]]))
-            reach += float(np.linalg.norm(model.jointPlacements[joint].translation))
+                reach += travel
+                child_reach += travel
+            reach += float(np.linalg.norm(child_offset))
             joint = model.parents[joint]
         return lever
 
