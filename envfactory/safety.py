@@ -16,7 +16,7 @@ small to split: then the motion is refused. A doubt stops the arm.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 

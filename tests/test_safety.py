@@ -147,7 +147,7 @@ def test_vx300s_repeated_fold_is_refused_before_the_table():
 
 def test_inside_the_margin_only_a_way_out_is_accepted():
     environment = make("UR5eReacherSim-v0")
-    safety, kin = environment.safety, environment.kinematics
+    safety = environment.safety
     try:
         environment.reset(seed=0)
         # lower the arm from home until the fingers are inside the margin, by joint-space search
