@@ -4,7 +4,8 @@
 
 Times `SafetyCheck.check` inside real env steps (full-scale random actions from
 the action space), and reports the median and 90th percentile, the poses it
-measured per check and the share of actions it refused.
+measured per check, the share of actions it refused, and, from the same run,
+the median env.step time and the check's share of it, so machine load shows.
 """
 
 from __future__ import annotations
@@ -41,16 +42,19 @@ def measure(env_id: str, ee: bool, steps: int) -> dict:
     safety.check, safety._anchor = timed_check, counted_anchor
     env.reset(seed=0)
     env.action_space.seed(0)
-    refused = 0
+    refused, step_times = 0, []
     for step in range(steps):
-        _, _, terminated, truncated, info = env.step(env.action_space.sample())
+        action = env.action_space.sample()
+        start = time.perf_counter()
+        _, _, terminated, truncated, info = env.step(action)
+        step_times.append(time.perf_counter() - start)
         refused += int(info["action_rejected"])
         if terminated or truncated or step % 50 == 49:
             env.reset()
     env.close()
     micro = np.array(times) * 1e6
     return {"median": np.median(micro), "p90": np.percentile(micro, 90), "poses": poses[0] / max(len(times), 1),
-            "refused": refused / steps, "checks": len(times)}
+            "refused": refused / steps, "checks": len(times), "step": np.median(step_times) * 1e6}
 
 
 def main() -> None:
@@ -58,14 +62,15 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=1000)
     parser.add_argument("--ids", nargs="*", default=SIM_IDS)
     args = parser.parse_args()
-    print(f"{'ID':<22} {'mode':<6} {'median µs':>10} {'p90 µs':>8} {'poses/check':>12} {'refused':>8}")
+    print(f"{'ID':<22} {'mode':<6} {'median µs':>10} {'p90 µs':>8} {'poses/check':>12} {'refused':>8} "
+          f"{'step µs':>8} {'share':>6}")
     medians = []
     for env_id in args.ids:
         for ee in (False, True):
             r = measure(env_id, ee, args.steps)
             medians.append(r["median"])
             print(f"{env_id:<22} {'EE' if ee else 'joint':<6} {r['median']:>10.0f} {r['p90']:>8.0f} "
-                  f"{r['poses']:>12.2f} {r['refused']:>8.1%}")
+                  f"{r['poses']:>12.2f} {r['refused']:>8.1%} {r['step']:>8.0f} {r['median'] / r['step']:>6.1%}")
     print(f"median of medians: {np.median(medians):.0f} µs")
 
 

@@ -82,6 +82,8 @@ class SafetyCheck:
     ROUNDING = 0.0002
     # Pieces left with at most this many unproven pairs measure them with coal alone.
     FEW_PAIRS = 12
+    # Gripper values sampled first across the gripper's range, before finer sweeps where needed.
+    COARSE_SWEEP = 5
     # Gripper values are sampled this finely (in clearance lost between samples) when its motion matters.
     SWEEP_RESOLUTION = 0.001
 
@@ -185,7 +187,7 @@ class SafetyCheck:
                 short = self._weak(a, b, motion, length, short)
             if short.size == 0:
                 continue
-            if short.size <= self.FEW_PAIRS and not motion.gripper_moves:
+            if short.size <= self.FEW_PAIRS:
                 for pair in short:
                     verdict = self._prove_pair(int(pair), a.fraction, a.bound[pair], b.fraction, b.bound[pair],
                                                motion, finest)
@@ -207,7 +209,6 @@ class SafetyCheck:
                     motion: Motion, finest: float) -> Verdict:
         """The bisection for one pair between two measured poses, on plain floats: the deep pieces
         near a pair that sits close to its threshold are many, and each costs one coal query."""
-        collision = self.collision
         travel, threshold = float(motion.travel[pair]), float(motion.threshold[pair])
         single = np.array([pair])
         pieces = [(start, start_clearance, end, end_clearance)]
@@ -218,12 +219,18 @@ class SafetyCheck:
             if b - a <= finest:
                 return self._unproven(pair, a)
             middle = (a + b) / 2
-            collision.pose(motion.arm_at(middle), motion.gripper_middle)
-            clearance = float(collision.exact(single)[0])
+            clearance = self._pair_clearance(single, motion.arm_at(middle), motion)
             if clearance < threshold:
                 return Verdict(False, self._describe(pair, clearance, f" at {middle:.0%} of the motion"))
             pieces += [(a, clearance_a, middle, clearance), (middle, clearance, b, clearance_b)]
         return ACCEPTED
+
+    def _pair_clearance(self, single: np.ndarray, q_arm: np.ndarray, motion: Motion) -> float:
+        """A lower bound on one pair's clearance at an arm pose, over the gripper's range."""
+        anchor = Anchor(0.0, q_arm, np.full(self.collision.pair_count, -np.inf),
+                        np.zeros(self.collision.pair_count, dtype=np.int8))
+        self._refine(anchor, single, motion, 2)
+        return float(anchor.bound[single[0]])
 
     def _unproven(self, pair: int, fraction: float) -> Verdict:
         names = " and ".join(self.collision.pair_names(pair))
@@ -273,15 +280,22 @@ class SafetyCheck:
         sweep = pairs[(anchor.level[pairs] < 2) & (motion.reserve[pairs] > 0)]
         if sweep.size == 0:
             return
-        # coal at gripper values spaced so that the gripper lever between them costs little
-        span = 2 * motion.reserve[sweep].max()
-        count = int(np.ceil(span / (2 * self.SWEEP_RESOLUTION))) + 1
-        values = np.linspace(motion.gripper_from, motion.gripper_to, count)
-        lowest = np.full(sweep.size, np.inf)
-        for value in values:
-            collision.pose(anchor.q_arm, value)
-            np.minimum(lowest, collision.exact(sweep), out=lowest)
-        anchor.bound[sweep] = lowest - motion.reserve[sweep] / (count - 1)
+        # coal at gripper values along its range: a few first, finer only for pairs still in doubt
+        for count in (self.COARSE_SWEEP, None):
+            if count is None:
+                count = int(np.ceil(2 * motion.reserve[sweep].max() / (2 * self.SWEEP_RESOLUTION))) + 1
+            lowest = np.full(sweep.size, np.inf)
+            for value in np.linspace(motion.gripper_from, motion.gripper_to, count):
+                collision.pose(anchor.q_arm, value)
+                np.minimum(lowest, collision.exact(sweep), out=lowest)
+            bound = lowest - motion.reserve[sweep] / (count - 1)
+            settled = bound >= motion.threshold[sweep]
+            anchor.bound[sweep] = np.where(settled, bound, anchor.bound[sweep])
+            anchor.level[sweep[settled]] = 2
+            sweep = sweep[~settled]
+            if sweep.size == 0:
+                return
+        anchor.bound[sweep] = bound[~settled]
         anchor.level[sweep] = 2
 
     def _settle(self, anchor: Anchor, motion: Motion, where: str, pairs: np.ndarray | None = None) -> Verdict:
