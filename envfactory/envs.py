@@ -131,8 +131,11 @@ class RobotEnv(gym.Env):
         self.backend.recover()  # a fault of the last episode never reaches this one
         if not self.backend.teleports_on_reset:
             # a real arm drives home: the whole way there must clear the table and floor
-            here = self.backend.read_joints().position[self._arm_in_states]
-            verdict = self.safety.path_is_clear(here, self.home, self._state.gripper if self._state else 0.0)
+            reading = self.backend.read_joints().position
+            gripper = float(reading[self._gripper_in_states]) if self._gripper_in_states is not None else 0.0
+            # the gripper moves to its reset value on the way: the proof covers its whole range
+            verdict = self.safety.path_is_clear(reading[self._arm_in_states], self.home, gripper,
+                                                gripper if self._gripper_reset is None else self._gripper_reset)
             if not verdict.accepted:
                 raise BackendError(f"the move home is unsafe ({verdict.reason}); bring the arm clear by hand")
         self.backend.reset(self.home, self._gripper_reset, spawn)

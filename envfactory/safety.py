@@ -132,9 +132,11 @@ class SafetyCheck:
                                     gripper_now if gripper_target is None else float(gripper_target),
                                     self.FINEST_PIECE, remember=True)
 
-    def path_is_clear(self, q_from: np.ndarray, q_to: np.ndarray, gripper: float = 0.0) -> Verdict:
+    def path_is_clear(self, q_from: np.ndarray, q_to: np.ndarray, gripper_from: float = 0.0,
+                      gripper_to: float | None = None) -> Verdict:
         """Clearance along a long joint-space move (a real arm driving home), with no joint-change limit."""
-        return self._motion_verdict(np.asarray(q_from, float), np.asarray(q_to, float), gripper, gripper,
+        gripper_to = gripper_from if gripper_to is None else gripper_to
+        return self._motion_verdict(np.asarray(q_from, float), np.asarray(q_to, float), gripper_from, gripper_to,
                                     self.FINEST_PIECE / 8, remember=False)
 
     def forget(self) -> None:

@@ -195,3 +195,22 @@ def test_a_stale_pair_list_is_refused(env, tmp_path):
                                 "seed": 0, "skipped": []})
     with pytest.raises(StalePairs, match="above the spec"):
         read_pairs(path, collision, margin)
+
+
+def test_the_gripper_moving_on_the_way_counts():
+    """The same arm path is clear with the gripper open and not when it closes on the way: closing
+    brings the Robotiq fingertips down towards the table."""
+    environment = make("UR5ePnPSim-v0")
+    safety = environment.safety
+    try:
+        environment.reset(seed=0)
+        pads = [k for k in range(safety.collision.pair_count)
+                if safety.collision.pair_names(k) == ("robotiq_left_inner_finger_pad", "table top")]
+        q = environment.home.copy()
+        lower = np.array([0.0, 0.01, 0.0, 0.0, 0.0, 0.0])  # shoulder lift: the gripper goes down
+        while safety.clearances(q, 0.0)[pads].min() > safety.margin[pads].max() + 0.008:
+            q = q + lower
+        assert safety.path_is_clear(q, q, 0.0, 0.0).accepted
+        assert not safety.path_is_clear(q, q, 0.0, 0.8).accepted
+    finally:
+        environment.close()
