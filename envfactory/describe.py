@@ -117,11 +117,13 @@ def kwarg_lines(compiled: Blueprint) -> list[str]:
 def safety_table(compiled: Blueprint) -> Table:
     """The geometry the safety check keeps clear: each link's collision shapes and what they are checked against."""
     from envfactory.collision_pairs import collision_model_of
+    from envfactory.safety import SafetyCheck
 
     collision = collision_model_of(compiled)
     settings = compiled.spec.env.safety
     margin = settings.surface_margin
-    table = _table(f"Safety: every shape ≥ {margin:g} m from {', '.join(o.name for o in collision.obstacles)} "
+    table = _table(f"Safety: every shape ≥ {margin:g} m (+{SafetyCheck.SHAPE_TOLERANCE * 1000:g} mm per robot shape in a "
+                   f"pair, for engine differences) from {', '.join(o.name for o in collision.obstacles)} "
                    f"(table footprint +{settings.table_footprint_margin:g} m) and from the arm's other links; "
                    f"joint change ≤ {settings.max_joint_delta:g} rad", "Link", "Shape", "Size (m)", "Margin (m)",
                    "Self pairs checked")
