@@ -229,6 +229,9 @@ class SafetyCheck:
 
     def _pair_clearance(self, single: np.ndarray, q_arm: np.ndarray, motion: Motion) -> float:
         """A lower bound on one pair's clearance at an arm pose, over the gripper's range."""
+        if not motion.gripper_moves:
+            self.collision.pose(q_arm, motion.gripper_middle)
+            return float(self.collision.exact(single)[0])
         anchor = Anchor(0.0, q_arm, np.full(self.collision.pair_count, -np.inf),
                         np.zeros(self.collision.pair_count, dtype=np.int8))
         self._refine(anchor, single, motion, 2)
