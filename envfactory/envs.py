@@ -36,6 +36,7 @@ class RobotEnv(gym.Env):
             raise ValueError(f"render_mode {render_mode!r} is not one of {self.metadata['render_modes']}")
         self.blueprint = blueprint
         self.render_mode = render_mode
+        self._backend_options = backend_options
         spec = blueprint.spec
         robot = spec.robot
         self.metadata = {**self.metadata, "render_fps": 1.0 / spec.env.timing.action_cycle_time}
@@ -234,6 +235,31 @@ class RobotEnv(gym.Env):
         if backend is not None:
             backend.close()
         super().close()
+
+    # ------------------------------------------------------------ copies
+
+    def __getstate__(self) -> dict:
+        """A copy (pickle or deepcopy) is a fresh env of the same blueprint, not a snapshot of the physics:
+        it opens its own backend (a new PyBullet client), starts un-reset, and carries over the random
+        generator's state, so its next reset() samples what this env's next reset() would."""
+        return {
+            "blueprint": self.blueprint,
+            "render_mode": self.render_mode,
+            "backend_options": self._backend_options,
+            "np_random_state": self._np_random.bit_generator.state if self._np_random is not None else None,
+            "np_random_seed": self._np_random_seed,
+            "seed_pending": self._seed_pending,
+            "spec": self.spec,
+        }
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["blueprint"], render_mode=state["render_mode"], **state["backend_options"])
+        if state["np_random_state"] is not None:
+            self._np_random = np.random.Generator(np.random.PCG64())
+            self._np_random.bit_generator.state = state["np_random_state"]
+            self._np_random_seed = state["np_random_seed"]
+        self._seed_pending = state["seed_pending"]
+        self.spec = state["spec"]
 
     # ------------------------------------------------------------ introspection
 
