@@ -16,6 +16,7 @@ from pydantic import BaseModel, ValidationError
 
 from envfactory import backends, preflight
 from envfactory.experts import EXPERTS
+from envfactory.reach import PointBoxes, derived_boxes
 from envfactory.spec.compose import LoadedSpec, validation_problems
 from envfactory.spec.errors import Problem, SpecError, suggest
 from envfactory.spec.schema import EnvSpec
@@ -118,6 +119,7 @@ class Blueprint:
     achieved_from: str  # "ee" or an object name
     info_keys: tuple[str, ...] = field(default=())
     images: tuple[ImageSlot, ...] = field(default=())  # use_kinect: camera terms, Dict keys beside the vector
+    boxes: PointBoxes | None = None  # where the EE and each object can be: the goal env's achieved-goal bounds
 
     @property
     def policy_observation(self) -> tuple[ObservationSlot, ...]:
@@ -398,7 +400,8 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
     problems: list[Problem] = []
     _import_terms(loaded, problems)
     action = _action_layout(spec)
-    layout = Layout(spec.robot, spec.task, action.size, action.low, action.high)
+    layout = Layout(spec.robot, spec.task, action.size, action.low, action.high,
+                    derived_boxes(spec, loaded.file_of("robot.model").parent))
     observation = _observation(spec, layout, loaded, problems)
     reward_set = "sparse" if spec.env.reward_type == "Sparse" else "dense"
     rewards = _rewards(getattr(spec.task.reward, reward_set), f"task.reward.{reward_set}", layout, loaded, problems)
@@ -431,4 +434,5 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
         achieved_from=achieved_from,
         info_keys=info_keys,
         images=images,
+        boxes=layout.boxes,
     )

@@ -71,6 +71,7 @@ class RobotEnv(gym.Env):
         self._goal = np.zeros(3)
         self._goal_failed = False
         self._state: EnvState | None = None
+        self._clipped: list[str] = []  # observation columns the last observation had to clip
 
         self.backend = backend_factory(blueprint.backend)(spec, urdf, self.task_origin, render_mode,
                                                           **backend_options)
@@ -115,8 +116,15 @@ class RobotEnv(gym.Env):
     def achieved_goal(self, state: EnvState) -> np.ndarray:
         return state.position_of(self.blueprint.achieved_from)
 
+    def _vector(self, state: EnvState) -> np.ndarray:
+        vector, self._clipped = self.observations.compute(state)
+        if self._clipped:
+            log.warning("%s: observation outside its declared bounds, clipped and flagged in "
+                        "info['observation_clipped']: %s", self.blueprint.env_id, ", ".join(self._clipped))
+        return vector
+
     def _observe(self, state: EnvState):
-        vector = self.observations.compute(state)
+        vector = self._vector(state)
         if not self.images:
             return vector
         return {"observation": vector, **self.images.capture(self.backend)}
@@ -151,8 +159,8 @@ class RobotEnv(gym.Env):
         if self.curriculum is not None:
             self.curriculum.reset(spawn[self.blueprint.achieved_from][0])
         self._advance_curriculum(self._state, achieved)
-        info = self._info(self._state, achieved, out_of_bounds=False, rejection="")
-        return self._observe(self._state), info
+        observation = self._observe(self._state)
+        return observation, self._info(self._state, achieved, out_of_bounds=False, rejection="")
 
     def step(self, action):
         if self._state is None:
@@ -205,18 +213,19 @@ class RobotEnv(gym.Env):
                 abort: str = ""):
         achieved = self.achieved_goal(state)
         self._advance_curriculum(state, achieved)
+        observation = self._observe(state)
         info = self._info(state, achieved, out_of_bounds, rejection)
         if abort:
             info["abort_reason"] = abort
         reward = float(self.rewards.reward(achieved, self._goal, info))
         terminated = bool(self.rewards.terminated(achieved, self._goal, info))
-        return self._observe(state), reward, terminated, truncated, info
+        return observation, reward, terminated, truncated, info
 
     def _info(self, state: EnvState, achieved: np.ndarray, out_of_bounds: bool, rejection: str) -> dict:
         distance = float(np.linalg.norm(achieved - self._goal))
         flags = (out_of_bounds, bool(rejection), self._goal_failed)
         info = {key: float(value) for key, value in zip(STEP_FLAGS, flags, strict=True)}
-        info.update(rejection_reason=rejection, distance=distance,
+        info.update(rejection_reason=rejection, observation_clipped=list(self._clipped), distance=distance,
                     is_success=distance < self.blueprint.spec.task.goal.tolerance)
         if self.curriculum is not None:
             info.update(self.curriculum.info())
@@ -278,7 +287,8 @@ class GoalRobotEnv(RobotEnv):
     def _observation_space(self) -> spaces.Space:
         spec = self.blueprint.spec
         goal_low, goal_high = (np.asarray(b, np.float32) for b in spec.task.goal.box)
-        achieved_low, achieved_high = (np.asarray(b, np.float32) for b in spec.robot.ee_bounds)
+        achieved = self.blueprint.boxes.of(self.blueprint.achieved_from)
+        achieved_low, achieved_high = achieved.low.astype(np.float32), achieved.high.astype(np.float32)
         return spaces.Dict({
             "observation": self._vector_space(),
             "achieved_goal": spaces.Box(achieved_low, achieved_high, dtype=np.float32),
@@ -288,7 +298,7 @@ class GoalRobotEnv(RobotEnv):
 
     def _observe(self, state: EnvState):
         return {
-            "observation": self.observations.compute(state),
+            "observation": self._vector(state),
             "achieved_goal": self.achieved_goal(state).astype(np.float32),
             "desired_goal": self._goal.astype(np.float32),
             **self.images.capture(self.backend),

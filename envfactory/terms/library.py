@@ -33,6 +33,7 @@ class Layout:
     action_size: int
     action_low: np.ndarray
     action_high: np.ndarray
+    boxes: Any = None  # envfactory.reach.PointBoxes: where the EE and each object can be
 
 
 @dataclass(frozen=True)
