@@ -53,8 +53,8 @@ class RobotEnv(gym.Env):
                                      blueprint.info_keys)
         self.observations = ObservationManager(blueprint.policy_observation)
         self.images = ImageManager(blueprint.images, spec.scene.camera)
-        self.action_space = spaces.Box(blueprint.action.low.astype(np.float32),
-                                       blueprint.action.high.astype(np.float32), dtype=np.float32)
+        self.action_space = spaces.Box(blueprint.action.policy_low.astype(np.float32),
+                                       blueprint.action.policy_high.astype(np.float32), dtype=np.float32)
         self.observation_space = self._observation_space()
 
         self._arm_in_states = np.array(robot.arm_state_indices)
