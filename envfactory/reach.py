@@ -14,6 +14,10 @@ bounds therefore use the seed's box grown to the arm's reach, never shrunk:
   those are wider (a position motor holds its target only up to the load on it;
   the hard stop is the URDF limit, which PyBullet enforces as a constraint that
   yields by up to JOINT_STOP_SOFTNESS).
+- joint velocities: the declared /joint_states range, or the URDF's velocity
+  limits where those are wider (contact drives a joint past its motor's speed:
+  the UR5e knuckle read 0.59 rad/s against its motor's 0.45 while a cube was
+  knocked about).
 - finite-difference velocities: a displacement within the object box over one
   step (`action_cycle_time`), a rotation of at most π over one step.
 """
@@ -58,6 +62,7 @@ class PointBoxes:
     objects: dict[str, Box] = field(default_factory=dict)
     step_seconds: float = 0.5
     joint_positions: Box | None = None  # one row per /joint_states entry
+    joint_velocities: Box | None = None
 
     def of(self, name: str) -> Box:
         return self.ee if name == "ee" else self.objects[name]
@@ -99,7 +104,7 @@ def reach_sphere(kinematics) -> tuple[np.ndarray, float]:
 def point_boxes(spec, kinematics) -> PointBoxes:
     robot = spec.robot
     origin = np.asarray(robot.task_origin_world, float)
-    floor_z = -origin[2]
+    floor_z = float(0.0 - origin[2])
     ee = Box(*(np.asarray(b, float) for b in robot.ee_bounds))
     if kinematics is not None:
         centre, radius = reach_sphere(kinematics)
@@ -115,17 +120,21 @@ def point_boxes(spec, kinematics) -> PointBoxes:
         box = ee.grown(half_diagonal).union(on_table)
         box.low[2] = min(box.low[2], floor_z)  # knocked off the table onto the floor
         objects[name] = box
-    return PointBoxes(ee, objects, spec.env.timing.action_cycle_time, _joint_positions(robot, kinematics))
+    return PointBoxes(ee, objects, spec.env.timing.action_cycle_time, *_joint_boxes(robot, kinematics))
 
 
-def _joint_positions(robot, kinematics) -> Box:
-    declared = Box(*(np.array([entry.position[i] for entry in robot.joint_states], float) for i in (0, 1)))
+def _joint_boxes(robot, kinematics) -> tuple[Box, Box]:
+    """(positions, velocities) of the /joint_states entries."""
+    positions, velocities = (Box(*(np.array([getattr(entry, kind)[i] for entry in robot.joint_states], float)
+                                   for i in (0, 1))) for kind in ("position", "velocity"))
     if kinematics is None:
-        return declared
+        return positions, velocities
     model = kinematics.model
-    rows = [model.joints[model.getJointId(entry.urdf_joint)].idx_q for entry in robot.joint_states]
+    joints = [model.joints[model.getJointId(entry.urdf_joint)] for entry in robot.joint_states]
+    rows = [joint.idx_q for joint in joints]
     stops = Box(model.lowerPositionLimit[rows], model.upperPositionLimit[rows]).grown(JOINT_STOP_SOFTNESS)
-    return declared.union(stops)
+    speed = model.velocityLimit[[joint.idx_v for joint in joints]]
+    return positions.union(stops), velocities.union(Box(-speed, speed))
 
 
 def derived_boxes(spec, asset_root) -> PointBoxes:

@@ -160,15 +160,13 @@ def previous_action(state, params):
 
 @observation_term(
     size=joint_state_count,
-    bounds=lambda layout, params, size: (
-        np.array([entry.velocity[0] for entry in layout.robot.joint_states]),
-        np.array([entry.velocity[1] for entry in layout.robot.joint_states]),
-    ),
+    bounds=lambda layout, params, size: box_bounds(layout.boxes.joint_velocities),
     describe=lambda layout, params: Description(
         "Current joint velocities", f"{layout.robot.joint_states_topic}.velocity", _joint_units(layout, True)
     ),
     unit="rad/s or m/s per joint",
 )
 def joint_velocities(state, params):
-    """Joint velocities in /joint_states order (bounds: robot.joint_states velocity)."""
+    """Joint velocities in /joint_states order (bounds: robot.joint_states velocity, widened to the URDF's
+    velocity limits where those are wider)."""
     return state.joint_velocities
