@@ -6,7 +6,8 @@ Per ID (kwargs apply to every env made, e.g. -k normalize_actions=true):
 - goal box: the share of uniform goals reachable from the start pose (IK from
   home; the solved pose clear of the scene; the straight joint path from home clear);
 - random actions: the share the safety check refuses, why, and what a refusal
-  does (the arm holds: the largest joint change over a refused step);
+  does (the arm holds: the largest joint change over a refused step); how far
+  an accepted random step moves the EE, against the goal tolerance;
 - observation scales: per column, the spread a random policy produces against
   the declared bound's width;
 - episode length: the scripted expert's steps to success against max_episode_steps.
@@ -49,10 +50,13 @@ def random_steps(env, steps: int, seed: int) -> dict:
     observation, _ = env.reset(seed=seed)
     vectors, reasons = [], Counter()
     refused = refused_move = 0
+    moves = []
     for _ in range(steps):
-        before = u.state.q_arm.copy()
+        before, ee_before = u.state.q_arm.copy(), u.state.ee_position.copy()
         observation, _, terminated, truncated, info = env.step(env.action_space.sample())
         vectors.append(observation["observation"])
+        if not info["action_rejected"]:
+            moves.append(float(np.linalg.norm(u.state.ee_position - ee_before)))
         if info["action_rejected"]:
             refused += 1
             reasons[info["rejection_reason"].split(":")[0][:60]] += 1
@@ -61,7 +65,7 @@ def random_steps(env, steps: int, seed: int) -> dict:
             env.reset()
     vectors = np.array(vectors)
     space = env.observation_space["observation"]
-    return {"refused": refused / steps, "reasons": reasons.most_common(4), "refused_max_joint_change": refused_move,
+    return {"refused": refused / steps, "ee_move": np.percentile(moves, [50, 90]), "reasons": reasons.most_common(4), "refused_max_joint_change": refused_move,
             "min": vectors.min(0), "max": vectors.max(0), "std": vectors.std(0),
             "width": space.high - space.low, "slots": u.observations.slots}
 
@@ -100,6 +104,9 @@ def main() -> None:
         steps = random_steps(env, args.steps, seed=0)
         print(f"random actions ({args.steps} steps): refused {steps['refused']:.1%}; "
               f"largest joint change over a refused step {steps['refused_max_joint_change']:.4f} rad")
+        print(f"    EE moves per accepted random step: median {steps['ee_move'][0]:.3f} m, "
+              f"90th percentile {steps['ee_move'][1]:.3f} m (goal tolerance "
+              f"{env.unwrapped.blueprint.spec.task.goal.tolerance:g} m)")
         for reason, count in steps["reasons"]:
             print(f"    {count:5d} × {reason}")
         print("observation columns: slot[i]  random min..max  std  declared width  std/width")
