@@ -147,6 +147,6 @@ def derived_boxes(spec, asset_root) -> PointBoxes:
         urdf = assemble(spec.robot.model, asset_root, spec.robot.name)
         kinematics = Kinematics(urdf, spec.robot, np.asarray(spec.robot.mount, float)
                                 - np.asarray(spec.robot.task_origin_world, float))
-    except Exception:  # reported by the robot model checks, with the spec path
-        kinematics = None
-    return point_boxes(spec, kinematics)
+        return point_boxes(spec, kinematics)
+    except Exception:  # a model or a joint name that does not resolve: the robot model checks report it
+        return point_boxes(spec, None)
