@@ -31,6 +31,7 @@ class ActionAdapter:
         self.max_joint_delta = max_joint_delta
         self.kinematics = kinematics
         self.low, self.high = layout.low, layout.high
+        self.scale = layout.scale if layout.normalize else None
         self.workspace_min = np.asarray(workspace.min, float)
         self.workspace_max = np.asarray(workspace.max, float)
         self.arm_size = layout.size - (1 if layout.gripper_in_action else 0)
@@ -39,14 +40,18 @@ class ActionAdapter:
         clipped = np.clip(action, self.low, self.high)
         return clipped, bool(np.any(clipped != action))
 
+    def to_policy(self, action: np.ndarray) -> np.ndarray:
+        """An action in the seed's units as the policy's action space has it."""
+        action = np.clip(action, self.low, self.high)
+        return (self.scale.to_policy(action) if self.scale is not None else action).astype(np.float32)
+
     def hold_action(self, state: EnvState) -> np.ndarray:
         """The action that keeps the robot where it is: the previous action a reset reports."""
         if self.layout.delta:
             arm = np.zeros(self.arm_size)
         else:
             arm = state.ee_position if self.layout.ee else state.q_arm
-        action = np.append(arm, state.gripper) if self.layout.gripper_in_action else arm
-        return np.clip(action, self.low, self.high).astype(np.float32)
+        return self.to_policy(np.append(arm, state.gripper) if self.layout.gripper_in_action else arm)
 
     def translate(self, action: np.ndarray, state: EnvState) -> Command:
         action = np.asarray(action, dtype=float).reshape(-1)
@@ -54,7 +59,11 @@ class ActionAdapter:
             raise ValueError(f"action has shape {action.shape}, expected ({self.layout.size},)")
         if not np.all(np.isfinite(action)):
             return Command(None, None, False, "non-finite action")
-        action, out_of_bounds = self.clip(action)
+        if self.scale is not None:
+            normalised = np.clip(action, -1.0, 1.0)
+            action, out_of_bounds = self.scale.to_seed(normalised), bool(np.any(normalised != action))
+        else:
+            action, out_of_bounds = self.clip(action)
         gripper = float(action[-1]) if self.layout.gripper_in_action else None
         arm = action[: self.arm_size]
         if self.layout.ee:

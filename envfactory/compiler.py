@@ -16,6 +16,8 @@ from pydantic import BaseModel, ValidationError
 
 from envfactory import backends, preflight
 from envfactory.experts import EXPERTS
+from envfactory.action_scale import ActionScale
+from envfactory.reach import PointBoxes, derived_boxes
 from envfactory.spec.compose import LoadedSpec, validation_problems
 from envfactory.spec.errors import Problem, SpecError, suggest
 from envfactory.spec.schema import EnvSpec
@@ -88,10 +90,25 @@ class ActionLayout:
     delta_coeff: float
     rows: tuple[ActionRow, ...]
     gripper_in_action: bool
+    normalize: bool = False  # the policy acts in [-1, 1], mapped onto the rows by `scale`
 
     @property
     def size(self) -> int:
         return len(self.rows)
+
+    @property
+    def scale(self) -> ActionScale:
+        arm_rows = self.size - (1 if self.gripper_in_action else 0)
+        return ActionScale(self.low, self.high, [self.delta and index < arm_rows for index in range(self.size)])
+
+    @property
+    def policy_low(self) -> np.ndarray:
+        """The action space the policy sees: [-1, 1] when normalised, else the seed's rows."""
+        return -np.ones(self.size) if self.normalize else self.low
+
+    @property
+    def policy_high(self) -> np.ndarray:
+        return np.ones(self.size) if self.normalize else self.high
 
     @property
     def low(self) -> np.ndarray:
@@ -118,6 +135,7 @@ class Blueprint:
     achieved_from: str  # "ee" or an object name
     info_keys: tuple[str, ...] = field(default=())
     images: tuple[ImageSlot, ...] = field(default=())  # use_kinect: camera terms, Dict keys beside the vector
+    boxes: PointBoxes | None = None  # where the EE and each object can be: the goal env's achieved-goal bounds
 
     @property
     def policy_observation(self) -> tuple[ObservationSlot, ...]:
@@ -146,6 +164,7 @@ class Blueprint:
                 "ee": self.action.ee,
                 "delta": self.action.delta,
                 "delta_coeff": self.action.delta_coeff,
+                "normalize": self.action.normalize,
                 "rows": [vars(row) for row in self.action.rows],
             },
             "reward_type": spec.env.reward_type,
@@ -220,7 +239,8 @@ def _action_layout(spec: EnvSpec) -> ActionLayout:
     if spec.task.gripper.in_action:
         gripper, entry = robot.gripper, robot.joint_states[robot.gripper_state_index]
         rows.append(ActionRow(gripper.label, gripper.low, gripper.high, entry.name, entry.unit))
-    return ActionLayout(settings.ee, settings.delta, settings.delta_coeff, tuple(rows), spec.task.gripper.in_action)
+    return ActionLayout(settings.ee, settings.delta, settings.delta_coeff, tuple(rows), spec.task.gripper.in_action,
+                        settings.normalize)
 
 
 def _params(model: type[BaseModel], raw: dict, path: str, loaded: LoadedSpec, problems: list[Problem]):
@@ -398,7 +418,8 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
     problems: list[Problem] = []
     _import_terms(loaded, problems)
     action = _action_layout(spec)
-    layout = Layout(spec.robot, spec.task, action.size, action.low, action.high)
+    layout = Layout(spec.robot, spec.task, action.size, action.policy_low, action.policy_high,
+                    derived_boxes(spec, loaded.file_of("robot.model").parent))
     observation = _observation(spec, layout, loaded, problems)
     reward_set = "sparse" if spec.env.reward_type == "Sparse" else "dense"
     rewards = _rewards(getattr(spec.task.reward, reward_set), f"task.reward.{reward_set}", layout, loaded, problems)
@@ -431,4 +452,5 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
         achieved_from=achieved_from,
         info_keys=info_keys,
         images=images,
+        boxes=layout.boxes,
     )

@@ -35,6 +35,15 @@ def action_table(compiled: Blueprint) -> Table:
     layout = compiled.action
     mode = "EE" if layout.ee else "Joint"
     detail = f"delta × {layout.delta_coeff:g}" if layout.delta else "absolute"
+    if layout.normalize:
+        # the seed's rows stay the Min/Max; the policy's [-1, 1] maps onto them row by row
+        table = _table(f"Action: Box(-1, 1, ({layout.size},)) normalised (normalize_actions) — {mode} mode, "
+                       f"{detail}", "Num", "Action", "Min", "Max", "Policy [-1, 1] →", "Joint", "Unit")
+        scale = layout.scale
+        for index, row in enumerate(layout.rows):
+            table.add_row(str(index), row.label, f"{row.low:+.2f}", f"{row.high:+.2f}", scale.mapping(index),
+                          row.joint, row.unit)
+        return table
     table = _table(f"Action: Box({layout.size},) — {mode} mode, {detail}", "Num", "Action", "Min", "Max", "Joint",
                    "Unit")
     for index, row in enumerate(layout.rows):

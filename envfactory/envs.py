@@ -36,6 +36,7 @@ class RobotEnv(gym.Env):
             raise ValueError(f"render_mode {render_mode!r} is not one of {self.metadata['render_modes']}")
         self.blueprint = blueprint
         self.render_mode = render_mode
+        self._backend_options = backend_options
         spec = blueprint.spec
         robot = spec.robot
         self.metadata = {**self.metadata, "render_fps": 1.0 / spec.env.timing.action_cycle_time}
@@ -52,8 +53,8 @@ class RobotEnv(gym.Env):
                                      blueprint.info_keys)
         self.observations = ObservationManager(blueprint.policy_observation)
         self.images = ImageManager(blueprint.images, spec.scene.camera)
-        self.action_space = spaces.Box(blueprint.action.low.astype(np.float32),
-                                       blueprint.action.high.astype(np.float32), dtype=np.float32)
+        self.action_space = spaces.Box(blueprint.action.policy_low.astype(np.float32),
+                                       blueprint.action.policy_high.astype(np.float32), dtype=np.float32)
         self.observation_space = self._observation_space()
 
         self._arm_in_states = np.array(robot.arm_state_indices)
@@ -70,6 +71,7 @@ class RobotEnv(gym.Env):
         self._goal = np.zeros(3)
         self._goal_failed = False
         self._state: EnvState | None = None
+        self._clipped: list[str] = []  # observation columns the last observation had to clip
 
         self.backend = backend_factory(blueprint.backend)(spec, urdf, self.task_origin, render_mode,
                                                           **backend_options)
@@ -114,8 +116,15 @@ class RobotEnv(gym.Env):
     def achieved_goal(self, state: EnvState) -> np.ndarray:
         return state.position_of(self.blueprint.achieved_from)
 
+    def _vector(self, state: EnvState) -> np.ndarray:
+        vector, self._clipped = self.observations.compute(state)
+        if self._clipped:
+            log.warning("%s: observation outside its declared bounds, clipped and flagged in "
+                        "info['observation_clipped']: %s", self.blueprint.env_id, ", ".join(self._clipped))
+        return vector
+
     def _observe(self, state: EnvState):
-        vector = self.observations.compute(state)
+        vector = self._vector(state)
         if not self.images:
             return vector
         return {"observation": vector, **self.images.capture(self.backend)}
@@ -153,8 +162,8 @@ class RobotEnv(gym.Env):
         if self.curriculum is not None:
             self.curriculum.reset(spawn[self.blueprint.achieved_from][0])
         self._advance_curriculum(self._state, achieved)
-        info = self._info(self._state, achieved, out_of_bounds=False, rejection="")
-        return self._observe(self._state), info
+        observation = self._observe(self._state)
+        return observation, self._info(self._state, achieved, out_of_bounds=False, rejection="")
 
     def step(self, action):
         if self._state is None:
@@ -207,18 +216,19 @@ class RobotEnv(gym.Env):
                 abort: str = ""):
         achieved = self.achieved_goal(state)
         self._advance_curriculum(state, achieved)
+        observation = self._observe(state)
         info = self._info(state, achieved, out_of_bounds, rejection)
         if abort:
             info["abort_reason"] = abort
         reward = float(self.rewards.reward(achieved, self._goal, info))
         terminated = bool(self.rewards.terminated(achieved, self._goal, info))
-        return self._observe(state), reward, terminated, truncated, info
+        return observation, reward, terminated, truncated, info
 
     def _info(self, state: EnvState, achieved: np.ndarray, out_of_bounds: bool, rejection: str) -> dict:
         distance = float(np.linalg.norm(achieved - self._goal))
         flags = (out_of_bounds, bool(rejection), self._goal_failed)
         info = {key: float(value) for key, value in zip(STEP_FLAGS, flags, strict=True)}
-        info.update(rejection_reason=rejection, distance=distance,
+        info.update(rejection_reason=rejection, observation_clipped=list(self._clipped), distance=distance,
                     is_success=distance < self.blueprint.spec.task.goal.tolerance)
         if self.curriculum is not None:
             info.update(self.curriculum.info())
@@ -238,6 +248,31 @@ class RobotEnv(gym.Env):
             backend.close()
         super().close()
 
+    # ------------------------------------------------------------ copies
+
+    def __getstate__(self) -> dict:
+        """A copy (pickle or deepcopy) is a fresh env of the same blueprint, not a snapshot of the physics:
+        it opens its own backend (a new PyBullet client), starts un-reset, and carries over the random
+        generator's state, so its next reset() samples what this env's next reset() would."""
+        return {
+            "blueprint": self.blueprint,
+            "render_mode": self.render_mode,
+            "backend_options": self._backend_options,
+            "np_random_state": self._np_random.bit_generator.state if self._np_random is not None else None,
+            "np_random_seed": self._np_random_seed,
+            "seed_pending": self._seed_pending,
+            "spec": self.spec,
+        }
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["blueprint"], render_mode=state["render_mode"], **state["backend_options"])
+        if state["np_random_state"] is not None:
+            self._np_random = np.random.Generator(np.random.PCG64())
+            self._np_random.bit_generator.state = state["np_random_state"]
+            self._np_random_seed = state["np_random_seed"]
+        self._seed_pending = state["seed_pending"]
+        self.spec = state["spec"]
+
     # ------------------------------------------------------------ introspection
 
     @property
@@ -255,7 +290,8 @@ class GoalRobotEnv(RobotEnv):
     def _observation_space(self) -> spaces.Space:
         spec = self.blueprint.spec
         goal_low, goal_high = (np.asarray(b, np.float32) for b in spec.task.goal.box)
-        achieved_low, achieved_high = (np.asarray(b, np.float32) for b in spec.robot.ee_bounds)
+        achieved = self.blueprint.boxes.of(self.blueprint.achieved_from)
+        achieved_low, achieved_high = achieved.low.astype(np.float32), achieved.high.astype(np.float32)
         return spaces.Dict({
             "observation": self._vector_space(),
             "achieved_goal": spaces.Box(achieved_low, achieved_high, dtype=np.float32),
@@ -265,7 +301,7 @@ class GoalRobotEnv(RobotEnv):
 
     def _observe(self, state: EnvState):
         return {
-            "observation": self.observations.compute(state),
+            "observation": self._vector(state),
             "achieved_goal": self.achieved_goal(state).astype(np.float32),
             "desired_goal": self._goal.astype(np.float32),
             **self.images.capture(self.backend),

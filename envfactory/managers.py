@@ -19,11 +19,23 @@ class ObservationManager:
         self.high = np.concatenate([slot.high for slot in self.slots]).astype(np.float32)
         self._calls = [(slot.term.fn, slot.bound, slice(slot.start, slot.stop)) for slot in self.slots]
 
-    def compute(self, state: EnvState) -> np.ndarray:
+    def compute(self, state: EnvState) -> tuple[np.ndarray, list[str]]:
+        """The observation vector, held to its declared bounds, and the columns that had to be clipped
+        (a reading the derived bounds did not foresee: the env flags it in info and logs it)."""
         buffer = np.empty(self.size, dtype=np.float32)
         for fn, params, where in self._calls:
             buffer[where] = fn(state, params)
-        return buffer
+        outside = np.flatnonzero((buffer < self.low) | (buffer > self.high))
+        if outside.size == 0:
+            return buffer, []
+        names = [f"{self.column_name(int(i))}={float(buffer[i]):.4g}" for i in outside]
+        return np.clip(buffer, self.low, self.high), names
+
+    def column_name(self, index: int) -> str:
+        for slot in self.slots:
+            if slot.start <= index < slot.stop:
+                return f"{index} ({slot.name}[{index - slot.start}])"
+        raise IndexError(index)
 
     def table(self) -> list[tuple[str, str, str, str, str]]:
         rows = []

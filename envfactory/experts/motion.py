@@ -105,7 +105,7 @@ class ArmMotion:
         if layout.gripper_in_action:
             value = state.gripper if gripper is None else gripper
             wanted = np.append(wanted, value)
-        return np.clip(wanted, layout.low, layout.high).astype(np.float32)
+        return env.actions.to_policy(wanted)
 
 
 class Expert:

@@ -7,6 +7,7 @@ params model that rejects unknown or ill-typed params.
 
 from __future__ import annotations
 
+import importlib
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -32,6 +33,7 @@ class Layout:
     action_size: int
     action_low: np.ndarray
     action_high: np.ndarray
+    boxes: Any = None  # envfactory.reach.PointBoxes: where the EE and each object can be
 
 
 @dataclass(frozen=True)
@@ -45,8 +47,30 @@ def unchanged(layout: "Layout", params: Any) -> Any:
     return params
 
 
+class RegisteredTerm:
+    """A term pickles as its registered name (and the module that registers it), never as its
+    callables: sizes, bounds and descriptions are often lambdas or closures, and a copy of a
+    blueprint must use the very term the registry holds."""
+
+    kind = ""  # the table it is registered in
+
+    def __reduce__(self):
+        return registered_term, (self.kind, self.name, getattr(self.fn, "__module__", None))
+
+
+def registered_term(kind: str, name: str, module: str | None):
+    table = _TABLES[kind]
+    if name not in table and module:
+        importlib.import_module(module)  # a user's term module this process has not imported yet
+    try:
+        return table[name]
+    except KeyError:
+        raise KeyError(f"cannot unpickle {kind} term {name!r}: no module registers it here") from None
+
+
 @dataclass(frozen=True)
-class ObservationTerm:
+class ObservationTerm(RegisteredTerm):
+    kind = "observation"
     name: str
     fn: Callable  # (state, bound params) -> array of `size`
     size: Callable[[Layout, Any], int]
@@ -65,7 +89,7 @@ class ObservationTerm:
 
 
 @dataclass(frozen=True)
-class GoalTerm:
+class GoalTerm(RegisteredTerm):
     """Pure in the goals and the step's info, vectorised over a batch:
     fn(achieved, desired, info, bound params, tolerance) -> (N,), so HER can relabel it."""
 
@@ -79,6 +103,7 @@ class GoalTerm:
 
 @dataclass(frozen=True)
 class RewardTerm(GoalTerm):
+    kind = "reward"
     """A reward: fn returns (N,) floats, weighted in the task.
 
     A term that depends on the env state rather than the goals has `measure`:
@@ -90,7 +115,8 @@ class RewardTerm(GoalTerm):
 
 
 @dataclass(frozen=True)
-class ImageTerm:
+class ImageTerm(RegisteredTerm):
+    kind = "image"
     """fn(camera frame) -> array of `shape(camera)`; one Dict observation key per term."""
 
     name: str
@@ -105,6 +131,7 @@ OBSERVATIONS: dict[str, ObservationTerm] = {}
 IMAGES: dict[str, ImageTerm] = {}
 REWARDS: dict[str, RewardTerm] = {}
 TERMINATIONS: dict[str, "TerminationTerm"] = {}
+_TABLES = {"observation": OBSERVATIONS, "image": IMAGES, "reward": REWARDS, "termination": TERMINATIONS}
 
 
 def _register(table: dict, term) -> None:
@@ -139,6 +166,7 @@ def reward_term(**spec) -> Callable:
 
 @dataclass(frozen=True)
 class TerminationTerm(GoalTerm):
+    kind = "termination"
     """Ends the episode: fn returns (N,) bools; a goal env's compute_terminated stays exact
     under relabelling."""
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from envfactory.terms.library import Description, TermParams, constant_bounds, fixed, observation_term
-from envfactory.terms.observations import TWO_PI, ee_extent
+from envfactory.terms.observations import TWO_PI, box_bounds
 
 
 class ObjectParams(TermParams):
@@ -36,15 +36,23 @@ def _object_term(component: str, source: str, unit: str, bounds):
 
 
 def _relative_bounds(layout, params, size):
-    # an object and the EE both lie within the EE bounds: their offset within ± the extent
-    extent = ee_extent(layout)
-    return -extent, extent
+    # the object within its box, the EE within its own: the offset within the difference of the two
+    ee, obj = layout.boxes.ee, layout.boxes.of(params.object)
+    return obj.low - ee.high, obj.high - ee.low
 
 
-@_object_term("{Name} position", SOURCE, "m",
-              lambda layout, params, size: tuple(np.array(b, float) for b in layout.robot.ee_bounds))
+def _linear_speed_bounds(layout, params, size):
+    speed = layout.boxes.linear_speed(params.object)
+    return -speed, speed
+
+
+def _angular_speed_bounds(layout, params, size):
+    return np.full(size, -layout.boxes.angular_speed), np.full(size, layout.boxes.angular_speed)
+
+
+@_object_term("{Name} position", SOURCE, "m", lambda layout, params, size: box_bounds(layout.boxes.of(params.object)))
 def object_position(state, params):
-    """The object's position in the task frame (bounds: robot.ee_bounds)."""
+    """The object's position in the task frame (bounds: the arm's reach, the table and the floor)."""
     return state.objects[params.object].position
 
 
@@ -54,19 +62,19 @@ def object_rpy(state, params):
     return state.objects[params.object].rpy
 
 
-@_object_term("{Name} linear velocity (finite-diff)", FINITE_DIFFERENCE, "m/s", constant_bounds(-2.0, 2.0))
+@_object_term("{Name} linear velocity (finite-diff)", FINITE_DIFFERENCE, "m/s", _linear_speed_bounds)
 def object_linear_velocity(state, params):
-    """The object's linear velocity, a finite difference over the step."""
+    """The object's linear velocity, a finite difference over the step (bounds: the object box over a step)."""
     return state.objects[params.object].linear_velocity
 
 
-@_object_term("{Name} angular velocity (finite-diff)", FINITE_DIFFERENCE, "rad/s", constant_bounds(-20.0, 20.0))
+@_object_term("{Name} angular velocity (finite-diff)", FINITE_DIFFERENCE, "rad/s", _angular_speed_bounds)
 def object_angular_velocity(state, params):
-    """The object's angular velocity, a finite difference over the step."""
+    """The object's angular velocity, a finite difference over the step (bounds: a half turn over a step)."""
     return state.objects[params.object].angular_velocity
 
 
 @_object_term("{Name} position relative to EE", "{name} − ee", "m", _relative_bounds)
 def object_relative_to_ee(state, params):
-    """The object's position minus the EE's (bounds: ± the ee_bounds extent)."""
+    """The object's position minus the EE's (bounds: the object box minus the EE box)."""
     return state.objects[params.object].position - state.ee_position

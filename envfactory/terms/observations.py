@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from pydantic import ConfigDict, Field
 
+from envfactory.reach import Box
 from envfactory.terms.library import (
     Description,
     TermParams,
@@ -17,15 +18,25 @@ from envfactory.terms.library import (
 TWO_PI = 6.2832
 
 
-def ee_extent(layout) -> np.ndarray:
-    """How far apart two points within the robot's EE bounds can lie on each axis."""
-    low, high = (np.asarray(b, float) for b in layout.robot.ee_bounds)
-    return high - low
+def box_bounds(box) -> tuple[np.ndarray, np.ndarray]:
+    return box.low.copy(), box.high.copy()
+
+
+def goal_box(layout) -> Box:
+    """Where the current goal can be: the goal box, and with a lift stage the lifted spawn points."""
+    goal = layout.task.goal
+    box = Box(*(np.asarray(b, float) for b in goal.box))
+    if goal.lift is not None:
+        for obj in layout.task.objects.values():
+            spawn = np.asarray(obj.spawn.position, float) + [0.0, 0.0, goal.lift.height]
+            offset = np.array([*obj.spawn.offset, 0.0]) if obj.spawn.random else np.zeros(3)
+            box = box.union(Box(spawn - offset, spawn + offset))
+    return box
 
 
 def goal_distance_bounds(layout, params, size):
-    # the largest EE-bounds extent, as the original's UR5e figure (2.10 m) was
-    return np.zeros(size), np.full(size, float(np.max(ee_extent(layout))))
+    # no farther than the farthest two points of the two boxes
+    return np.zeros(size), np.full(size, layout.boxes.of(params.from_).farthest_from(goal_box(layout)))
 
 
 joint_state_count = size_of("one per joint_states entry", lambda layout, params: len(layout.robot.joint_states))
@@ -66,12 +77,12 @@ def _joint_units(layout, per_second: bool) -> str:
 
 @observation_term(
     size=fixed(3),
-    bounds=lambda layout, params, size: tuple(np.array(b, float) for b in layout.robot.ee_bounds),
+    bounds=lambda layout, params, size: box_bounds(layout.boxes.ee),
     describe=lambda layout, params: Description("EE position", "Pinocchio FK", "m"),
     unit="m",
 )
 def ee_position(state, params):
-    """EE position in the task frame (bounds: robot.ee_bounds)."""
+    """EE position in the task frame (bounds: robot.ee_bounds grown to the arm's reach)."""
     return state.ee_position
 
 
@@ -118,23 +129,21 @@ def goal_direction(state, params):
     unit="m",
 )
 def goal_distance(state, params):
-    """Distance from the EE or an object to the current goal (bound: the largest ee_bounds extent)."""
+    """Distance from the EE or an object to the current goal (bound: the farthest it can be from the goal box)."""
     return np.linalg.norm(state.current_goal - state.position_of(params.from_))
 
 
 @observation_term(
     size=joint_state_count,
-    bounds=lambda layout, params, size: (
-        np.array([entry.position[0] for entry in layout.robot.joint_states]),
-        np.array([entry.position[1] for entry in layout.robot.joint_states]),
-    ),
+    bounds=lambda layout, params, size: box_bounds(layout.boxes.joint_positions),
     describe=lambda layout, params: Description(
         "Current joint positions", f"{layout.robot.joint_states_topic}.position", _joint_units(layout, False)
     ),
     unit="rad or m per joint",
 )
 def joint_positions(state, params):
-    """Joint positions in /joint_states order (bounds: robot.joint_states position)."""
+    """Joint positions in /joint_states order (bounds: robot.joint_states position, widened to the URDF's
+    limits where those are wider)."""
     return state.joint_positions
 
 
@@ -151,15 +160,13 @@ def previous_action(state, params):
 
 @observation_term(
     size=joint_state_count,
-    bounds=lambda layout, params, size: (
-        np.array([entry.velocity[0] for entry in layout.robot.joint_states]),
-        np.array([entry.velocity[1] for entry in layout.robot.joint_states]),
-    ),
+    bounds=lambda layout, params, size: box_bounds(layout.boxes.joint_velocities),
     describe=lambda layout, params: Description(
         "Current joint velocities", f"{layout.robot.joint_states_topic}.velocity", _joint_units(layout, True)
     ),
     unit="rad/s or m/s per joint",
 )
 def joint_velocities(state, params):
-    """Joint velocities in /joint_states order (bounds: robot.joint_states velocity)."""
+    """Joint velocities in /joint_states order (bounds: robot.joint_states velocity, widened to the URDF's
+    velocity limits where those are wider)."""
     return state.joint_velocities

@@ -1,0 +1,78 @@
+"""Every observation lies inside its declared space, without the clipping backstop, under random and
+adversarial policies: box extremes, the arm driven down, one action repeated, and the scripted expert
+interrupted by extreme actions (which knocks and flings the cube in Push and PnP)."""
+
+import numpy as np
+import pytest
+
+from bullet_oracle import POLICIES
+from conftest import SIM_IDS
+from envfactory.experts import make_policy
+
+
+class _InterruptedExpert:
+    """The scripted expert, with one step in four replaced by a box-extreme action."""
+
+    def __init__(self, env):
+        self.expert = make_policy("scripted", env)
+
+    def __call__(self, env, rng, observation):  # the same call as the bullet_oracle policies
+        if rng.random() < 0.25:
+            return POLICIES["extremes"]()(env, rng, 0)
+        return self.expert(observation)
+
+
+def _outside(space, value) -> list[str]:
+    low, high = space.low, space.high
+    return [f"[{i}] {value[i]:.5g} not in [{low[i]:.5g}, {high[i]:.5g}]"
+            for i in np.flatnonzero((value < low) | (value > high))]
+
+
+def _check(env, observation, info, where):
+    parts = observation.items() if isinstance(observation, dict) else [("observation", observation)]
+    for key, value in parts:
+        space = env.observation_space[key] if isinstance(observation, dict) else env.observation_space
+        assert value.dtype == space.dtype and value.shape == space.shape, (where, key)
+        bad = _outside(space, value)
+        assert not bad, f"{where}: {key} leaves its declared space: {bad}"
+    assert info["observation_clipped"] == [], f"{where}: the backstop had to clip {info['observation_clipped']}"
+
+
+def drive(env, steps: int, seed: int = 0, episode_length: int = 25) -> int:
+    """Run every policy for a share of `steps`, checking each observation; the number of steps run."""
+    rng = np.random.default_rng(seed)
+    names = [*POLICIES, "expert"]
+    ran = 0
+    for index, name in enumerate(names):
+        share = steps // len(names)
+        observation, info = env.reset(seed=seed + index)
+        _check(env, observation, info, f"{name} reset")
+        policy = _InterruptedExpert(env) if name == "expert" else POLICIES[name]()
+        step = 0
+        for _ in range(share):
+            action = policy(env.unwrapped, rng, observation if name == "expert" else step)
+            observation, _, terminated, truncated, info = env.step(action)
+            ran += 1
+            step += 1
+            _check(env, observation, info, f"{name} step {step}")
+            if terminated or truncated or step == episode_length:
+                observation, info = env.reset()
+                _check(env, observation, info, f"{name} reset")
+                if name == "expert":
+                    policy = _InterruptedExpert(env)
+                step = 0
+    return ran
+
+
+@pytest.mark.parametrize("env_id", SIM_IDS)
+def test_observations_stay_inside_the_declared_space(env_id, make):
+    env = make(env_id)
+    assert drive(env, steps=150) >= 145
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("ee", [False, True], ids=["joint", "ee"])
+@pytest.mark.parametrize("env_id", SIM_IDS)
+def test_observations_stay_inside_the_declared_space_10k(env_id, ee, make):
+    env = make(env_id, ee_action_type=ee)
+    assert drive(env, steps=10_000, seed=1) >= 9_995
