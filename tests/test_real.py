@@ -171,7 +171,7 @@ def test_auto_launch_cube_tracker_is_refused_clearly(make):
 def test_ctrl_c_during_run_sends_the_stop(twin):
     stand_in = twin(task="reach")
     command = [sys.executable, "-m", "envfactory.cli.main", "run", "UR5eReacherReal-v0", "-n", "50",
-               "--policy", "scripted", "--allow-real-robot-motion", "-k", f"rosbridge_port={stand_in.port}",
+               "--policy", "random", "--allow-real-robot-motion", "-k", f"rosbridge_port={stand_in.port}",
                "-k", "action_cycle_time=0.1"]
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                                env={**os.environ, "PYTHONUNBUFFERED": "1"})
