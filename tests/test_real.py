@@ -172,7 +172,11 @@ def test_ctrl_c_during_run_sends_the_stop(twin):
     stand_in = twin(task="reach")
     command = [sys.executable, "-m", "envfactory.cli.main", "run", "UR5eReacherReal-v0", "-n", "50",
                "--policy", "random", "--allow-real-robot-motion", "-k", f"rosbridge_port={stand_in.port}",
-               "-k", "action_cycle_time=0.1"]
+               "-k", "action_cycle_time=0.1",
+               # the twin shares this busy process: generous gates keep the first episode from aborting
+               # (after an abort a random episode may end where the drive home is rightly refused)
+               "-k", "joint_state_timeout_s=3.0", "-k", "deadman_s=5.0",
+               "-o", "env.real.follow_timeout_s=3.0"]
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                                env={**os.environ, "PYTHONUNBUFFERED": "1"})
     try:
