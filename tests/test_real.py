@@ -172,9 +172,9 @@ def test_ctrl_c_during_run_sends_the_stop(twin):
     stand_in = twin(task="reach")
     command = [sys.executable, "-m", "envfactory.cli.main", "run", "UR5eReacherReal-v0", "-n", "50",
                "--policy", "random", "--allow-real-robot-motion", "-k", f"rosbridge_port={stand_in.port}",
-               "-k", "action_cycle_time=0.1",
-               # the twin shares this busy process: generous gates keep the first episode from aborting
-               # (after an abort a random episode may end where the drive home is rightly refused)
+               # the seeds' 0.5 s cycle: the first episode lasts 50 s, so the Ctrl-C lands in it (a random
+               # episode may end where the next drive home is rightly refused); the twin shares this busy
+               # process, so the staleness gates are generous
                "-k", "joint_state_timeout_s=3.0", "-k", "deadman_s=5.0",
                "-o", "env.real.follow_timeout_s=3.0"]
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
