@@ -130,12 +130,12 @@ class CollisionModel:
 
         drivers = kinematics.coordinate_drivers()
         self.coordinates = len(kinematics.robot.arm_joints) + (kinematics.robot.gripper is not None)
-        self._moving = np.array([self._is_moved(shape.joint, drivers) for shape in self.shapes])
+        moved = [self._is_moved(shape.joint, drivers) for shape in self.shapes]
         self.lever = np.array([self._lever(shape, drivers) for shape in self.shapes])  # (shapes, coordinates)
         if kinematics.robot.gripper is not None:
             self.lever[:, -1] = self._gripper_levers(drivers)
 
-        moving = np.flatnonzero(self._moving)
+        moving = np.flatnonzero(moved)
         self.scene_shape = np.repeat(moving, len(obstacles))
         self.scene_obstacle = np.tile(np.arange(len(obstacles)), len(moving))
         self.self_pairs: list[tuple[int, int, str]] = []  # (shape, shape, why a pair is skipped or "")
@@ -151,6 +151,7 @@ class CollisionModel:
         self._local_ends = np.array([[np.append(shape.capsule_start, 1.0), np.append(shape.capsule_end, 1.0)]
                                      for shape in self.shapes])
         self.radius = np.array([shape.radius for shape in self.shapes])
+        self.padding = np.array([shape.padding for shape in self.shapes])
         self._moving_shapes = moving
         self._moving_radius = self.radius[moving][:, None]
         # each capsule is also covered by a few spheres along its axis: cheap, and tight enough
@@ -170,7 +171,6 @@ class CollisionModel:
         self.geometry_data = self.geometry.createData()
         self.data = model.createData()
 
-        self.padding = np.array([shape.padding for shape in self.shapes])
 
     # ----------------------------------------------------------- structure
 
@@ -328,12 +328,9 @@ class CollisionModel:
         relative = [self._relative_lever(a, b, drivers) for a, b in checked]
         self.pair_lever = np.vstack([self.lever[self.scene_shape], *relative]) if relative \
             else self.lever[self.scene_shape]
-        self.pair_padding = np.concatenate([self.padding_of(self.scene_shape),
-                                            self.padding_of(self.self_a) + self.padding_of(self.self_b)])
+        self.pair_padding = np.concatenate([self.padding[self.scene_shape],
+                                            self.padding[self.self_a] + self.padding[self.self_b]])
         self._pin_pairs = np.concatenate([self._pin_pairs_scene, self._pin_pairs_self]).astype(int)
-
-    def padding_of(self, shapes: np.ndarray) -> np.ndarray:
-        return np.array([self.shapes[s].padding for s in shapes], dtype=float)
 
     @property
     def pair_count(self) -> int:

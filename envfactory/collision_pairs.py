@@ -173,14 +173,10 @@ def build_collision_model(kinematics: Kinematics, spec: EnvSpec, asset_root: Pat
 
 
 def collision_model_of(compiled) -> CollisionModel:
-    """A blueprint's robot collision model, built from its URDF (no physics)."""
-    from envfactory.urdf_assembly import assemble
+    """A blueprint's robot collision model, built from its URDF (no physics), as the env builds it."""
+    from envfactory.preflight import robot_geometry
 
-    spec = compiled.spec
-    robot = spec.robot
-    urdf = assemble(robot.model, compiled.asset_root, robot.name)
-    kinematics = Kinematics(urdf, robot, np.asarray(robot.mount, float) - np.asarray(robot.task_origin_world, float))
-    return build_collision_model(kinematics, spec, compiled.asset_root)
+    return robot_geometry(compiled.spec, compiled.asset_root).safety.collision
 
 
 def regenerate(compiled, samples: int = DEFAULT_SAMPLES, seed: int = 0) -> Path:
