@@ -1,0 +1,308 @@
+"""envfactory against panda-gym 3.0.7, side by side in one run.
+
+    pip install -e '.[bench]'
+    nice -n 15 python benchmarks/versus_panda_gym.py [--rounds 5] [--steps 1000] [--policy random|scripted|both]
+        [--ids ID ...] [-k name=value ...] [--markdown]
+
+Every (env, round) runs in a fresh process; the rounds interleave the envs
+(round 1 runs every env once, then round 2, ...), so a busy spell on the
+machine hits every env alike. The table shows medians over the rounds.
+
+Per env: steps/s of env.step (the policy's own time left out), the ratio to
+panda-gym's env of the same task in the same run, µs per step inside
+PyBullet's stepSimulation and outside it, substeps per step, simulated
+seconds per wall second, reset / gym.make / import times and the process's
+peak memory. Random actions are action_space.sample() at full scale; the
+scripted experts are envfactory's own and, for panda-gym, a proportional
+controller of the same stages (reach; push from behind; pick and place).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import time
+
+PANDA_TWIN = {"Reacher": "PandaReach-v3", "Push": "PandaPush-v3", "PnP": "PandaPickAndPlace-v3"}
+ENVFACTORY_IDS = ["UR5eReacherSim-v0", "UR5ePushSim-v0", "UR5ePnPSim-v0",
+                  "VX300SReacherSim-v0", "VX300SPushSim-v0", "VX300SPnPSim-v0"]
+RESULT = "RESULT "
+
+
+def panda_twin(env_id: str) -> str | None:
+    for task, twin in PANDA_TWIN.items():
+        if task in env_id and not env_id.startswith("Panda"):
+            return twin
+    return None
+
+
+# ---------------------------------------------------------------- worker (one env, one fresh process)
+
+class PhysicsClock:
+    """Times every pybullet.stepSimulation call. Both packages look the function up on the module at
+    call time (envfactory in its advance loop, panda-gym through its BulletClient), so one patch
+    measures both alike."""
+
+    def __init__(self):
+        import pybullet
+
+        self.module, self.original = pybullet, pybullet.stepSimulation
+        self.seconds, self.calls = 0.0, 0
+        clock, original = time.perf_counter, self.original
+
+        def timed(*args, **kwargs):
+            start = clock()
+            result = original(*args, **kwargs)
+            self.seconds += clock() - start
+            self.calls += 1
+            return result
+
+        pybullet.stepSimulation = timed
+
+    def read(self) -> tuple[float, int]:
+        return self.seconds, self.calls
+
+
+class PandaExpert:
+    """A proportional controller in panda-gym's EE action space (Δ of 5 cm per unit), staged as
+    envfactory's experts are: reach the goal; push the cube from behind; pick, lift and place."""
+
+    GAIN = 10.0
+
+    def __init__(self, env, task: str):
+        self.env, self.task = env.unwrapped, task
+        self.stage = 0
+
+    def reset(self) -> None:
+        self.stage = 0
+
+    def _towards(self, ee, target, gripper=None):
+        import numpy as np
+
+        move = np.clip(self.GAIN * (np.asarray(target) - ee), -1.0, 1.0)
+        return move if gripper is None else np.append(move, gripper)
+
+    def __call__(self, observation):
+        import numpy as np
+
+        ee = observation["observation"][:3]
+        goal = observation["desired_goal"]
+        if self.task == "Reacher":
+            return self._towards(ee, goal)
+        cube = observation["achieved_goal"]
+        if self.task == "Push":
+            direction = (goal - cube)[:2]
+            direction = direction / max(np.linalg.norm(direction), 1e-6)
+            behind = cube + np.append(-0.06 * direction, 0.0)
+            if self.stage == 0:
+                if np.linalg.norm(ee[:2] - behind[:2]) < 0.01:
+                    self.stage = 1
+                return self._towards(ee, behind + [0.0, 0.0, 0.03])
+            return self._towards(ee, cube + np.append(0.5 * direction * 0.05, 0.0) + (goal - cube) * 0.5)
+        # pick and place: over the cube, down, close, carry to the goal
+        width = observation["observation"][6]
+        if self.stage == 0:
+            if np.linalg.norm(ee[:2] - cube[:2]) < 0.005:
+                self.stage = 1
+            return self._towards(ee, cube + [0.0, 0.0, 0.05], 1.0)
+        if self.stage == 1:
+            if abs(ee[2] - cube[2]) < 0.005:
+                self.stage = 2
+            return self._towards(ee, cube, 1.0)
+        if self.stage == 2:
+            if width < 0.045:
+                self.stage = 3
+            return self._towards(ee, cube, -1.0)
+        return self._towards(ee, goal, -1.0)
+
+
+def _policy(env, env_id: str, kind: str, seed: int):
+    if kind == "random":
+        env.action_space.seed(seed)
+        sample = env.action_space.sample
+        return lambda observation: sample(), lambda: None
+    if env_id.startswith("Panda"):
+        task = next(t for t, twin in PANDA_TWIN.items() if twin == env_id)
+        expert = PandaExpert(env, task)
+        return expert, expert.reset
+    from envfactory.experts import make_policy
+
+    expert = make_policy("scripted", env)
+    return expert, expert.reset
+
+
+def work(env_id: str, steps: int, policy: str, seed: int, kwargs: dict) -> dict:
+    start = time.perf_counter()
+    if env_id.startswith("Panda"):
+        import panda_gym  # noqa: F401  (registers the Panda IDs)
+    else:
+        import envfactory  # noqa: F401
+    import_s = time.perf_counter() - start
+    import gymnasium as gym
+    import numpy as np
+
+    start = time.perf_counter()
+    env = gym.make(env_id, **({} if env_id.startswith("Panda") else kwargs))
+    make_s = time.perf_counter() - start
+    unwrapped = env.unwrapped
+    if env_id.startswith("Panda"):
+        cycle = unwrapped.sim.n_substeps * unwrapped.sim.timestep
+    else:
+        cycle = unwrapped.blueprint.spec.env.timing.action_cycle_time
+    resets = []
+    for i in range(20):
+        t = time.perf_counter()
+        env.reset(seed=seed * 100 + i)
+        resets.append(time.perf_counter() - t)
+
+    clock = PhysicsClock()
+    act, restart = _policy(env, env_id, policy, seed)
+    observation, _ = env.reset(seed=seed)
+    restart()
+    stepping, episodes, successes = 0.0, 0, 0
+    physics_before, calls_before = clock.read()
+    for _ in range(steps):
+        action = act(observation)
+        t = time.perf_counter()
+        observation, _, terminated, truncated, info = env.step(action)
+        stepping += time.perf_counter() - t
+        if terminated or truncated:
+            episodes += 1
+            successes += bool(info.get("is_success", False))
+            observation, _ = env.reset()  # resets are timed apart, above
+            restart()
+    physics, calls = clock.read()
+    physics, calls = physics - physics_before, calls - calls_before
+    env.close()
+    per_step = stepping / steps
+    return {
+        "id": env_id, "policy": policy, "seed": seed,
+        "steps_per_s": 1.0 / per_step,
+        "physics_us": 1e6 * physics / steps,
+        "outside_us": 1e6 * (stepping - physics) / steps,
+        "substeps": calls / steps,
+        "sim_s_per_wall_s": cycle / per_step,
+        "reset_ms": 1e3 * float(np.median(resets)),
+        "make_s": make_s,
+        "import_s": import_s,
+        "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+        "episodes": episodes, "successes": successes,
+    }
+
+
+# ---------------------------------------------------------------- orchestration
+
+def run_one(env_id: str, steps: int, policy: str, seed: int, kwargs: list[str]) -> dict:
+    command = [sys.executable, os.path.abspath(__file__), "--worker", env_id, "--steps", str(steps),
+               "--policy", policy, "--seed", str(seed), *[a for k in kwargs for a in ("-k", k)]]
+    done = subprocess.run(command, capture_output=True, text=True)
+    for line in done.stdout.splitlines():
+        if line.startswith(RESULT):
+            return json.loads(line[len(RESULT):])
+    raise RuntimeError(f"{env_id} ({policy}) failed:\n{done.stderr[-3000:]}")
+
+
+def parse_kwargs(pairs: list[str]) -> dict:
+    import yaml
+
+    out = {}
+    for pair in pairs:
+        name, _, value = pair.partition("=")
+        out[name] = yaml.safe_load(value)
+    return out
+
+
+COLUMNS = [("steps/s", "steps_per_s", "{:,.0f}"), ("÷ panda-gym", "ratio", "{:.2f}×"),
+           ("µs outside physics", "outside_us", "{:,.0f}"), ("physics µs/step", "physics_us", "{:,.0f}"),
+           ("substeps/step", "substeps", "{:.1f}"), ("sim s / wall s", "sim_s_per_wall_s", "{:,.0f}"),
+           ("reset ms", "reset_ms", "{:.2f}"), ("make s", "make_s", "{:.2f}"), ("import s", "import_s", "{:.2f}"),
+           ("peak MB", "peak_mb", "{:.0f}"), ("success", "success", "{}")]
+
+
+def table(rows: list[dict], markdown: bool) -> str:
+    head = ["env"] + [c[0] for c in COLUMNS]
+    lines = []
+    body = [[r["id"]] + [("—" if r.get(key) is None else fmt.format(r[key])) for _, key, fmt in COLUMNS]
+            for r in rows]
+    if markdown:
+        lines.append("| " + " | ".join(head) + " |")
+        lines.append("|" + "---|" * len(head))
+        lines += ["| " + " | ".join(row) + " |" for row in body]
+    else:
+        widths = [max(len(h), *(len(row[i]) for row in body)) for i, h in enumerate(head)]
+        lines.append("  ".join(h.rjust(w) for h, w in zip(head, widths)))
+        lines += ["  ".join(v.rjust(w) for v, w in zip(row, widths)) for row in body]
+    return "\n".join(lines)
+
+
+def summarise(results: list[dict], ids: list[str]) -> list[dict]:
+    rows = []
+    for env_id in ids:
+        mine = [r for r in results if r["id"] == env_id]
+        row = {"id": env_id}
+        for _, key, _ in COLUMNS:
+            if mine and key in mine[0]:
+                row[key] = statistics.median(r[key] for r in mine)
+        episodes = sum(r["episodes"] for r in mine)
+        row["success"] = f"{sum(r['successes'] for r in mine)}/{episodes}" if episodes else "—"
+        rows.append(row)
+    by_id = {row["id"]: row for row in rows}
+    for row in rows:
+        twin = by_id.get(panda_twin(row["id"]) or "")
+        row["ratio"] = None
+        if twin is not None:
+            # the ratio per round, then its median: both ran in the same round, back to back
+            ratios = [mine["steps_per_s"] / other["steps_per_s"]
+                      for mine in results if mine["id"] == row["id"]
+                      for other in results if other["id"] == twin["id"] and other["seed"] == mine["seed"]]
+            row["ratio"] = statistics.median(ratios) if ratios else None
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--rounds", type=int, default=5)
+    parser.add_argument("--steps", type=int, default=1000)
+    parser.add_argument("--policy", choices=["random", "scripted", "both"], default="random")
+    parser.add_argument("--ids", nargs="*", help="envfactory IDs (default: every Sim ID); their panda-gym twins join")
+    parser.add_argument("-k", "--kwarg", action="append", default=[], help="name=value for every envfactory env")
+    parser.add_argument("--markdown", action="store_true")
+    parser.add_argument("--json", help="write every round's raw figures here")
+    parser.add_argument("--worker", help=argparse.SUPPRESS)
+    parser.add_argument("--seed", type=int, default=0, help=argparse.SUPPRESS)
+    args = parser.parse_args()
+
+    if args.worker:
+        result = work(args.worker, args.steps, args.policy, args.seed, parse_kwargs(args.kwarg))
+        print(RESULT + json.dumps(result), flush=True)
+        return
+
+    mine = args.ids or ENVFACTORY_IDS
+    ids = mine + sorted({panda_twin(i) for i in mine if panda_twin(i)}, key=list(PANDA_TWIN.values()).index)
+    policies = ["random", "scripted"] if args.policy == "both" else [args.policy]
+    print(f"load before: {os.getloadavg()[0]:.2f}; {args.rounds} rounds x {args.steps} steps; "
+          f"kwargs: {args.kwarg or 'none'}", flush=True)
+    raw = []
+    for policy in policies:
+        results = []
+        for round_index in range(args.rounds):
+            for env_id in ids:
+                results.append(run_one(env_id, args.steps, policy, round_index, args.kwarg))
+                print(f"  round {round_index + 1} {policy:8} {env_id:22} {results[-1]['steps_per_s']:8.0f} steps/s",
+                      file=sys.stderr, flush=True)
+        raw += results
+        print(f"\n{policy} actions (medians of {args.rounds} rounds x {args.steps} steps, fresh process each):")
+        print(table(summarise(results, ids), args.markdown), flush=True)
+    print(f"load after: {os.getloadavg()[0]:.2f}")
+    if args.json:
+        with open(args.json, "w") as out:
+            json.dump(raw, out, indent=1)
+
+
+if __name__ == "__main__":
+    main()
