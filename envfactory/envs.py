@@ -75,6 +75,9 @@ class RobotEnv(gym.Env):
 
         self.backend = backend_factory(blueprint.backend)(spec, urdf, self.task_origin, render_mode,
                                                           **backend_options)
+        attach = getattr(self.backend, "attach_geometry", None)
+        if attach is not None:  # a simulator that plays motions proven clear without dynamics
+            attach(self.safety.collision)
 
     # ------------------------------------------------------------ spaces
 

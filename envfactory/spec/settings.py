@@ -140,6 +140,10 @@ class SceneSpec(Model):
 class SimSettings(Model):
     physics_hz: Positive = Field(default=240.0, le=100_000)
     solver_iterations: int = Field(default=50, ge=1, le=10_000)
+    # full: every step simulates the whole action cycle (the reference). fast: a motion proven clear
+    # of every movable object is played kinematically and a scene at rest is not stepped
+    # (envfactory/backends/pybullet/fast_physics.py); its distance to full is measured in tests/test_fidelity.py
+    fidelity: Literal["fast", "full"] = "fast"
 
 
 class Workspace(Model):

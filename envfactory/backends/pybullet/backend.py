@@ -11,6 +11,8 @@ import pybullet as p
 
 from envfactory.backends.base import BackendError, CameraFrame, JointReading, ObjectReading
 from envfactory.backends.pybullet import scene
+from envfactory.backends.pybullet.fast_physics import (FastCycles, GripperResponse, ObjectClearance, Rig,
+                                                       record_gripper_response)
 from envfactory.obstacles import scene_obstacles
 from envfactory.spec.schema import CameraSpec, EnvSpec
 
@@ -18,12 +20,16 @@ from envfactory.spec.schema import CameraSpec, EnvSpec
 # PyBullet ignores URDF <mimic> tags.
 GEAR_MAX_FORCE = 1000.0
 
+# The gripper's recorded step response, per robot and physics settings: recorded once per process.
+_GRIPPER_RESPONSES: dict[tuple, GripperResponse] = {}
+
 
 class PyBulletBackend:
     teleports_on_reset = True  # reset sets the joints directly; no path is driven
     def __init__(self, spec: EnvSpec, urdf_path: Path, task_origin_world: np.ndarray, render_mode: str | None = None):
         self.spec = spec
         self.robot = spec.robot
+        self._urdf_path = Path(urdf_path)
         self.task_origin = np.asarray(task_origin_world, float)
         self.dt = 1.0 / spec.sim.physics_hz
         self.realtime = spec.env.timing.realtime
@@ -42,6 +48,8 @@ class PyBulletBackend:
         except Exception:
             p.disconnect(self.client)
             raise
+        self._fast: FastCycles | None = None  # sim.fidelity fast, once attach_geometry gives the shapes
+        self._object_radii: dict[int, float] = {}
         self._thread = None
         if self.realtime:
             self._thread = threading.Thread(target=self._run_realtime, name="pybullet-realtime", daemon=True)
@@ -94,6 +102,31 @@ class PyBulletBackend:
         self._hold(np.asarray(self.robot.home, float), None)
         self._saved = p.saveState(physicsClientId=c)
 
+    def attach_geometry(self, collision) -> None:
+        """The safety check's collision model: with `sim.fidelity: fast` it proves motions clear of the
+        movable objects, so those cycles are played without dynamics (fast_physics.py)."""
+        if self.spec.sim.fidelity != "fast" or self.realtime:
+            return
+        rig = Rig(self.client, self.body, self._arm, np.asarray(self._velocities, float), self._gripper,
+                  list(getattr(self, "_gripper_followers", [])), self.dt)
+        response = None
+        if self._gripper is not None:
+            gripper = self.robot.gripper
+            key = (self.robot.name, str(self._urdf_path), self.dt, self.spec.sim.solver_iterations, gripper.open,
+                   gripper.closed, gripper.force, gripper.max_velocity)
+            if key not in _GRIPPER_RESPONSES:
+                _GRIPPER_RESPONSES[key] = record_gripper_response(self.client, self.body, self._gripper, gripper.open,
+                                                                  gripper.closed, self.dt, self._drive_gripper)
+                p.restoreState(self._saved, physicsClientId=self.client)
+            response = _GRIPPER_RESPONSES[key]
+        self._fast = FastCycles(rig, ObjectClearance(collision), response)
+        self._fast.reset(np.asarray(self.robot.home, float), self._gripper_reset_value(None), has_objects=False)
+
+    @property
+    def cycle_counts(self):
+        """How the fast fidelity played its cycles (None under full dynamics)."""
+        return None if self._fast is None else self._fast.counts
+
     def _gripper_reset_value(self, value: float | None) -> float | None:
         if self._gripper is None:
             return None
@@ -142,6 +175,11 @@ class PyBulletBackend:
                     raise BackendError(f"reset places {name!r}, which the task does not declare")
                 self.objects[name] = scene.add_object(c, self.spec.task.objects[name], self.task_origin + position,
                                                       quaternion)
+            # the bounding sphere of each (cubic) object, for the fast fidelity's clearance
+            self._object_radii = {body: self.spec.task.objects[name].size * np.sqrt(3) / 2
+                                  for name, body in self.objects.items()}
+            if self._fast is not None:
+                self._fast.reset(q_arm, gripper_value, has_objects=bool(self.objects))
             self._sim_time = 0.0
 
     def command_joints(self, q_arm_target, duration: float) -> None:
@@ -155,12 +193,16 @@ class PyBulletBackend:
                 speed = min(max(abs(target - now) / duration, 1e-3), fastest)
                 p.setJointMotorControl2(self.body, joint, p.POSITION_CONTROL, targetPosition=float(target),
                                         force=effort, maxVelocity=speed, physicsClientId=c)
+            if self._fast is not None:
+                self._fast.commanded_arm(q_arm_target, duration)
 
     def command_gripper(self, value: float) -> None:
         if self._gripper is None:
             raise BackendError(f"robot {self.robot.name!r} has no gripper")
         with self._lock:
             self._drive_gripper(value)
+            if self._fast is not None:
+                self._fast.commanded_gripper(value)
 
     def recover(self) -> None:
         pass  # a simulator has no faults to recover from
@@ -168,7 +210,10 @@ class PyBulletBackend:
     def stop(self) -> None:
         """Hold the arm where it is now."""
         with self._lock:
-            self._hold_arm(s[0] for s in p.getJointStates(self.body, self._arm, physicsClientId=self.client))
+            here = [s[0] for s in p.getJointStates(self.body, self._arm, physicsClientId=self.client)]
+            self._hold_arm(here)
+            if self._fast is not None:
+                self._fast.commanded_arm(here, 0.0)
 
     def advance(self, seconds: float) -> None:
         if self.realtime:
@@ -177,9 +222,12 @@ class PyBulletBackend:
         steps = max(1, round(seconds / self.dt))
         step, c = p.stepSimulation, self.client
         with self._lock:
-            for _ in range(steps):
-                step(physicsClientId=c)
-            self._sim_time += steps * self.dt
+            if self._fast is not None:
+                self._fast.play(seconds, self._object_radii)
+            else:
+                for _ in range(steps):
+                    step(physicsClientId=c)
+            self._sim_time += steps * self.dt  # the whole cycle passed, however it was played
 
     def step_physics(self, steps: int) -> None:
         """Raw stepping with nothing around it: the benchmark's yardstick."""

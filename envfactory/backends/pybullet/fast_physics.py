@@ -1,0 +1,309 @@
+"""Physics only where it matters: the `sim.fidelity: fast` stepping of an action cycle.
+
+The seeds' step is a joint target the arm reaches within `action_speed`, the
+observation read at the end of `action_cycle_time`. Out of contact the
+position motors land every joint on its target to within microradians, so
+simulating the cycle only reproduces what is known in advance. A cycle is
+therefore played one of three ways:
+
+- kinematic: the arm is set on its target and the gripper where its motor's
+  recorded response takes it in one cycle, without a substep. Only when every
+  movable object is at rest and the whole commanded motion of the arm's moving
+  shapes and the gripper is proven to stay NEAR_CONTACT away from each object's
+  bounding sphere (the lever bound of envfactory/safety.py: no point of a shape
+  moves farther than its lever arms times the joint changes);
+- at rest: nothing is commanded to change and nothing moved when the last
+  cycle ended: no substeps either;
+- dynamic: the full substeps, ended early once arm, gripper and objects are
+  at rest after the commanded motion is over. Near contact, with an object in
+  motion, or whenever a condition above is in doubt.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+import pybullet as p
+
+from envfactory.collision import CollisionModel
+
+# Closer than this to a movable object, a motion gets full dynamics. Bullet builds contact points
+# within its 2 cm breaking threshold but pushes only on a gap closed within one substep (a few mm
+# at the arm's top speed); 1 cm keeps every kinematic motion clear of that.
+NEAR_CONTACT = 0.01
+# At rest: joint speeds (rad/s, m/s for a finger), an object's linear (m/s) and angular (rad/s) speed.
+# Under gravity an unsupported body gains 9.81 m/s² × dt (0.04 m/s at 240 Hz) in one substep.
+JOINT_REST = 1e-3
+OBJECT_REST = 1e-3
+OBJECT_SPIN_REST = 1e-2
+# A joint this close to its target (rad, or m for a finger) counts as there: holding it still
+# moves it less than this in full dynamics.
+SETTLED = 1e-4
+# The at-rest test runs every this many substeps once the commanded motion is over.
+REST_CHECK_EVERY = 4
+
+
+@dataclass
+class CycleCounts:
+    """How the cycles were played: the benchmark and the fidelity test read these."""
+
+    kinematic: int = 0
+    at_rest: int = 0
+    dynamic: int = 0
+    substeps: int = 0
+
+
+class GripperResponse:
+    """The gripper motor's step response, recorded once in the simulator: how far from its target
+    the gripper is n substeps after a command from rest, in each direction. A command of size e
+    starts where the curve is e away and runs along it; position motors with a speed limit
+    respond the same way to every step of their range (speed-limited, then a common tail)."""
+
+    def __init__(self, closing: np.ndarray, opening: np.ndarray, dt: float):
+        self.curves = {1.0: closing, -1.0: opening}  # error to target per substep, decreasing
+        self.dt = dt
+
+    def advance(self, value: float, target: float, substeps: int) -> tuple[float, float] | None:
+        """Position and velocity after `substeps`, or None if the command is outside the recorded range."""
+        error = target - value
+        if abs(error) < 1e-9:
+            return target, 0.0
+        direction = float(np.sign(error))
+        curve = self.curves[direction]
+        if abs(error) > curve[0] + 1e-6:
+            return None
+        # the substep (fractional) at which the recorded response is this far from its target
+        start = float(np.interp(-abs(error), -curve, np.arange(curve.size)))
+        end = start + substeps
+        if end >= curve.size - 1:
+            return target - direction * curve[-1], 0.0
+        remaining = float(np.interp(end, np.arange(curve.size), curve))
+        speed = float(np.interp(end, np.arange(curve.size - 1) + 0.5, -np.diff(curve))) / self.dt
+        return target - direction * remaining, direction * speed
+
+
+def record_gripper_response(client: int, body: int, joint: int, open_value: float, closed_value: float,
+                            dt: float, drive, limit_s: float = 5.0) -> GripperResponse:
+    """Drive the gripper across its range both ways from rest and record the error to the target.
+    The caller restores the state afterwards."""
+    curves = []
+    for start, target in ((open_value, closed_value), (closed_value, open_value)):
+        drive(start)
+        for _ in range(int(0.5 / dt)):  # settle at the start value
+            p.stepSimulation(physicsClientId=client)
+        drive(target)
+        errors = []
+        for _ in range(int(limit_s / dt)):
+            p.stepSimulation(physicsClientId=client)
+            value, speed = p.getJointState(body, joint, physicsClientId=client)[:2]
+            errors.append(abs(target - value))
+            if abs(speed) < JOINT_REST and abs(target - value) < 1e-4:
+                break
+        full = abs(target - start)
+        curve = np.minimum.accumulate(np.array([full, *errors]))  # the curve is read as monotone
+        curves.append(curve)
+    closing_sign = np.sign(closed_value - open_value)
+    closing, opening = curves if closing_sign > 0 else curves[::-1]
+    return GripperResponse(closing, opening, dt)
+
+
+class ObjectClearance:
+    """Lower bounds on the gap between the arm's moving collision shapes and a sphere, over a motion.
+
+    The shapes are the safety check's own (the capsule fitted around each URDF collision shape,
+    and its lever arms per coordinate); this class only poses them with its own Pinocchio data."""
+
+    # the finest piece of a motion the proof looks at: finer pieces would cost more than the substeps
+    MIN_PIECE = 1.0 / 8
+
+    def __init__(self, collision: CollisionModel):
+        kinematics = collision.kinematics
+        self.kinematics = kinematics
+        self.data = kinematics.model.createData()
+        moving = np.flatnonzero(collision.lever.sum(axis=1) > 0)
+        shapes = [collision.shapes[i] for i in moving]
+        self.joints = np.array([s.joint for s in shapes])
+        self.local = np.array([[np.append(s.capsule_start, 1.0), np.append(s.capsule_end, 1.0)] for s in shapes])
+        self.radius = np.array([s.radius for s in shapes])
+        self.lever = collision.lever[moving]
+        self.arm = len(kinematics.robot.arm_joints)
+        self.base_in_world = np.asarray(kinematics.robot.mount, float)
+
+    def gaps(self, q_arm: np.ndarray, gripper: float, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
+        """(shapes, spheres) lower bounds on the gap at one pose; sphere centres in the world frame."""
+        pin.forwardKinematics(self.kinematics.model, self.data, self.kinematics.full_q(q_arm, gripper))
+        frames = np.array([self.data.oMi[int(j)].homogeneous[:3] for j in self.joints])  # (shapes, 3, 4)
+        ends = np.einsum("sij,skj->ski", frames, self.local)  # (shapes, 2, 3)
+        start, axis = ends[:, 0], ends[:, 1] - ends[:, 0]
+        points = centers - self.base_in_world  # base frame: the mount is a translation
+        offset = points[None, :, :] - start[:, None, :]  # (shapes, spheres, 3)
+        length2 = np.maximum(np.einsum("si,si->s", axis, axis), 1e-12)
+        t = np.clip(np.einsum("spi,si->sp", offset, axis) / length2[:, None], 0.0, 1.0)
+        nearest = offset - t[..., None] * axis[:, None, :]
+        return np.linalg.norm(nearest, axis=2) - self.radius[:, None] - radii[None, :]
+
+    def motion_is_clear(self, q_from, gripper_from, q_to, gripper_to, centers, radii, margin: float) -> bool:
+        """Whether every moving shape stays `margin` from every sphere while the arm moves along the
+        straight joint-space line from q_from to q_to (the motors' path: every joint lands on its
+        target at the same time) and the gripper anywhere between its two values. Pieces of the line
+        whose two end bounds cannot prove it are halved, down to MIN_PIECE."""
+        q_from, q_to = np.asarray(q_from, float), np.asarray(q_to, float)
+        arm_travel = (self.lever[:, :self.arm] @ np.abs(q_to - q_from))[:, None]
+        gripper_middle, reserve = gripper_from, np.zeros((len(self.radius), 1))
+        if self.lever.shape[1] > self.arm:
+            # every pose is judged over the gripper's whole range: its middle, less half its sweep
+            gripper_middle = (gripper_from + gripper_to) / 2
+            reserve = (self.lever[:, self.arm] * abs(gripper_to - gripper_from) / 2)[:, None]
+
+        def bound(fraction: float) -> np.ndarray:
+            return self.gaps(q_from + fraction * (q_to - q_from), gripper_middle, centers, radii) - reserve
+
+        start = bound(0.0)
+        if np.all(start - arm_travel >= margin):
+            return True
+        pieces = [(0.0, start, 1.0, bound(1.0))]
+        while pieces:
+            a, bound_a, b, bound_b = pieces.pop()
+            # a point that moved s from one end is at most travel - s from the other
+            if np.all(bound_a + bound_b - arm_travel * (b - a) >= 2 * margin):
+                continue
+            if b - a <= self.MIN_PIECE:
+                return False
+            middle = (a + b) / 2
+            bound_m = bound(middle)
+            if np.any(bound_m < margin):
+                return False
+            pieces += [(a, bound_a, middle, bound_m), (middle, bound_m, b, bound_b)]
+        return True
+
+
+@dataclass(frozen=True)
+class Rig:
+    """The PyBullet handles a cycle needs: the robot body, its arm joints in action order, the gripper
+    joint and its mimic followers (joint, gain), and the joint speed limits the motors respect."""
+
+    client: int
+    body: int
+    arm: list[int]
+    arm_speed_limits: np.ndarray
+    gripper: int | None
+    followers: list[tuple[int, float]]
+    dt: float
+
+
+class FastCycles:
+    """Plays action cycles kinematically, not at all, or dynamically (see the module docstring)."""
+
+    def __init__(self, rig: Rig, clearance: ObjectClearance, gripper: GripperResponse | None):
+        self.rig, self.clearance, self.gripper_response = rig, clearance, gripper
+        self.counts = CycleCounts()
+        self.arm_target, self.arm_duration, self.gripper_target = None, 0.0, None
+        self.objects_at_rest = False
+
+    def reset(self, arm_target, gripper_target: float | None, has_objects: bool) -> None:
+        self.arm_target = np.asarray(arm_target, float)
+        self.arm_duration = 0.0
+        self.gripper_target = gripper_target
+        # a freshly spawned object has not been seen resting yet
+        self.objects_at_rest = not has_objects
+
+    def commanded_arm(self, target, duration: float) -> None:
+        self.arm_target, self.arm_duration = np.asarray(target, float), duration
+
+    def commanded_gripper(self, value: float) -> None:
+        self.gripper_target = float(value)
+
+    # ---------------------------------------------------------------- one cycle
+
+    def play(self, seconds: float, objects: dict[int, float]) -> int:
+        """Let one cycle pass; `objects` maps each movable body to its bounding-sphere radius.
+        Returns the substeps run."""
+        substeps = max(1, round(seconds / self.rig.dt))
+        q, q_speed = self._arm_state()
+        gripper, gripper_speed = self._gripper_state()
+        arm_still = np.abs(q_speed).max() < JOINT_REST
+        if self.objects_at_rest and arm_still:
+            gripper_still = gripper is None or (abs(self.gripper_target - gripper) < SETTLED
+                                                and abs(gripper_speed) < JOINT_REST)
+            if gripper_still and np.abs(self.arm_target - q).max() < SETTLED:
+                self.counts.at_rest += 1
+                return 0
+            if self._play_kinematic(q, gripper, substeps, objects):
+                self.counts.kinematic += 1
+                return 0
+        self.counts.dynamic += 1
+        return self._play_dynamic(substeps, objects)
+
+    def _play_kinematic(self, q, gripper, substeps: int, objects) -> bool:
+        rig, arm_target = self.rig, self.arm_target
+        if self.arm_duration > 0 and np.any(np.abs(arm_target - q) / rig.arm_speed_limits > self.arm_duration):
+            return False  # a joint slower than the commanded timing: its path is the motors' to shape
+        gripper_end = gripper_speed = None
+        if gripper is not None:
+            response = self.gripper_response.advance(gripper, self.gripper_target, substeps)
+            if response is None:
+                return False
+            gripper_end, gripper_speed = response
+        if objects:
+            bodies = list(objects)
+            centers = np.array([p.getBasePositionAndOrientation(b, physicsClientId=rig.client)[0] for b in bodies])
+            radii = np.array([objects[b] for b in bodies])
+            if not self.clearance.motion_is_clear(q, 0.0 if gripper is None else gripper, arm_target,
+                                                  0.0 if gripper is None else gripper_end, centers, radii,
+                                                  NEAR_CONTACT):
+                return False
+        c, body = rig.client, rig.body
+        for joint, value in zip(rig.arm, arm_target):
+            p.resetJointState(body, joint, float(value), 0.0, physicsClientId=c)
+        if gripper is not None:
+            p.resetJointState(body, rig.gripper, gripper_end, gripper_speed, physicsClientId=c)
+            for follower, gain in rig.followers:
+                p.resetJointState(body, follower, gain * gripper_end, gain * gripper_speed, physicsClientId=c)
+        return True
+
+    def _play_dynamic(self, substeps: int, objects) -> int:
+        rig = self.rig
+        step, c = p.stepSimulation, rig.client
+        # the commanded motion is over after action_speed; the gripper may run on, the rest test sees it
+        motion = min(substeps, int(np.ceil(self.arm_duration / rig.dt)) + 1)
+        for _ in range(motion):
+            step(physicsClientId=c)
+        done = motion
+        while done < substeps:
+            chunk = min(REST_CHECK_EVERY, substeps - done)
+            for _ in range(chunk):
+                step(physicsClientId=c)
+            done += chunk
+            if self._objects_at_rest(objects) and self._robot_at_rest():
+                break  # what is left of the cycle would hold still
+        self.objects_at_rest = self._objects_at_rest(objects)
+        self.counts.substeps += done
+        return done
+
+    # ---------------------------------------------------------------- readings
+
+    def _arm_state(self) -> tuple[np.ndarray, np.ndarray]:
+        states = p.getJointStates(self.rig.body, self.rig.arm, physicsClientId=self.rig.client)
+        return np.array([s[0] for s in states]), np.array([s[1] for s in states])
+
+    def _gripper_state(self) -> tuple[float | None, float]:
+        if self.rig.gripper is None:
+            return None, 0.0
+        value, speed = p.getJointState(self.rig.body, self.rig.gripper, physicsClientId=self.rig.client)[:2]
+        return value, speed
+
+    def _robot_at_rest(self) -> bool:
+        rig = self.rig
+        joints = rig.arm + ([rig.gripper] if rig.gripper is not None else [])
+        speeds = [s[1] for s in p.getJointStates(rig.body, joints, physicsClientId=rig.client)]
+        return max(abs(v) for v in speeds) < JOINT_REST
+
+    def _objects_at_rest(self, objects) -> bool:
+        rig = self.rig
+        for body in objects:
+            linear, angular = p.getBaseVelocity(body, physicsClientId=rig.client)
+            if np.linalg.norm(linear) >= OBJECT_REST or np.linalg.norm(angular) >= OBJECT_SPIN_REST:
+                return False
+        return True
