@@ -41,7 +41,7 @@ def test_full_fidelity_is_the_reference_dynamics():
         env.close()
 
 
-def test_the_reference_replays_exactly_from_a_saved_state():
+def test_the_reference_replays_from_a_saved_state():
     """The paired measure rests on this: a cycle simulated twice from one saved state ends alike."""
     env = gym.make("UR5ePushSim-v0", physics_fidelity="full")
     try:
@@ -69,20 +69,16 @@ def test_fast_steps_match_full_dynamics_from_the_same_state(env_id):
     gaps, _ = paired_episode(env_id, "random", seed=0, steps=40)
     assert_within(gaps, f"{env_id} random")
     assert "kinematic" in gaps.kinds  # the fast path is taken, not only measured
-    expert, _ = paired_episode(env_id, "scripted", seed=0)
+    expert, success = paired_episode(env_id, "scripted", seed=0)
     assert_within(expert, f"{env_id} scripted")
     assert "dynamic" in expert.kinds or "Reacher" in env_id  # the experts touch the cube: dynamics there
+    # the expert's episode (acting on the fast outcomes) succeeds exactly when its full-dynamics run does
+    assert [success] == expert_success(env_id, "full", [0])
 
 
 @pytest.mark.parametrize("env_id", SIM_IDS)
 def test_random_trajectories_stay_within_tolerance(env_id):
     assert_within(trajectory_gaps(env_id, seed=0, steps=50), env_id)
-
-
-@pytest.mark.parametrize("env_id", SIM_IDS)
-def test_expert_success_unchanged(env_id):
-    seeds = [0, 1]
-    assert expert_success(env_id, "fast", seeds) == expert_success(env_id, "full", seeds)
 
 
 @pytest.mark.slow
@@ -93,7 +89,7 @@ def test_fidelity_over_many_episodes(env_id):
             gaps, _ = paired_episode(env_id, policy, seed=seed)
             assert_within(gaps, f"{env_id} {policy} seed {seed}")
         assert_within(trajectory_gaps(env_id, seed=seed, steps=100), f"{env_id} trajectory seed {seed}")
-    seeds = list(range(20))
+    seeds = list(range(1, 21))
     assert expert_success(env_id, "fast", seeds) == expert_success(env_id, "full", seeds)
 
 

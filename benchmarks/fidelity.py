@@ -1,0 +1,67 @@
+"""The fast fidelity against full dynamics: distributions of the gaps, per ID.
+
+    python benchmarks/fidelity.py [--episodes 5] [--ids ID ...]
+
+Per ID and policy (random actions, the scripted expert): paired steps (each cycle
+simulated in full and played fast from one saved state; see
+envfactory/backends/pybullet/fidelity_probe.py), then whole random trajectories
+fed the same actions in a fast and a full env, then the expert's success per
+seed in both. Prints median, 99th percentile and maximum of the EE, arm joint,
+gripper and object gaps, and how the fast player played the cycles.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections import Counter
+
+import numpy as np
+
+import envfactory
+from envfactory.backends.pybullet.fidelity_probe import Gaps, expert_success, paired_episode, trajectory_gaps
+
+
+def spread(values, scale: float) -> str:
+    if not values:
+        return "—"
+    values = scale * np.asarray(values)
+    return f"{np.median(values):.4f} / {np.percentile(values, 99):.4f} / {values.max():.4f}"
+
+
+def row(env_id: str, what: str, gaps: Gaps) -> str:
+    kinds = Counter(gaps.kinds)
+    total = max(1, sum(kinds.values()))
+    share = " ".join(f"{kind} {100 * kinds[kind] / total:.0f}%" for kind in ("kinematic", "at_rest", "dynamic")) \
+        if kinds else "—"
+    return (f"| {env_id} | {what} | {len(gaps.ee)} | {spread(gaps.ee, 1e3)} | {spread(gaps.joint, 1e3)} | "
+            f"{spread(gaps.object_position, 1e3)} | {spread(gaps.object_angle, 180 / np.pi)} | {share} |")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--episodes", type=int, default=5)
+    parser.add_argument("--ids", nargs="*")
+    args = parser.parse_args()
+    ids = args.ids or sorted(i for i, r in envfactory.records().items() if r.backend == "pybullet" and "Goal" not in i)
+    print("gaps to full dynamics: median / p99 / max; EE, object in mm; joints in mrad; object angle in degrees")
+    print("| ID | measure | steps | EE mm | arm joint mrad | object mm | object ° | cycles played |")
+    print("|---|---|---|---|---|---|---|---|")
+    for env_id in ids:
+        for policy in ("random", "scripted"):
+            gaps = Gaps()
+            for seed in range(args.episodes):
+                gaps.extend(paired_episode(env_id, policy, seed=seed)[0])
+            print(row(env_id, f"paired, {policy}", gaps), flush=True)
+        trajectories = Gaps()
+        for seed in range(args.episodes):
+            trajectories.extend(trajectory_gaps(env_id, seed=seed, steps=100))
+        print(row(env_id, "trajectory, random", trajectories), flush=True)
+        seeds = list(range(args.episodes * 2))
+        fast, full = expert_success(env_id, "fast", seeds), expert_success(env_id, "full", seeds)
+        changed = [s for s, a, b in zip(seeds, fast, full) if a != b]
+        print(f"| {env_id} | expert success fast / full | {len(seeds)} episodes | {sum(fast)} / {sum(full)} "
+              f"| seeds that differ: {changed or 'none'} | | | |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
