@@ -185,6 +185,9 @@ class PyBulletBackend:
     def command_joints(self, q_arm_target, duration: float) -> None:
         # The motors move at the speed that lands every joint on its target
         # after `duration`, which interpolates the motion without per-substep calls.
+        # One call per joint: setJointMotorControlArray takes no speed limit, and
+        # setJointMotorControlMultiDofArray's maxVelocities do not reach 1-DoF motors
+        # (measured: the arm then moves at its full speed).
         c = self.client
         with self._lock:
             current = [s[0] for s in p.getJointStates(self.body, self._arm, physicsClientId=c)]
