@@ -3,6 +3,7 @@
     pip install -e '.[bench]'
     nice -n 15 python benchmarks/versus_panda_gym.py [--rounds 5] [--steps 1000] [--policy random|scripted|both]
         [--ids ID ...] [-k name=value ...] [--markdown]
+    nice -n 15 python benchmarks/versus_panda_gym.py --vector 2 [--rounds 3] [--steps 300]
 
 Every (env, round) runs in a fresh process; the rounds interleave the envs
 (round 1 runs every env once, then round 2, ...), so a busy spell on the
@@ -178,6 +179,11 @@ def work(env_id: str, steps: int, policy: str, seed: int, kwargs: dict) -> dict:
             restart()
     physics, calls = clock.read()
     physics, calls = physics - physics_before, calls - calls_before
+    counts = getattr(unwrapped.backend, "cycle_counts", None) if not env_id.startswith("Panda") else None
+    played = None
+    if counts is not None:  # how the fast fidelity played the cycles (all runs, resets' included)
+        total = max(1, counts.kinematic + counts.at_rest + counts.dynamic)
+        played = "/".join(f"{100 * n / total:.0f}" for n in (counts.kinematic, counts.at_rest, counts.dynamic))
     env.close()
     per_step = stepping / steps
     return {
@@ -191,15 +197,39 @@ def work(env_id: str, steps: int, policy: str, seed: int, kwargs: dict) -> dict:
         "make_s": make_s,
         "import_s": import_s,
         "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-        "episodes": episodes, "successes": successes,
+        "episodes": episodes, "successes": successes, "played": played,
     }
+
+
+def work_vector(env_id: str, steps: int, num_envs: int, seed: int) -> dict:
+    """Env steps per second summed over `num_envs` async sub-processes (gym.make_vec), random actions."""
+    if env_id.startswith("Panda"):
+        import panda_gym  # noqa: F401
+    else:
+        import envfactory  # noqa: F401
+    import gymnasium as gym
+
+    envs = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="async")
+    try:
+        envs.reset(seed=seed)
+        envs.action_space.seed(seed)
+        for _ in range(5):  # the sub-processes warm up
+            envs.step(envs.action_space.sample())
+        start = time.perf_counter()
+        for _ in range(steps):
+            envs.step(envs.action_space.sample())
+        seconds = time.perf_counter() - start
+    finally:
+        envs.close()
+    return {"id": env_id, "num_envs": num_envs, "seed": seed, "steps_per_s": steps * num_envs / seconds}
 
 
 # ---------------------------------------------------------------- orchestration
 
-def run_one(env_id: str, steps: int, policy: str, seed: int, kwargs: list[str]) -> dict:
+def run_one(env_id: str, steps: int, policy: str, seed: int, kwargs: list[str], vector: int = 0) -> dict:
     command = [sys.executable, os.path.abspath(__file__), "--worker", env_id, "--steps", str(steps),
-               "--policy", policy, "--seed", str(seed), *[a for k in kwargs for a in ("-k", k)]]
+               "--policy", policy, "--seed", str(seed), "--vector-worker", str(vector),
+               *[a for k in kwargs for a in ("-k", k)]]
     done = subprocess.run(command, capture_output=True, text=True)
     for line in done.stdout.splitlines():
         if line.startswith(RESULT):
@@ -221,7 +251,8 @@ COLUMNS = [("steps/s", "steps_per_s", "{:,.0f}"), ("÷ panda-gym", "ratio", "{:.
            ("µs outside physics", "outside_us", "{:,.0f}"), ("physics µs/step", "physics_us", "{:,.0f}"),
            ("substeps/step", "substeps", "{:.1f}"), ("sim s / wall s", "sim_s_per_wall_s", "{:,.0f}"),
            ("reset ms", "reset_ms", "{:.2f}"), ("make s", "make_s", "{:.2f}"), ("import s", "import_s", "{:.2f}"),
-           ("peak MB", "peak_mb", "{:.0f}"), ("success", "success", "{}")]
+           ("peak MB", "peak_mb", "{:.0f}"), ("success", "success", "{}"),
+           ("cycles kinematic/at rest/dynamic %", "played", "{}")]
 
 
 def table(rows: list[dict], markdown: bool) -> str:
@@ -246,8 +277,10 @@ def summarise(results: list[dict], ids: list[str]) -> list[dict]:
         mine = [r for r in results if r["id"] == env_id]
         row = {"id": env_id}
         for _, key, _ in COLUMNS:
-            if mine and key in mine[0]:
+            if mine and isinstance(mine[0].get(key), (int, float)):
                 row[key] = statistics.median(r[key] for r in mine)
+        if mine and mine[0].get("played"):
+            row["played"] = mine[len(mine) // 2]["played"]  # one round's shares (they barely vary)
         episodes = sum(r["episodes"] for r in mine)
         row["success"] = f"{sum(r['successes'] for r in mine)}/{episodes}" if episodes else "—"
         rows.append(row)
@@ -264,6 +297,20 @@ def summarise(results: list[dict], ids: list[str]) -> list[dict]:
     return rows
 
 
+def vector_scaling(ids: list[str], args) -> None:
+    counts = sorted({1, args.vector})
+    results = [run_one(env_id, args.steps, "random", r, [], vector=n)
+               for r in range(args.rounds) for env_id in ids for n in counts]
+    print(f"\nasync vector envs, random actions: env steps/s summed over the sub-processes "
+          f"(medians of {args.rounds} rounds x {args.steps} vector steps; {os.cpu_count()} cores)")
+    print("| env | " + " | ".join(f"num_envs={n}" for n in counts) + f" | scaling {counts[-1]} ÷ 1 |")
+    print("|---|" + "---|" * (len(counts) + 1))
+    for env_id in ids:
+        rates = [statistics.median(r["steps_per_s"] for r in results if r["id"] == env_id and r["num_envs"] == n)
+                 for n in counts]
+        print(f"| {env_id} | " + " | ".join(f"{rate:,.0f}" for rate in rates) + f" | {rates[-1] / rates[0]:.2f}× |")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--rounds", type=int, default=5)
@@ -275,15 +322,24 @@ def main() -> None:
     parser.add_argument("--json", help="write every round's raw figures here")
     parser.add_argument("--worker", help=argparse.SUPPRESS)
     parser.add_argument("--seed", type=int, default=0, help=argparse.SUPPRESS)
+    parser.add_argument("--vector-worker", type=int, default=0, help=argparse.SUPPRESS)
+    parser.add_argument("--vector", type=int, default=0, metavar="N",
+                        help="instead: env steps/s of gym.make_vec(ID, num_envs=1 and N, async), random actions")
     args = parser.parse_args()
 
     if args.worker:
-        result = work(args.worker, args.steps, args.policy, args.seed, parse_kwargs(args.kwarg))
+        if args.vector_worker:
+            result = work_vector(args.worker, args.steps, args.vector_worker, args.seed)
+        else:
+            result = work(args.worker, args.steps, args.policy, args.seed, parse_kwargs(args.kwarg))
         print(RESULT + json.dumps(result), flush=True)
         return
 
     mine = args.ids or ENVFACTORY_IDS
     ids = mine + sorted({panda_twin(i) for i in mine if panda_twin(i)}, key=list(PANDA_TWIN.values()).index)
+    if args.vector:
+        vector_scaling(ids, args)
+        return
     policies = ["random", "scripted"] if args.policy == "both" else [args.policy]
     print(f"load before: {os.getloadavg()[0]:.2f}; {args.rounds} rounds x {args.steps} steps; "
           f"kwargs: {args.kwarg or 'none'}", flush=True)

@@ -128,7 +128,9 @@ class ObjectClearance:
         self.data = kinematics.model.createData()
         moving = np.flatnonzero(collision.lever.sum(axis=1) > 0)
         shapes = [collision.shapes[i] for i in moving]
-        self.joints = np.array([s.joint for s in shapes])
+        # the joints that carry shapes, each placed once per pose; shapes index into them
+        self.carriers = sorted({s.joint for s in shapes})
+        self.carrier_of = np.array([self.carriers.index(s.joint) for s in shapes])
         self.local = np.array([[np.append(s.capsule_start, 1.0), np.append(s.capsule_end, 1.0)] for s in shapes])
         self.radius = np.array([s.radius for s in shapes])
         self.lever = collision.lever[moving]
@@ -138,7 +140,8 @@ class ObjectClearance:
     def gaps(self, q_arm: np.ndarray, gripper: float, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
         """(shapes, spheres) lower bounds on the gap at one pose; sphere centres in the world frame."""
         pin.forwardKinematics(self.kinematics.model, self.data, self.kinematics.full_q(q_arm, gripper))
-        frames = np.array([self.data.oMi[int(j)].homogeneous[:3] for j in self.joints])  # (shapes, 3, 4)
+        placements = self.data.oMi
+        frames = np.array([placements[j].homogeneous[:3] for j in self.carriers])[self.carrier_of]  # (shapes, 3, 4)
         ends = np.einsum("sij,skj->ski", frames, self.local)  # (shapes, 2, 3)
         start, axis = ends[:, 0], ends[:, 1] - ends[:, 0]
         points = centers - self.base_in_world  # base frame: the mount is a translation
