@@ -107,8 +107,8 @@ class PyBulletBackend:
         movable objects, so those cycles are played without dynamics (fast_physics.py)."""
         if self.spec.sim.fidelity != "fast" or self.realtime:
             return
-        rig = Rig(self.client, self.body, self._arm, np.asarray(self._velocities, float), self._gripper,
-                  list(getattr(self, "_gripper_followers", [])), self.dt)
+        rig = Rig(self.client, self.body, self._arm, np.asarray(self._velocities, float), self._gripper, self.dt,
+                  self._set_joint_state)
         response = None
         if self._gripper is not None:
             gripper = self.robot.gripper
@@ -132,14 +132,16 @@ class PyBulletBackend:
             return None
         return self.robot.gripper.open if value is None else value
 
-    def _set_joint_state(self, q_arm: np.ndarray, gripper: float | None) -> None:
-        c = self.client
-        for joint, value in zip(self._arm, q_arm):
-            p.resetJointState(self.body, joint, float(value), 0.0, physicsClientId=c)
+    def _set_joint_state(self, q_arm: np.ndarray, gripper: float | None, gripper_speed: float = 0.0) -> None:
+        """Place the arm at rest and the gripper (with its mimic followers) at a value and speed."""
+        # one call: each resetJointState updates the whole body (~20 µs a joint, 12 joints on the UR5e)
+        joints, values, speeds = list(self._arm), [[float(value)] for value in q_arm], [[0.0]] * len(self._arm)
         if gripper is not None:
-            p.resetJointState(self.body, self._gripper, gripper, 0.0, physicsClientId=c)
-            for follower, gain in self._gripper_followers:
-                p.resetJointState(self.body, follower, gain * gripper, 0.0, physicsClientId=c)
+            for joint, gain in ((self._gripper, 1.0), *self._gripper_followers):
+                joints.append(joint)
+                values.append([gain * float(gripper)])
+                speeds.append([gain * float(gripper_speed)])
+        p.resetJointStatesMultiDof(self.body, joints, values, targetVelocities=speeds, physicsClientId=self.client)
 
     def _hold(self, q_arm, gripper: float | None) -> None:
         self._hold_arm(q_arm)
@@ -231,12 +233,6 @@ class PyBulletBackend:
                 for _ in range(steps):
                     step(physicsClientId=c)
             self._sim_time += steps * self.dt  # the whole cycle passed, however it was played
-
-    def step_physics(self, steps: int) -> None:
-        """Raw stepping with nothing around it: the benchmark's yardstick."""
-        step, c = p.stepSimulation, self.client
-        for _ in range(steps):
-            step(physicsClientId=c)
 
     def _run_realtime(self) -> None:
         next_tick = time.perf_counter()

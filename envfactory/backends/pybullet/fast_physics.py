@@ -23,6 +23,7 @@ therefore played one of three ways:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 import pinocchio as pin
@@ -188,16 +189,17 @@ class ObjectClearance:
 
 @dataclass(frozen=True)
 class Rig:
-    """The PyBullet handles a cycle needs: the robot body, its arm joints in action order, the gripper
-    joint and its mimic followers (joint, gain), and the joint speed limits the motors respect."""
+    """What a cycle needs of the backend: the robot body, its arm joints in action order, the joint
+    speed limits the motors respect, the gripper joint, and the backend's joint setter
+    (q_arm, gripper, gripper_speed), which moves the gripper's mimic followers along."""
 
     client: int
     body: int
     arm: list[int]
     arm_speed_limits: np.ndarray
     gripper: int | None
-    followers: list[tuple[int, float]]
     dt: float
+    set_joints: Callable[[np.ndarray, float | None, float], None]
 
 
 class FastCycles:
@@ -278,14 +280,7 @@ class FastCycles:
         return arm_target, gripper_end, gripper_speed
 
     def _apply(self, arm_target, gripper_end, gripper_speed) -> None:
-        rig = self.rig
-        joints, values, speeds = list(rig.arm), [[float(v)] for v in arm_target], [[0.0]] * len(rig.arm)
-        if gripper_end is not None:
-            joints += [rig.gripper, *(follower for follower, _ in rig.followers)]
-            values += [[gripper_end], *([gain * gripper_end] for _, gain in rig.followers)]
-            speeds += [[gripper_speed], *([gain * gripper_speed] for _, gain in rig.followers)]
-        # one call for every joint: single resetJointState calls cost five times as much
-        p.resetJointStatesMultiDof(rig.body, joints, values, targetVelocities=speeds, physicsClientId=rig.client)
+        self.rig.set_joints(arm_target, gripper_end, 0.0 if gripper_speed is None else gripper_speed)
 
     def _play_dynamic(self, substeps: int, objects, done: int = 0) -> int:
         rig = self.rig
