@@ -6,8 +6,10 @@
     nice -n 15 python benchmarks/versus_panda_gym.py --vector 2 [--rounds 3] [--steps 300]
 
 Every (env, round) runs in a fresh process; the rounds interleave the envs
-(round 1 runs every env once, then round 2, ...), so a busy spell on the
-machine hits every env alike. The table shows medians over the rounds.
+(round 1 runs every env once, then round 2, ...), each panda-gym env between
+the envfactory envs of its task, so a busy spell on the machine hits both
+sides of a comparison. The table shows medians over the rounds; the ratio is
+the median of the per-round ratios.
 
 Per env: steps/s of env.step (the policy's own time left out), the ratio to
 panda-gym's env of the same task in the same run, µs per step inside
@@ -336,7 +338,13 @@ def main() -> None:
         return
 
     mine = args.ids or ENVFACTORY_IDS
-    ids = mine + sorted({panda_twin(i) for i in mine if panda_twin(i)}, key=list(PANDA_TWIN.values()).index)
+    # each panda-gym env runs between the envfactory envs of its task, so a busy spell of the
+    # machine lands on a pair that is compared, not on one side of it
+    ids = []
+    for task, twin in PANDA_TWIN.items():
+        group = [i for i in mine if task in i]
+        ids += group[:1] + ([twin] if group else []) + group[1:]
+    ids += [i for i in mine if i not in ids]
     if args.vector:
         vector_scaling(ids, args)
         return
