@@ -1,6 +1,6 @@
 """The fast fidelity against full dynamics: distributions of the gaps, per ID.
 
-    python benchmarks/fidelity.py [--episodes 5] [--ids ID ...]
+    python benchmarks/fidelity.py [--episodes 5] [--ids ID ...] [-k name=value ...]
 
 Per ID and policy (random actions, the scripted expert): paired steps (each cycle
 simulated in full and played fast from one saved state; see
@@ -16,6 +16,7 @@ import argparse
 from collections import Counter
 
 import numpy as np
+import yaml
 
 import envfactory
 from envfactory.backends.pybullet.fidelity_probe import Gaps, expert_success, paired_episode, trajectory_gaps
@@ -41,23 +42,26 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--episodes", type=int, default=5)
     parser.add_argument("--ids", nargs="*")
+    parser.add_argument("-k", "--kwarg", action="append", default=[], help="name=value for every env made")
     args = parser.parse_args()
+    kwargs = {name: yaml.safe_load(value) for name, _, value in (pair.partition("=") for pair in args.kwarg)}
     ids = args.ids or sorted(i for i, r in envfactory.records().items() if r.backend == "pybullet" and "Goal" not in i)
-    print("gaps to full dynamics: median / p99 / max; EE, object in mm; joints in mrad; object angle in degrees")
+    print("gaps to full dynamics: median / p99 / max; EE, object in mm; joints in mrad; object angle in degrees; "
+          f"kwargs: {kwargs or 'none'}")
     print("| ID | measure | steps | EE mm | arm joint mrad | object mm | object ° | cycles played |")
     print("|---|---|---|---|---|---|---|---|")
     for env_id in ids:
         for policy in ("random", "scripted"):
             gaps = Gaps()
             for seed in range(args.episodes):
-                gaps.extend(paired_episode(env_id, policy, seed=seed)[0])
+                gaps.extend(paired_episode(env_id, policy, seed=seed, **kwargs)[0])
             print(row(env_id, f"paired, {policy}", gaps), flush=True)
         trajectories = Gaps()
         for seed in range(args.episodes):
-            trajectories.extend(trajectory_gaps(env_id, seed=seed, steps=100))
+            trajectories.extend(trajectory_gaps(env_id, seed=seed, steps=100, **kwargs))
         print(row(env_id, "trajectory, random", trajectories), flush=True)
         seeds = list(range(args.episodes * 2))
-        fast, full = expert_success(env_id, "fast", seeds), expert_success(env_id, "full", seeds)
+        fast, full = expert_success(env_id, "fast", seeds, **kwargs), expert_success(env_id, "full", seeds, **kwargs)
         changed = [s for s, a, b in zip(seeds, fast, full) if a != b]
         print(f"| {env_id} | expert success fast / full | {len(seeds)} episodes | {sum(fast)} / {sum(full)} "
               f"| seeds that differ: {changed or 'none'} | | | |", flush=True)
