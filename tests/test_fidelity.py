@@ -76,6 +76,13 @@ def test_fast_steps_match_full_dynamics_from_the_same_state(env_id):
     assert [success] == expert_success(env_id, "full", [0])
 
 
+def test_a_cycle_that_ends_before_the_arm_settles_stays_faithful():
+    """With action_cycle_time barely above action_speed the motors are still closing in when the
+    observation is read: the fast fidelity must not pretend the arm arrived."""
+    gaps, _ = paired_episode("VX300SPushSim-v0", "random", seed=0, steps=20, action_cycle_time=0.25)
+    assert_within(gaps, "VX300SPushSim-v0 with a 0.25 s cycle")
+
+
 @pytest.mark.parametrize("env_id", SIM_IDS)
 def test_random_trajectories_stay_within_tolerance(env_id):
     assert_within(trajectory_gaps(env_id, seed=0, steps=50), env_id)
