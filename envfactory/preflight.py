@@ -18,8 +18,9 @@ import numpy as np
 from envfactory.spec.errors import Problem, suggest
 from envfactory.spec.schema import EnvSpec
 
-# The goal box is probed at its centre and corners; at least this many must be reachable.
-MIN_REACHABLE_PROBES = 1
+# The goal box is probed at its centre and its 8 corners, and every probe must be reachable:
+# goals are drawn uniformly from the whole box, so an unreachable corner is a share of
+# episodes whose goal the arm cannot reach (the design's "goal and spawn boxes reachable").
 # Slack on the URDF's joint limits: YAML limits rounded to two decimals (1.26 for 1.2566).
 LIMIT_SLACK = 0.005
 
@@ -194,6 +195,10 @@ def _probes(low: np.ndarray, high: np.ndarray) -> list[np.ndarray]:
     return [(low + high) / 2, *corners]
 
 
+def _point(point) -> str:
+    return "[" + ", ".join(f"{float(v):g}" for v in np.round(point, 3)) + "]"
+
+
 def _reach_problems(spec: EnvSpec, geometry: RobotGeometry) -> list[tuple[str, str]]:
     kinematics, safety = geometry.kinematics, geometry.safety
     home = np.asarray(spec.robot.home, float)
@@ -207,21 +212,23 @@ def _reach_problems(spec: EnvSpec, geometry: RobotGeometry) -> list[tuple[str, s
     low, high = (np.asarray(b, float) for b in goal.box)
     probes = [np.asarray(goal.static_goal, float)] if not goal.random else _probes(low, high)
     misses = []
-    reached = 0
     for point in probes:
         solution = solve(point)
         # an EE goal is sampled only where the arm can stand clear of the table; an object
         # goal is reached by the object, the EE only needs to get there
-        if solution.success and (not ee_goal or safety.pose_is_clear(solution.q_arm)):
-            reached += 1
-        else:
-            misses.append(solution.position_error)
-    if reached < min(MIN_REACHABLE_PROBES, len(probes)):
+        if not solution.success:
+            misses.append((point, f"IK misses by {solution.position_error:.3f} m"))
+        elif ee_goal and not safety.pose_is_clear(solution.q_arm):
+            misses.append((point, "the pose there comes too near the table or the arm itself"))
+    if misses:
         where = "task.goal.static" if not goal.random and goal.static is not None else "task.goal.box"
-        problems.append((where, f"the arm reaches none of the {len(probes)} probe points of the goal "
-                                f"{'box (centre and corners)' if goal.random else ''} (closest IK miss "
-                                f"{min(misses):.3f} m{', or the pose comes too near the table' if ee_goal else ''}); "
-                                f"valid: a goal within reach of robot {spec.robot.name!r}"))
+        listed = "; ".join(f"{_point(point)} ({why})" for point, why in misses[:4])
+        more = f"; and {len(misses) - 4} more" if len(misses) > 4 else ""
+        what = (f"{len(misses)} of the {len(probes)} probe points of the goal box (centre and corners)"
+                if goal.random else "the static goal")
+        problems.append((where, f"the arm cannot reach {what}: {listed}{more}; valid: a goal "
+                                f"{'box whose every point is ' if goal.random else ''}within reach of robot "
+                                f"{spec.robot.name!r}"))
     for name, obj in spec.task.objects.items():
         position = np.asarray(obj.spawn.position, float)
         solution = solve(position)
