@@ -39,10 +39,11 @@ def robot_geometry(spec: EnvSpec, asset_root: Path) -> RobotGeometry:
     from envfactory.safety import SafetyCheck
     from envfactory.urdf_assembly import assemble
 
+    from envfactory.frames import TaskFrame
+
     robot = spec.robot
-    task_origin = np.asarray(robot.task_origin_world, float)
     urdf = assemble(robot.model, asset_root, robot.name)
-    kinematics = Kinematics(urdf, robot, np.asarray(robot.mount, float) - task_origin)
+    kinematics = Kinematics(urdf, robot, TaskFrame.of(robot))
     collision = build_collision_model(kinematics, spec, asset_root)
     return RobotGeometry(urdf, kinematics, SafetyCheck(collision, spec.env.safety))
 
@@ -122,7 +123,7 @@ def _check_by_key(key, carrier: _Carrier) -> tuple[tuple[str, str], ...]:
 
 # The robot fields the kinematics and the collision model are built from; the others (home,
 # bounds, topics, labels) leave a shared geometry valid.
-GEOMETRY_FIELDS = {"name", "model", "mount", "pedestal", "task_frame", "arm_joints", "ee_frame", "gripper", "safety"}
+GEOMETRY_FIELDS = {"name", "model", "mount", "mount_rpy", "pedestal", "task_frame", "arm_joints", "ee_frame", "gripper", "safety"}
 
 
 @functools.lru_cache(maxsize=8)

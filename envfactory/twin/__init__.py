@@ -16,6 +16,7 @@ import time
 import numpy as np
 
 from envfactory.backends.rosbridge import messages
+from envfactory.frames import TaskFrame
 from envfactory.twin.server import Faults, Node, Received, RosbridgeServer
 
 __all__ = ["Faults", "Received", "Twin"]
@@ -58,7 +59,7 @@ class Twin:
         if self.ros is None:
             raise ValueError(f"robot {robot!r} declares no 'ros:' topic map")
         self.sim = PyBulletBackend(spec, assemble(spec.robot.model, blueprint.asset_root, spec.robot.name),
-                                   np.asarray(spec.robot.task_origin_world, float))
+                                   TaskFrame.of(spec.robot))
         spawn = {name: (np.asarray(obj.spawn.position, float), np.array([0.0, 0.0, 0.0, 1.0]))
                  for name, obj in spec.task.objects.items()}
         self.sim.reset(np.asarray(spec.robot.home, float), spec.gripper_at_reset, spawn)

@@ -57,7 +57,7 @@ def require_motion_gate(flag: bool, what: str) -> None:
 class RosbridgeBackend:
     teleports_on_reset = False  # the arm drives home
 
-    def __init__(self, spec: EnvSpec, urdf_path: Path, task_origin_world: np.ndarray, render_mode: str | None = None):
+    def __init__(self, spec: EnvSpec, urdf_path: Path, task_frame, render_mode: str | None = None):
         robot, real = spec.robot, spec.env.real
         self.spec, self.real = spec, real
         if robot.ros is None:
