@@ -158,7 +158,7 @@ class Twin:
             position = position.copy()
             position[-1] = float("nan")  # a driver glitch; the server sends it as null
         await self.server.publish(topic, messages.encode_joint_state(self.state_names, position, velocity,
-                                                                     time.time()))
+                                                                     time.time(), self.ros.joint_states.template))
 
     async def _publish_poses(self) -> None:
         for name, topic_spec in self.ros.object_poses.items():
@@ -169,7 +169,8 @@ class Twin:
             reading = self.sim.read_object(name)
             quaternion = reading.quaternion * (3.0 if self.faults.take_malformed(topic_spec.topic) else 1.0)
             await self.server.publish(topic_spec.topic, messages.encode_pose(self.ros.task_frame_id, reading.position,
-                                                                             quaternion, time.time()))
+                                                                             quaternion, time.time(),
+                                                                             topic_spec.template))
 
     # ------------------------------------------------------------------ what it executes
 
