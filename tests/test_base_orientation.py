@@ -9,6 +9,7 @@ below are written out with numpy, never with envfactory's frame code.
 from __future__ import annotations
 
 import numpy as np
+import pinocchio as pin
 import pybullet as p
 import pytest
 
@@ -71,8 +72,6 @@ def test_every_link_and_the_ee_sit_where_pybullet_puts_them(turned):
         q = rng.uniform(kin.arm_lower, kin.arm_upper)
         backend._set_joint_state(q, None)
         pin_data = model.createData()
-        import pinocchio as pin
-
         pin.framesForwardKinematics(model, pin_data, kin.full_q(q, backend.robot.gripper.open))
         for name in shared:
             state = p.getLinkState(backend.body, links[name], computeForwardKinematics=1,
