@@ -96,7 +96,12 @@ def recall(family_path: Path, known: dict | None = None, stats: list | None = No
 
 
 def remember(family_path: Path, valid: bool, problem: dict | None = None) -> None:
-    """Record a verdict; a config folder that cannot be written only loses the memory."""
+    """Record a verdict; a config folder that cannot be written only loses the memory. The built-in
+    families need none: import never consults it for them."""
+    from envfactory.registry import builtin_root, folder_of
+
+    if folder_of(family_path).resolve() == builtin_root().resolve():
+        return
     current = signature(family_path)
     if current is None:
         return

@@ -193,3 +193,16 @@ def test_a_tilted_base_task_frame_is_refused_with_the_line(overrides, words):
 def test_a_tilted_base_on_a_pedestal_is_refused():
     with pytest.raises(SpecError, match="cannot stand on a pedestal"):
         envfactory.blueprint("UR5eReacherSim-v0", ["+robot.mount_rpy=[0.0,0.2,0.0]"])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("policy", ["random", "down", "extremes", "repeated"])
+@pytest.mark.parametrize("name", sorted(TURNED))
+def test_many_steps_keep_the_margin_by_pybullet(name, policy):
+    env = RobotEnv(envfactory.blueprint(*TURNED[name]))
+    try:
+        result = judge_steps(env, policy, 400, seed=7)
+        print(name, policy, {k: v for k, v in result.items() if k != "violations"})
+        assert result["violations"] == [], result["violations"][:3]
+    finally:
+        env.close()
