@@ -167,3 +167,24 @@ def test_a_stop_is_told_from_a_command_and_a_malformed_command_is_named():
     group = ArmCommand(topic="/a", type="t", encoding="joint_group")
     with pytest.raises(messages.MalformedMessage, match="group command for 'gripper', expected 'arm'"):
         messages.decode_arm(group, JOINTS, {"name": "gripper", "cmd": [0, 0, 0]}, 0.4)
+
+
+def test_a_broken_shipped_library_names_its_file_line_and_path(tmp_path, monkeypatch):
+    from envfactory.spec import messages as templates
+    from envfactory.spec.errors import SpecError
+
+    library = tmp_path / "_messages.yaml"
+    library.write_text("good:\n  message: {data: $value}\nbad:\n  type: std_msgs/Float64\n"
+                       "  message:\n    data: $valeu\n")
+    monkeypatch.setattr(templates, "_library_path", lambda: library)
+    templates.library.cache_clear()
+    try:
+        with pytest.raises(SpecError) as error:
+            templates.library()
+        assert f"{library}:6: bad.message.data: unknown placeholder '$valeu' (did you mean '$value'?)" \
+            in str(error.value)
+        # a robot naming any shipped template then says the library is broken, and where
+        with pytest.raises(ValueError, match=r"the shipped templates are broken: .*_messages.yaml:6"):
+            GripperCommand(topic="/g", type="std_msgs/Float64", encoding="good")
+    finally:
+        templates.library.cache_clear()

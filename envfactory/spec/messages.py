@@ -162,7 +162,8 @@ def checked(encoding: "str | dict", role: str) -> MessageTemplate:
         raise located("encoding", str(exc.args[0]) + " (or write the template in place: "
                                                      "{type: ..., message: {...}})") from None
     except SpecError as exc:
-        raise located("encoding", f"the shipped templates are broken: {exc}") from None
+        raise located("encoding", "the shipped templates are broken: "
+                                  + "; ".join(str(problem) for problem in exc.problems)) from None
     except ValidationError as exc:
         error = sorted(exc.errors(), key=lambda e: e["type"] != "extra_forbidden")[0]  # a typo explains a missing key
         below, message = split_located(error["msg"].removeprefix("Value error, "))
