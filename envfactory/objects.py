@@ -25,9 +25,8 @@ class ObjectSpawner:
     def __init__(self, objects: dict[str, ObjectSpec], table: TableSpec, frame: TaskFrame):
         self.objects = objects
         self.frame = frame
-        # a task frame turned about z is kept on the table in the world, where the table is a box
-        self._world = table_bounds_xy(table, TaskFrame(np.zeros(3))) if frame.rotated else None
-        self.table_min, self.table_max = self._world or table_bounds_xy(table, frame)
+        # in a task frame turned about z, spawns are kept on the table in the world, where it is a box
+        self.table_min, self.table_max = table_bounds_xy(table, TaskFrame(np.zeros(3)) if frame.rotated else frame)
 
     def sample(self, rng: np.random.Generator) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         poses = {}
@@ -37,7 +36,7 @@ class ObjectSpawner:
                 offset = np.asarray(spec.spawn.offset)
                 position[:2] += rng.uniform(-offset, offset)
                 half = spec.size / 2
-                if self._world is None:
+                if not self.frame.rotated:
                     position[:2] = np.clip(position[:2], self.table_min + half, self.table_max - half)
                 else:  # the cube's footprint, turned with the frame, stays inside the table
                     world = self.frame.to_world(position)
