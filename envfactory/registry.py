@@ -175,8 +175,15 @@ def check_family(records: list[IdRecord], whole: bool = True) -> None:
         verdicts.remember(records[0].family.path, True)
 
 
+# Problems a command fixes without editing the family: its IDs must stay registered for that
+# command (`envfactory collision-pairs ROBOT` finds the robot through them).
+_FIXED_BY_COMMAND = {"robot.safety.collision_pairs"}
+
+
 def _remember_failure(record: IdRecord, error: SpecError) -> None:
     if record.source == BUILTIN_SOURCE or not error.problems:
+        return
+    if all(problem.path in _FIXED_BY_COMMAND for problem in error.problems):
         return
     # the family's own line first: that is where the user looks
     own = [p for p in error.problems if p.file and Path(p.file).resolve() == record.family.path.resolve()]
