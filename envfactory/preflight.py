@@ -232,9 +232,15 @@ def _reach_problems(spec: EnvSpec, geometry: RobotGeometry) -> list[tuple[str, s
                                 f"{spec.robot.name!r}"))
     for name, obj in spec.task.objects.items():
         position = np.asarray(obj.spawn.position, float)
-        solution = solve(position)
-        if not solution.success:
+        # a random spawn is drawn from position ± offset in x and y: its corners are probed too
+        offset = np.array([*obj.spawn.offset, 0.0]) if obj.spawn.random else np.zeros(3)
+        spots = [position] + ([position + offset * [sx, sy, 0.0] for sx in (-1, 1) for sy in (-1, 1)]
+                              if np.any(offset) else [])
+        missed = [(spot, solution.position_error) for spot in spots if not (solution := solve(spot)).success]
+        if missed:
+            spot, error = missed[0]
+            what = "its spawn point" if spot is position else "a corner of its spawn box (position ± offset)"
             problems.append((f"task.objects.{name}.spawn.position",
-                             f"the arm cannot reach {name} at its spawn point {list(np.round(position, 3))} "
-                             f"(IK misses by {solution.position_error:.3f} m)"))
+                             f"the arm cannot reach {name} at {what} {_point(spot)} (IK misses by {error:.3f} m"
+                             f"{f'; {len(missed)} of {len(spots)} spawn probes missed' if len(missed) > 1 else ''})"))
     return problems
