@@ -198,7 +198,8 @@ def _remembered_problem(path: Path, known: dict, stats) -> SpecError | None:
     if remembered is None or remembered[0]:
         return None
     problem = remembered[1]
-    message = f"{problem.get('message', 'invalid')} (found by an earlier validate or make; fix it to register the file)"
+    message = (f"{problem.get('message', 'invalid')} (found by an earlier validate or make; it registers again once "
+               f"its folder changes or `envfactory validate {path}` passes)")
     return SpecError([Problem(str(problem.get("path") or ""), message, problem.get("file") or str(path),
                               problem.get("line"))], path.stem)
 
