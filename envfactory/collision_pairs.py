@@ -29,9 +29,10 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 import yaml
 
-from envfactory.collision import CollisionModel
+from envfactory.collision import CollisionModel, _capsule_of
 from envfactory.kinematics import Kinematics
 from envfactory.obstacles import scene_obstacles
 from envfactory.safety import SafetyCheck
@@ -53,14 +54,26 @@ def fingerprint(collision: CollisionModel, margin: float) -> str:
     kin = collision.kinematics
     model = kin.model
     digest = hashlib.sha256()
-    rounded = lambda values: [round(float(v), 6) for v in np.ravel(values)]  # noqa: E731
+    # + 0.0: a -0.0 (a turned and unturned zero) digests as 0.0
+    rounded = lambda values: [round(float(v), 6) + 0.0 for v in np.ravel(values)]  # noqa: E731
+    # the self pairs do not depend on how the base is turned (mount_rpy): digest what hangs on
+    # the universe as the URDF places it, so one list serves the robot however it is mounted
+    unturn = pin.SE3(kin.base_rotation, np.zeros(3)).inverse()
     for shape, geometry_object in zip(collision.shapes, collision.geometry.geometryObjects):
-        digest.update(json.dumps([shape.name, shape.link, model.names[shape.joint], rounded(shape.capsule_start),
-                                  rounded(shape.capsule_end), round(shape.radius, 6),
-                                  rounded(geometry_object.placement.homogeneous)]).encode())
+        placement, (start, end, radius) = geometry_object.placement, (shape.capsule_start, shape.capsule_end,
+                                                                      shape.radius)
+        if shape.joint == 0:  # a base shape's capsule is fitted anew as the URDF places it
+            placement = unturn * placement
+            start, end, radius = _capsule_of(pin.GeometryObject(geometry_object.name, 0, geometry_object.parentFrame,
+                                                                placement, geometry_object.geometry))
+            radius += shape.padding
+        digest.update(json.dumps([shape.name, shape.link, model.names[shape.joint], rounded(start),
+                                  rounded(end), round(radius, 6), rounded(placement.homogeneous)]).encode())
     for joint in range(1, model.njoints):
+        placement = model.jointPlacements[joint]
+        placement = unturn * placement if model.parents[joint] == 0 else placement
         digest.update(json.dumps([model.names[joint], model.joints[joint].shortname(),
-                                  rounded(model.jointPlacements[joint].homogeneous)]).encode())
+                                  rounded(placement.homogeneous)]).encode())
     robot = kin.robot
     digest.update(json.dumps([[j.name, j.lower, j.upper] for j in robot.arm_joints]).encode())
     if robot.gripper is not None:
@@ -206,7 +219,7 @@ def regenerate(compiled, samples: int = DEFAULT_SAMPLES, seed: int = 0) -> Path:
         raise ValueError(f"robot {spec.robot.name!r} names no safety.collision_pairs file to write")
     robot = spec.robot
     urdf = assemble(robot.model, compiled.asset_root, robot.name)
-    kinematics = Kinematics(urdf, robot, np.zeros(3))
+    kinematics = Kinematics(urdf, robot)
     collision = CollisionModel(kinematics, scene_obstacles(spec), dict(robot.safety.padding))
     write_pairs(path, robot.name, sample_pairs(collision, spec.env.safety.surface_margin, samples, seed))
     return path
