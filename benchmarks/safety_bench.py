@@ -6,6 +6,9 @@ Times `SafetyCheck.check` inside real env steps (full-scale random actions from
 the action space), and reports the median and 90th percentile, the poses it
 measured per check, the share of actions it refused, and, from the same run,
 the median env.step time and the check's share of it, so machine load shows.
+Wall-clock medians are joined by CPU-time medians (the check's own thread):
+on a shared machine the two part ways, and the CPU time is the check's cost.
+The pooled median is over every timed check of every ID and mode.
 """
 
 from __future__ import annotations
@@ -26,7 +29,7 @@ def measure(env_id: str, ee: bool, steps: int) -> dict:
 
     env = gym.make(env_id, ee_action_type=ee).unwrapped
     safety = env.safety
-    times, poses = [], [0]
+    times, cpu_times, poses = [], [], [0]
     check, anchor = safety.check, safety._anchor
 
     def counted_anchor(*args):
@@ -34,9 +37,10 @@ def measure(env_id: str, ee: bool, steps: int) -> dict:
         return anchor(*args)
 
     def timed_check(*args):
-        start = time.perf_counter()
+        start, cpu_start = time.perf_counter(), time.thread_time()
         verdict = check(*args)
         times.append(time.perf_counter() - start)
+        cpu_times.append(time.thread_time() - cpu_start)
         return verdict
 
     safety.check, safety._anchor = timed_check, counted_anchor
@@ -52,8 +56,9 @@ def measure(env_id: str, ee: bool, steps: int) -> dict:
         if terminated or truncated or step % 50 == 49:
             env.reset()
     env.close()
-    micro = np.array(times) * 1e6
-    return {"median": np.median(micro), "p90": np.percentile(micro, 90), "poses": poses[0] / max(len(times), 1),
+    micro, cpu = np.array(times) * 1e6, np.array(cpu_times) * 1e6
+    return {"median": np.median(micro), "p90": np.percentile(micro, 90), "cpu": np.median(cpu), "all_cpu": cpu,
+            "all": micro, "poses": poses[0] / max(len(times), 1),
             "refused": refused / steps, "checks": len(times), "step": np.median(step_times) * 1e6}
 
 
@@ -62,16 +67,19 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=1000)
     parser.add_argument("--ids", nargs="*", default=SIM_IDS)
     args = parser.parse_args()
-    print(f"{'ID':<22} {'mode':<6} {'median µs':>10} {'p90 µs':>8} {'poses/check':>12} {'refused':>8} "
-          f"{'step µs':>8} {'share':>6}")
-    medians = []
+    print(f"{'ID':<22} {'mode':<6} {'median µs':>10} {'p90 µs':>8} {'CPU µs':>7} {'poses/check':>12} "
+          f"{'refused':>8} {'step µs':>8} {'share':>6}")
+    pooled, pooled_cpu = [], []
     for env_id in args.ids:
         for ee in (False, True):
             r = measure(env_id, ee, args.steps)
-            medians.append(r["median"])
-            print(f"{env_id:<22} {'EE' if ee else 'joint':<6} {r['median']:>10.0f} {r['p90']:>8.0f} "
-                  f"{r['poses']:>12.2f} {r['refused']:>8.1%} {r['step']:>8.0f} {r['median'] / r['step']:>6.1%}")
-    print(f"median of medians: {np.median(medians):.0f} µs")
+            pooled.append(r["all"])
+            pooled_cpu.append(r["all_cpu"])
+            print(f"{env_id:<22} {'EE' if ee else 'joint':<6} {r['median']:>10.0f} {r['p90']:>8.0f} {r['cpu']:>7.0f} "
+                  f"{r['poses']:>12.2f} {r['refused']:>8.1%} {r['step']:>8.0f} {r['median'] / r['step']:>6.1%}",
+                  flush=True)
+    print(f"pooled median: {np.median(np.concatenate(pooled)):.0f} µs wall, "
+          f"{np.median(np.concatenate(pooled_cpu)):.0f} µs CPU")
 
 
 if __name__ == "__main__":

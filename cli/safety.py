@@ -16,16 +16,47 @@ def _robot_blueprint(name: str):
 
     ids = sorted(envfactory.records())
     if name in ids:
-        return envfactory.blueprint(name)
+        try:
+            return envfactory.blueprint(name)
+        except SpecError as exc:
+            return _only_pairs_stale(name, exc) or _fail(str(exc))
     for env_id in ids:
         try:
             compiled = envfactory.blueprint(env_id)
-        except SpecError:
-            continue
-        if compiled.spec.robot.name == name and compiled.backend == "pybullet":
+        except SpecError as exc:
+            compiled = _only_pairs_stale(env_id, exc)
+            if compiled is None:
+                continue
+        if compiled.spec.robot.name == name and envfactory.records()[env_id].backend == "pybullet":
             return compiled
-    robots = sorted({envfactory.blueprint(i).spec.robot.name for i in ids})
+    robots = sorted({compiled.spec.robot.name for i in ids if (compiled := _loaded(i)) is not None})
     _fail(f"no robot or ID named {name!r} (robots: {', '.join(robots)})")
+
+
+class _Unchecked:
+    """What `collision-pairs` needs of an ID whose only fault is the pair list it is about to rewrite."""
+
+    def __init__(self, spec, asset_root: Path):
+        self.spec, self.asset_root = spec, asset_root
+
+
+def _loaded(env_id: str):
+    from envfactory.registry import load_env_spec, record
+    from envfactory.spec.errors import SpecError
+
+    entry = record(env_id)
+    try:
+        loaded = load_env_spec(entry.family, (), dict(entry.kwargs), {}, env_id=env_id)
+    except SpecError:
+        return None
+    return _Unchecked(loaded.spec, loaded.file_of("robot.model").parent)
+
+
+def _only_pairs_stale(env_id: str, error):
+    """A stale or missing pair list must not stop the command that writes it."""
+    if not all(problem.path == "robot.safety.collision_pairs" for problem in error.problems):
+        return None
+    return _loaded(env_id)
 
 
 @command("collision-pairs")

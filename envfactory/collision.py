@@ -3,8 +3,9 @@
 Every link's collision shapes come from the URDF through Pinocchio's
 GeometryModel (meshes as their convex hulls) and coal measures exact
 distances. Each shape is also wrapped in a capsule fitted around it: capsules
-give lower bounds on every distance for the price of one vectorised pass,
-and coal runs only for the pairs those bounds leave undecided.
+give lower bounds on every distance for the price of one compiled pass
+(capsule_kernel), and coal runs only for the pairs those bounds leave
+undecided.
 
 Distances here are clearances: the exact gap minus the links' padding, in
 metres, negative when shapes overlap. They are in the robot base frame.
@@ -18,13 +19,14 @@ import coal
 import numpy as np
 import pinocchio as pin
 
+from envfactory import capsule_kernel
 from envfactory.kinematics import Kinematics
 from envfactory.obstacles import Obstacle
 
 
 @dataclass(frozen=True)
 class Shape:
-    """One collision shape of the robot, with the capsule that encloses it (parent joint frame)."""
+    """One collision shape of the robot, with the capsule and the box that enclose it (parent joint frame)."""
 
     name: str
     link: str
@@ -33,6 +35,7 @@ class Shape:
     capsule_end: np.ndarray
     radius: float  # capsule radius, padding included
     padding: float
+    corners: np.ndarray  # (8, 3) of a box around the shape: flat links (fingers, pads) fit a box far better
 
 
 _AXES = {"X": np.array([1.0, 0.0, 0.0]), "Y": np.array([0.0, 1.0, 0.0]), "Z": np.array([0.0, 0.0, 1.0])}
@@ -82,6 +85,33 @@ def fit_capsule(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     return center + axis * low, center + axis * high, radius
 
 
+def fit_box(points: np.ndarray) -> np.ndarray:
+    """The 8 corners of a box containing every point, aligned with their principal directions."""
+    center = points.mean(axis=0)
+    axes = np.linalg.svd(points - center, full_matrices=False)[2]
+    along = (points - center) @ axes.T
+    low, high = along.min(axis=0), along.max(axis=0)
+    signs = np.array([[sx, sy, sz] for sx in (0, 1) for sy in (0, 1) for sz in (0, 1)])
+    return center + (low + signs * (high - low)) @ axes
+
+
+def _box_of(geometry_object) -> np.ndarray:
+    geometry, placement = geometry_object.geometry, geometry_object.placement
+    if isinstance(geometry, (coal.Cylinder, coal.Capsule, coal.Sphere)):
+        radius = float(geometry.radius)
+        half = radius + (float(geometry.halfLength) if isinstance(geometry, coal.Capsule) else 0.0)
+        half = float(geometry.halfLength) if isinstance(geometry, coal.Cylinder) else half
+        if isinstance(geometry, coal.Sphere):
+            half = radius
+        local = np.array([[sx * radius, sy * radius, sz * half] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+    else:
+        local = _shape_points(geometry)
+    corners = fit_box(local @ placement.rotation.T + placement.translation)
+    # rounding must not shrink it: push each corner out from the centre by a nanometre
+    middle = corners.mean(axis=0)
+    return corners + np.sign(corners - middle) * 1e-9
+
+
 def _capsule_of(geometry_object) -> tuple[np.ndarray, np.ndarray, float]:
     geometry, placement = geometry_object.geometry, geometry_object.placement
     if isinstance(geometry, (coal.Cylinder, coal.Capsule)):
@@ -114,14 +144,14 @@ class CollisionModel:
             start, end, radius = _capsule_of(geometry_object)
             pad = float(padding.get(link, 0.0))
             self.shapes.append(Shape(geometry_object.name, link, int(geometry_object.parentJoint), start, end,
-                                     radius + pad, pad))
+                                     radius + pad, pad, _box_of(geometry_object)))
         self.links = sorted({shape.link for shape in self.shapes})
 
         # the obstacles, in the robot base frame, join the geometry model on the universe joint
         self.obstacles = obstacles
         base_in_world = np.asarray(kinematics.robot.mount, float)
-        self.obstacle_low = np.array([o.low for o in obstacles]) - base_in_world
-        self.obstacle_high = np.array([o.high for o in obstacles]) - base_in_world
+        self.obstacle_low = np.array([o.low for o in obstacles], float).reshape(-1, 3) - base_in_world
+        self.obstacle_high = np.array([o.high for o in obstacles], float).reshape(-1, 3) - base_in_world
         first_obstacle = len(self.shapes)
         for obstacle, low, high in zip(obstacles, self.obstacle_low, self.obstacle_high):
             box = coal.Box(*(high - low))
@@ -144,29 +174,17 @@ class CollisionModel:
                 self.self_pairs.append((a, b, self._structural_exemption(a, b, drivers)))
         self._pin_pairs_scene = np.array([self._add_pair(s, first_obstacle + o)
                                           for s, o in zip(self.scene_shape, self.scene_obstacle)], dtype=int)
-        # capsules are moved in one batch per pose: the joints that carry shapes, in order
-        self._carriers = sorted({shape.joint for shape in self.shapes})
-        carrier_row = {joint: row for row, joint in enumerate(self._carriers)}
-        self._shape_carrier = np.array([carrier_row[shape.joint] for shape in self.shapes])
-        self._local_ends = np.array([[np.append(shape.capsule_start, 1.0), np.append(shape.capsule_end, 1.0)]
-                                     for shape in self.shapes])
         self.radius = np.array([shape.radius for shape in self.shapes])
         self.padding = np.array([shape.padding for shape in self.shapes])
         self._moving_shapes = moving
-        self._moving_radius = self.radius[moving][:, None]
-        # each capsule is also covered by a few spheres along its axis: cheap, and tight enough
-        # that coal is rarely needed between the arm's own links
-        self._sphere_shape, self._sphere_fraction, self._sphere_radius = [], [], []
-        for index, shape in enumerate(self.shapes):
-            length = float(np.linalg.norm(shape.capsule_end - shape.capsule_start))
-            count = int(min(self.SPHERES_PER_CAPSULE, max(1, np.ceil(length / (2 * shape.radius)))))
-            for k in range(count):
-                self._sphere_shape.append(index)
-                self._sphere_fraction.append((k + 0.5) / count)
-                self._sphere_radius.append(shape.radius + length / (2 * count))
-        self._sphere_shape = np.array(self._sphere_shape)
-        self._sphere_fraction = np.array(self._sphere_fraction)[:, None]
-        self._sphere_radius = np.array(self._sphere_radius)
+        # what the compiled bounds need, as flat arrays
+        self._joints = capsule_kernel.JointTable(model, drivers)
+        self._frames = np.zeros((model.njoints, 3, 4))
+        self._shape_joint = np.array([shape.joint for shape in self.shapes], dtype=np.int64)
+        self._local_ends = np.array([[shape.capsule_start, shape.capsule_end] for shape in self.shapes])
+        self._local_corners = np.array([shape.corners for shape in self.shapes])
+        self._coordinates = np.zeros(self.coordinates)
+        self._frames_current = self._pinocchio_current = False
         self.set_ignored_pairs({})
         self.geometry_data = self.geometry.createData()
         self.data = model.createData()
@@ -256,7 +274,6 @@ class CollisionModel:
             lever[-1] = self.lever[a, -1] + self.lever[b, -1]
         return lever
 
-    SPHERES_PER_CAPSULE = 4
     GRIPPER_SAMPLES = 400
     GRIPPER_SAFETY_FACTOR = 1.25
 
@@ -313,13 +330,6 @@ class CollisionModel:
                 checked.append((a, b))
         self.self_a = np.array([a for a, _ in checked], dtype=int)
         self.self_b = np.array([b for _, b in checked], dtype=int)
-        spheres_of = [np.flatnonzero(self._sphere_shape == shape) for shape in range(len(self.shapes))]
-        pairs = [(i, j) for a, b in checked for i in spheres_of[a] for j in spheres_of[b]]
-        counts = [len(spheres_of[a]) * len(spheres_of[b]) for a, b in checked]
-        self._sphere_a = np.array([i for i, _ in pairs], dtype=int)
-        self._sphere_b = np.array([j for _, j in pairs], dtype=int)
-        self._sphere_sum = self._sphere_radius[self._sphere_a] + self._sphere_radius[self._sphere_b]
-        self._sphere_groups = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int) if counts else np.zeros(0, int)
         existing = {(p.first, p.second): k for k, p in enumerate(self.geometry.collisionPairs)}
         self._pin_pairs_self = np.array([existing.get((a, b)) if (a, b) in existing else self._add_pair(a, b)
                                          for a, b in checked], dtype=int)
@@ -347,38 +357,34 @@ class CollisionModel:
     # ----------------------------------------------------------- measuring
 
     def pose(self, q_arm: np.ndarray, gripper: float) -> None:
-        """Place every shape at this configuration."""
-        pin.forwardKinematics(self.kinematics.model, self.data, self.kinematics.full_q(q_arm, gripper))
-
-    def capsules(self) -> tuple[np.ndarray, np.ndarray]:
-        """Capsule end points of every shape at the current pose (base frame)."""
-        placements = self.data.oMi
-        frames = np.array([placements[joint].homogeneous[:3] for joint in self._carriers])[self._shape_carrier]
-        ends = np.matmul(frames[:, None], self._local_ends[..., None])[..., 0]  # (shapes, 2, 3)
-        return ends[:, 0], ends[:, 1]
+        """Place every shape at this configuration (each measure computes the frames it needs once)."""
+        arm = len(q_arm)
+        self._coordinates[:arm] = q_arm
+        if self.coordinates > arm:
+            self._coordinates[arm] = gripper
+        self._frames_current = self._pinocchio_current = False
 
     def bounds(self) -> np.ndarray:
         """A lower bound on the clearance of every measured pair at the current pose."""
-        start, end = self.capsules()
-        moving_start, moving_end = start[self._moving_shapes], end[self._moving_shapes]
-        low = np.minimum(moving_start, moving_end)[:, None]
-        high = np.maximum(moving_start, moving_end)[:, None]
-        # separation along the boxes' own axes: a lower bound on the distance between convex sets;
-        # (moving shapes x obstacles), flattened in the order of the scene pairs
-        apart = np.maximum(low - self.obstacle_high, self.obstacle_low - high).max(axis=2)
-        scene = (apart - self._moving_radius).ravel()
-        # self pairs: the nearest of the spheres covering the two capsules; coal settles the close ones
-        if self._sphere_groups.size == 0:
-            return scene
-        origin = start[self._sphere_shape]
-        centers = origin + (end[self._sphere_shape] - origin) * self._sphere_fraction
-        gap = centers[self._sphere_a] - centers[self._sphere_b]
-        spheres = np.sqrt(np.einsum("ij,ij->i", gap, gap)) - self._sphere_sum
-        return np.concatenate([scene, np.minimum.reduceat(spheres, self._sphere_groups)])
+        joints = self._joints
+        if not self._frames_current:
+            capsule_kernel.joint_frames(self._coordinates, joints.parent, joints.placement, joints.kind, joints.axis,
+                                        joints.coordinate, joints.gain, self._frames)
+            self._frames_current = True
+        out = np.empty(self.pair_count)
+        capsule_kernel.capsule_bounds(self._frames, self._shape_joint, self._local_ends, self.radius,
+                                      self._local_corners, self.padding, self._moving_shapes, self.obstacle_low,
+                                      self.obstacle_high, self.self_a, self.self_b, out)
+        return out
 
     def exact(self, pairs: np.ndarray) -> np.ndarray:
         """coal's clearance of the given measured pairs at the current pose."""
-        pin.updateGeometryPlacements(self.kinematics.model, self.data, self.geometry, self.geometry_data)
+        if not self._pinocchio_current:
+            arm = len(self.kinematics.robot.arm_joints)
+            q = self.kinematics.full_q(self._coordinates[:arm], self._coordinates[arm] if self.coordinates > arm else 0.0)
+            pin.forwardKinematics(self.kinematics.model, self.data, q)
+            pin.updateGeometryPlacements(self.kinematics.model, self.data, self.geometry, self.geometry_data)
+            self._pinocchio_current = True
         out = np.empty(len(pairs))
         for row, pair in enumerate(pairs):
             result = pin.computeDistance(self.geometry, self.geometry_data, int(self._pin_pairs[pair]))

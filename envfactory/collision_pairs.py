@@ -8,6 +8,15 @@ skipped too, and those that never came near in any sample, which are listed
 but still measured: a sample cannot prove a pair never meets, and the
 capsule bounds make measuring them nearly free.
 
+Pairs that at most two joints move against each other get a proof instead
+of a sample: their clearance on a grid over those joints' whole range, less
+the most it can close between grid points, bounds it everywhere. A pair so
+proven never to touch is skipped, as MoveIt's "never in collision": whatever
+the commands, tracking errors and overshoots included, the joints between
+them cannot bring them together. The UR5e's wrist links sit 14 mm apart by
+design and would otherwise refuse every pose near wrist_2 = ±π for breaching
+the 15 mm margin that guards surfaces.
+
 The result is kept with the robot in a generated file whose fingerprint
 covers everything it depends on, so a changed URDF or margin is caught as
 stale instead of trusted.
@@ -20,9 +29,10 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 import yaml
 
-from envfactory.collision import CollisionModel
+from envfactory.collision import CollisionModel, _capsule_of
 from envfactory.kinematics import Kinematics
 from envfactory.obstacles import scene_obstacles
 from envfactory.safety import SafetyCheck
@@ -44,14 +54,26 @@ def fingerprint(collision: CollisionModel, margin: float) -> str:
     kin = collision.kinematics
     model = kin.model
     digest = hashlib.sha256()
-    rounded = lambda values: [round(float(v), 6) for v in np.ravel(values)]  # noqa: E731
+    # + 0.0: a -0.0 (a turned and unturned zero) digests as 0.0
+    rounded = lambda values: [round(float(v), 6) + 0.0 for v in np.ravel(values)]  # noqa: E731
+    # the self pairs do not depend on how the base is turned (mount_rpy): digest what hangs on
+    # the universe as the URDF places it, so one list serves the robot however it is mounted
+    unturn = pin.SE3(kin.base_rotation, np.zeros(3)).inverse()
     for shape, geometry_object in zip(collision.shapes, collision.geometry.geometryObjects):
-        digest.update(json.dumps([shape.name, shape.link, model.names[shape.joint], rounded(shape.capsule_start),
-                                  rounded(shape.capsule_end), round(shape.radius, 6),
-                                  rounded(geometry_object.placement.homogeneous)]).encode())
+        placement, (start, end, radius) = geometry_object.placement, (shape.capsule_start, shape.capsule_end,
+                                                                      shape.radius)
+        if shape.joint == 0:  # a base shape's capsule is fitted anew as the URDF places it
+            placement = unturn * placement
+            start, end, radius = _capsule_of(pin.GeometryObject(geometry_object.name, 0, geometry_object.parentFrame,
+                                                                placement, geometry_object.geometry))
+            radius += shape.padding
+        digest.update(json.dumps([shape.name, shape.link, model.names[shape.joint], rounded(start),
+                                  rounded(end), round(radius, 6), rounded(placement.homogeneous)]).encode())
     for joint in range(1, model.njoints):
+        placement = model.jointPlacements[joint]
+        placement = unturn * placement if model.parents[joint] == 0 else placement
         digest.update(json.dumps([model.names[joint], model.joints[joint].shortname(),
-                                  rounded(model.jointPlacements[joint].homogeneous)]).encode())
+                                  rounded(placement.homogeneous)]).encode())
     robot = kin.robot
     digest.update(json.dumps([[j.name, j.lower, j.upper] for j in robot.arm_joints]).encode())
     if robot.gripper is not None:
@@ -77,6 +99,8 @@ def sample_pairs(collision: CollisionModel, margin: float, samples: int = DEFAUL
         clearance = collision.exact(self_pairs)
         np.minimum(lowest, clearance, out=lowest)
         np.maximum(highest, clearance, out=highest)
+    # what the two engines may disagree on: clearance above this is no contact in either
+    contact = SafetyCheck.ROUNDING + 2 * SafetyCheck.SHAPE_TOLERANCE
     always, never, proven = [], [], []
     for pair, low, high in zip(self_pairs, lowest, highest):
         names = sorted(collision.shapes[s].name for s in _shapes_of(collision, pair))
@@ -84,8 +108,8 @@ def sample_pairs(collision: CollisionModel, margin: float, samples: int = DEFAUL
             always.append(names)
         elif low > margin + NEVER_NEAR:
             never.append(names)
-        elif low > margin and _proven_apart(collision, pair, margin + SafetyCheck.ROUNDING + 2 * SafetyCheck.SHAPE_TOLERANCE):
-            proven.append(names)
+        elif low > contact and (apart := _proven_apart(collision, pair, contact)) is not None:
+            proven.append([*names, apart])
     structural = sorted([*sorted(key), why] for key, why in collision.ignored.items())
     return {
         "fingerprint": fingerprint(collision, margin),
@@ -93,24 +117,30 @@ def sample_pairs(collision: CollisionModel, margin: float, samples: int = DEFAUL
         "samples": samples,
         "seed": seed,
         "skipped": structural + [[*names, "always within the margin"] for names in sorted(always)]
-        + [[*names, "never within the margin (proven on a grid of the joints between them)"]
-           for names in sorted(proven)],
+        + [[first, second, _apart_reason(apart, margin + contact)] for first, second, apart in sorted(proven)],
         "never_near": sorted(never),  # still measured
     }
 
 
-def _proven_apart(collision: CollisionModel, pair: int, threshold: float) -> bool:
-    """Whether a pair moved against each other by at most two coordinates can never come within the
-    threshold: its clearance on a grid over their whole range, less the most the pair can close between
-    grid points (its levers times half a cell), stays above it. Finer grids are tried while they may help."""
+def _apart_reason(apart: float, margin: float) -> str:
+    kind = "never within the margin" if apart >= margin else "never in contact"
+    return f"{kind}: at least {apart * 1000:.1f} mm apart over the whole range of the joints between them (grid proof)"
+
+
+def _proven_apart(collision: CollisionModel, pair: int, threshold: float) -> float | None:
+    """For a pair moved against each other by at most two coordinates: a clearance it keeps over their
+    whole range, if one above the threshold can be proven. That is its lowest clearance on a grid less
+    the most the pair can close between grid points (its levers times half a cell). Finer grids are tried
+    while they may help; None when a grid point itself comes within the threshold or no grid proves it."""
     lever = collision.pair_lever[pair]
-    coordinates = np.flatnonzero(lever > 0)
+    coordinates = np.flatnonzero(lever > 1e-9)  # sums of zero levers leave rounding dust
     if not 1 <= coordinates.size <= GRID_PROOF_COORDINATES:
-        return False
+        return None
     kin = collision.kinematics
     lows = np.append(kin.arm_lower, kin.robot.gripper.low if kin.robot.gripper else 0.0)[coordinates]
     highs = np.append(kin.arm_upper, kin.robot.gripper.high if kin.robot.gripper else 0.0)[coordinates]
     arm = len(kin.arm_lower)
+    single = np.array([pair])
     for count in GRID_SIZES:
         axes = [np.linspace(lo, hi, count) for lo, hi in zip(lows, highs)]
         slack = float(np.sum(lever[coordinates] * (highs - lows) / (count - 1) / 2))
@@ -119,12 +149,12 @@ def _proven_apart(collision: CollisionModel, pair: int, threshold: float) -> boo
         for point in np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, coordinates.size):
             coordinates_now[coordinates] = point
             collision.pose(coordinates_now[:arm], coordinates_now[arm])
-            lowest = min(lowest, float(collision.exact(np.array([pair]))[0]))
+            lowest = min(lowest, float(collision.exact(single)[0]))
             if lowest < threshold:
-                return False  # it does come this close: it must be measured
+                return None  # it does come this close: it must be measured
         if lowest - slack >= threshold:
-            return True
-    return False
+            return lowest - slack
+    return None
 
 
 def _shapes_of(collision: CollisionModel, pair: int) -> tuple[int, int]:
@@ -189,7 +219,7 @@ def regenerate(compiled, samples: int = DEFAULT_SAMPLES, seed: int = 0) -> Path:
         raise ValueError(f"robot {spec.robot.name!r} names no safety.collision_pairs file to write")
     robot = spec.robot
     urdf = assemble(robot.model, compiled.asset_root, robot.name)
-    kinematics = Kinematics(urdf, robot, np.zeros(3))
+    kinematics = Kinematics(urdf, robot)
     collision = CollisionModel(kinematics, scene_obstacles(spec), dict(robot.safety.padding))
     write_pairs(path, robot.name, sample_pairs(collision, spec.env.safety.surface_margin, samples, seed))
     return path

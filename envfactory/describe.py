@@ -171,11 +171,16 @@ def _shape_size(geometry) -> str:
     return f"{len(points)} points, {' × '.join(f'{v:.3f}' for v in extent)}"
 
 
+def _turn(rpy) -> str:
+    return f" turned rpy {list(rpy)}" if any(rpy) else ""
+
+
 def render_description(compiled: Blueprint, console: Console) -> None:
     spec = compiled.spec
     kind = "goal-conditioned (Dict)" if compiled.goal_env else "standard (Box)"
     console.print(f"[bold]{compiled.env_id}[/] — {spec.robot.label}, {spec.task.label}, {kind}, "
                   f"backend {compiled.backend}, frame {spec.robot.task_frame}, "
+                  f"base at {list(spec.robot.mount)}{_turn(spec.robot.mount_rpy)}, "
                   f"max_episode_steps {compiled.max_episode_steps}")
     console.print(observation_table(compiled))
     if compiled.goal_env:

@@ -20,7 +20,7 @@ from envfactory.compiler import Blueprint
 from envfactory.goals import GoalSampler, LiftCurriculum
 from envfactory.managers import ImageManager, ObservationManager, RewardManager
 from envfactory.objects import ObjectSpawner, ObjectTracker
-from envfactory.obstacles import table_bounds_xy
+from envfactory.frames import TaskFrame
 from envfactory.state import EnvState
 from envfactory.terms.rewards import STAGE_KEYS, STEP_FLAGS
 from envfactory.preflight import robot_geometry
@@ -40,7 +40,7 @@ class RobotEnv(gym.Env):
         spec = blueprint.spec
         robot = spec.robot
         self.metadata = {**self.metadata, "render_fps": 1.0 / spec.env.timing.action_cycle_time}
-        self.task_origin = np.asarray(robot.task_origin_world, float)
+        self.task_frame = TaskFrame.of(robot)
         geometry = robot_geometry(spec, blueprint.asset_root)
         urdf, self.kinematics, self.safety = geometry.urdf, geometry.kinematics, geometry.safety
         self.actions = ActionAdapter(blueprint.action, self.kinematics, spec.workspace, spec.env.safety.max_joint_delta)
@@ -60,7 +60,7 @@ class RobotEnv(gym.Env):
         self._arm_in_states = np.array(robot.arm_state_indices)
         self._gripper_in_states = robot.gripper_state_index
         self._gripper_reset = spec.gripper_at_reset
-        self.spawner = ObjectSpawner(spec.task.objects, table_bounds_xy(spec.scene.table, self.task_origin))
+        self.spawner = ObjectSpawner(spec.task.objects, spec.scene.table, self.task_frame)
         self._trackers = {name: ObjectTracker() for name in spec.task.objects}
         lift = spec.task.goal.lift
         self.curriculum = (LiftCurriculum(lift.enabled, lift.height, spec.task.goal.tolerance)
@@ -73,7 +73,7 @@ class RobotEnv(gym.Env):
         self._state: EnvState | None = None
         self._clipped: list[str] = []  # observation columns the last observation had to clip
 
-        self.backend = backend_factory(blueprint.backend)(spec, urdf, self.task_origin, render_mode,
+        self.backend = backend_factory(blueprint.backend)(spec, urdf, self.task_frame, render_mode,
                                                           **backend_options)
         attach = getattr(self.backend, "attach_geometry", None)
         if attach is not None:  # a simulator that plays motions proven clear without dynamics

@@ -2,7 +2,9 @@
 
 Sim and real share this code, so an action is judged by the same geometry
 whichever backend executes it. Positions are in the task frame (world for the
-UR5e, the robot base for the VX300S).
+UR5e, the robot base for the VX300S). The model itself is built in the world's
+axes at the base origin, with the base orientation (`mount_rpy`) in it, so the
+collision geometry that rides on it is placed as the real base is.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from envfactory.frames import TaskFrame, base_rotation, place_base
 from envfactory.spec.schema import RobotSpec
 
 
@@ -30,12 +33,19 @@ class IkResult:
 
 
 class Kinematics:
-    def __init__(self, urdf_path: Path, robot: RobotSpec, base_in_task: np.ndarray):
+    def __init__(self, urdf_path: Path, robot: RobotSpec, task_frame: TaskFrame | None = None):
+        """`task_frame`: where results are expressed; None for the model's own frame."""
         self.robot = robot
         self.urdf_path = Path(urdf_path)
         self.model = pin.buildModelFromUrdf(str(urdf_path))
+        self.base_rotation = base_rotation(robot)
+        place_base(self.model, self.base_rotation)
         self.data = self.model.createData()
-        self.base_in_task = np.asarray(base_in_task, dtype=float)
+        to_task = task_frame.base_in_task(robot) if task_frame is not None else pin.SE3.Identity()
+        self.base_in_task = to_task.translation.copy()
+        # the task frame's axes against the model's: None when they agree (every shipped robot),
+        # so those positions stay a bare sum
+        self._task_rotation = None if np.array_equal(to_task.rotation, np.eye(3)) else to_task.rotation.copy()
         self._arm_q = np.array([self._q_index(j.name) for j in robot.arm_joints])
         self._arm_v = np.array([self.model.idx_vs[self.model.getJointId(j.name)] for j in robot.arm_joints])
         self.arm_lower = np.array([j.lower for j in robot.arm_joints])
@@ -87,13 +97,24 @@ class Kinematics:
             q[self._gripper_q] = self._gripper_gain * gripper
         return q
 
+    # ----------------------------------------------------------- frames
+
+    def to_task(self, point: np.ndarray) -> np.ndarray:
+        """A point of the model's frame in the task frame."""
+        if self._task_rotation is None:
+            return point + self.base_in_task
+        return self._task_rotation @ point + self.base_in_task
+
+    def _rotation_to_task(self, rotation: np.ndarray) -> np.ndarray:
+        return rotation.copy() if self._task_rotation is None else self._task_rotation @ rotation
+
     # ----------------------------------------------------------- forward kinematics
 
     def ee_pose(self, q_arm: np.ndarray, gripper: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """EE position (task frame) and rotation matrix."""
         pin.forwardKinematics(self.model, self.data, self.full_q(q_arm, gripper))
         placement = pin.updateFramePlacement(self.model, self.data, self.ee_frame)
-        return placement.translation + self.base_in_task, placement.rotation.copy()
+        return self.to_task(placement.translation), self._rotation_to_task(placement.rotation)
 
     # ----------------------------------------------------------- inverse kinematics
 
@@ -117,6 +138,10 @@ class Kinematics:
         model, data = self.model, self.data
         q_arm = np.clip(np.array(q_arm_start, dtype=float), self.arm_lower, self.arm_upper)
         target_position = np.asarray(target_position, dtype=float) - self.base_in_task
+        if self._task_rotation is not None:  # into the model's frame, where the Jacobian is
+            target_position = self._task_rotation.T @ target_position
+            if target_rotation is not None:
+                target_rotation = self._task_rotation.T @ target_rotation
         error = np.inf
         for _ in range(max_iterations):
             q = self.full_q(q_arm, gripper)

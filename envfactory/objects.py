@@ -11,7 +11,9 @@ import pinocchio as pin
 
 from envfactory.backends.base import ObjectReading
 from envfactory.kinematics import quaternion_to_matrix
-from envfactory.spec.schema import ObjectSpec
+from envfactory.frames import TaskFrame
+from envfactory.obstacles import table_bounds_xy
+from envfactory.spec.schema import ObjectSpec, TableSpec
 from envfactory.state import ObjectState
 
 IDENTITY_QUATERNION = np.array([0.0, 0.0, 0.0, 1.0])
@@ -20,9 +22,11 @@ IDENTITY_QUATERNION = np.array([0.0, 0.0, 0.0, 1.0])
 class ObjectSpawner:
     """Spawn poses in the task frame: the declared position, or a random offset from it kept on the table."""
 
-    def __init__(self, objects: dict[str, ObjectSpec], table_xy: tuple[np.ndarray, np.ndarray]):
+    def __init__(self, objects: dict[str, ObjectSpec], table: TableSpec, frame: TaskFrame):
         self.objects = objects
-        self.table_min, self.table_max = table_xy
+        self.frame = frame
+        # in a task frame turned about z, spawns are kept on the table in the world, where it is a box
+        self.table_min, self.table_max = table_bounds_xy(table, TaskFrame(np.zeros(3)) if frame.rotated else frame)
 
     def sample(self, rng: np.random.Generator) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         poses = {}
@@ -32,7 +36,13 @@ class ObjectSpawner:
                 offset = np.asarray(spec.spawn.offset)
                 position[:2] += rng.uniform(-offset, offset)
                 half = spec.size / 2
-                position[:2] = np.clip(position[:2], self.table_min + half, self.table_max - half)
+                if not self.frame.rotated:
+                    position[:2] = np.clip(position[:2], self.table_min + half, self.table_max - half)
+                else:  # the cube's footprint, turned with the frame, stays inside the table
+                    world = self.frame.to_world(position)
+                    corner = np.abs(self.frame.rotation[:2, :2]) @ np.array([half, half])
+                    world[:2] = np.clip(world[:2], self.table_min + corner, self.table_max - corner)
+                    position = self.frame.to_task(world)
             poses[name] = (position, IDENTITY_QUATERNION.copy())
         return poses
 

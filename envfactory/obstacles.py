@@ -84,8 +84,12 @@ def scene_obstacles(spec: EnvSpec) -> list[Obstacle]:
     return obstacles
 
 
-def table_bounds_xy(table: TableSpec, task_origin_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The table top's footprint in the task frame: (min xy, max xy)."""
+def table_bounds_xy(table: TableSpec, frame) -> tuple[np.ndarray, np.ndarray]:
+    """The table top's footprint in the task frame (an envfactory.frames.TaskFrame): (min xy, max xy);
+    in a frame turned about z, the box around the turned footprint."""
+    if frame.rotated:
+        corners = frame.table_corners(table)
+        return corners.min(axis=0), corners.max(axis=0)
     half = np.asarray(table.size) / 2.0
-    center = np.asarray(table.center) - np.asarray(task_origin_world)[:2]
+    center = np.asarray(table.center) - frame.origin[:2]
     return center - half, center + half

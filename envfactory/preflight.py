@@ -18,8 +18,9 @@ import numpy as np
 from envfactory.spec.errors import Problem, suggest
 from envfactory.spec.schema import EnvSpec
 
-# The goal box is probed at its centre and corners; at least this many must be reachable.
-MIN_REACHABLE_PROBES = 1
+# The goal box is probed at its centre and its 8 corners, and every probe must be reachable:
+# goals are drawn uniformly from the whole box, so an unreachable corner is a share of
+# episodes whose goal the arm cannot reach (the design's "goal and spawn boxes reachable").
 # Slack on the URDF's joint limits: YAML limits rounded to two decimals (1.26 for 1.2566).
 LIMIT_SLACK = 0.005
 
@@ -38,10 +39,11 @@ def robot_geometry(spec: EnvSpec, asset_root: Path) -> RobotGeometry:
     from envfactory.safety import SafetyCheck
     from envfactory.urdf_assembly import assemble
 
+    from envfactory.frames import TaskFrame
+
     robot = spec.robot
-    task_origin = np.asarray(robot.task_origin_world, float)
     urdf = assemble(robot.model, asset_root, robot.name)
-    kinematics = Kinematics(urdf, robot, np.asarray(robot.mount, float) - task_origin)
+    kinematics = Kinematics(urdf, robot, TaskFrame.of(robot))
     collision = build_collision_model(kinematics, spec, asset_root)
     return RobotGeometry(urdf, kinematics, SafetyCheck(collision, spec.env.safety))
 
@@ -121,7 +123,7 @@ def _check_by_key(key, carrier: _Carrier) -> tuple[tuple[str, str], ...]:
 
 # The robot fields the kinematics and the collision model are built from; the others (home,
 # bounds, topics, labels) leave a shared geometry valid.
-GEOMETRY_FIELDS = {"name", "model", "mount", "pedestal", "task_frame", "arm_joints", "ee_frame", "gripper", "safety"}
+GEOMETRY_FIELDS = {"name", "model", "mount", "mount_rpy", "pedestal", "task_frame", "arm_joints", "ee_frame", "gripper", "safety"}
 
 
 @functools.lru_cache(maxsize=8)
@@ -194,6 +196,10 @@ def _probes(low: np.ndarray, high: np.ndarray) -> list[np.ndarray]:
     return [(low + high) / 2, *corners]
 
 
+def _point(point) -> str:
+    return "[" + ", ".join(f"{float(v):g}" for v in np.round(point, 3)) + "]"
+
+
 def _reach_problems(spec: EnvSpec, geometry: RobotGeometry) -> list[tuple[str, str]]:
     kinematics, safety = geometry.kinematics, geometry.safety
     home = np.asarray(spec.robot.home, float)
@@ -207,26 +213,34 @@ def _reach_problems(spec: EnvSpec, geometry: RobotGeometry) -> list[tuple[str, s
     low, high = (np.asarray(b, float) for b in goal.box)
     probes = [np.asarray(goal.static_goal, float)] if not goal.random else _probes(low, high)
     misses = []
-    reached = 0
     for point in probes:
         solution = solve(point)
         # an EE goal is sampled only where the arm can stand clear of the table; an object
         # goal is reached by the object, the EE only needs to get there
-        if solution.success and (not ee_goal or safety.pose_is_clear(solution.q_arm)):
-            reached += 1
-        else:
-            misses.append(solution.position_error)
-    if reached < min(MIN_REACHABLE_PROBES, len(probes)):
+        if not solution.success:
+            misses.append((point, f"IK misses by {solution.position_error:.3f} m"))
+        elif ee_goal and not safety.pose_is_clear(solution.q_arm):
+            misses.append((point, "the pose there comes too near the table or the arm itself"))
+    if misses:
         where = "task.goal.static" if not goal.random and goal.static is not None else "task.goal.box"
-        problems.append((where, f"the arm reaches none of the {len(probes)} probe points of the goal "
-                                f"{'box (centre and corners)' if goal.random else ''} (closest IK miss "
-                                f"{min(misses):.3f} m{', or the pose comes too near the table' if ee_goal else ''}); "
-                                f"valid: a goal within reach of robot {spec.robot.name!r}"))
+        listed = "; ".join(f"{_point(point)} ({why})" for point, why in misses[:4])
+        more = f"; and {len(misses) - 4} more" if len(misses) > 4 else ""
+        what = (f"{len(misses)} of the {len(probes)} probe points of the goal box (centre and corners)"
+                if goal.random else "the static goal")
+        problems.append((where, f"the arm cannot reach {what}: {listed}{more}; valid: a goal "
+                                f"{'box whose every point is ' if goal.random else ''}within reach of robot "
+                                f"{spec.robot.name!r}"))
     for name, obj in spec.task.objects.items():
         position = np.asarray(obj.spawn.position, float)
-        solution = solve(position)
-        if not solution.success:
+        # a random spawn is drawn from position ± offset in x and y: its corners are probed too
+        offset = np.array([*obj.spawn.offset, 0.0]) if obj.spawn.random else np.zeros(3)
+        spots = [position] + ([position + offset * [sx, sy, 0.0] for sx in (-1, 1) for sy in (-1, 1)]
+                              if np.any(offset) else [])
+        missed = [(spot, solution.position_error) for spot in spots if not (solution := solve(spot)).success]
+        if missed:
+            spot, error = missed[0]
+            what = "its spawn point" if spot is position else "a corner of its spawn box (position ± offset)"
             problems.append((f"task.objects.{name}.spawn.position",
-                             f"the arm cannot reach {name} at its spawn point {list(np.round(position, 3))} "
-                             f"(IK misses by {solution.position_error:.3f} m)"))
+                             f"the arm cannot reach {name} at {what} {_point(spot)} (IK misses by {error:.3f} m"
+                             f"{f'; {len(missed)} of {len(spots)} spawn probes missed' if len(missed) > 1 else ''})"))
     return problems

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
+from envfactory.frames import TaskFrame
 from envfactory.obstacles import table_bounds_xy
 
 JOINT_STOP_SOFTNESS = 0.005  # rad or m past a URDF limit a joint pressed against its stop may read
@@ -87,7 +88,7 @@ def reach_sphere(kinematics) -> tuple[np.ndarray, float]:
     if not chain:  # an EE fixed to the base: a point
         data = model.createData()
         pin.framesForwardKinematics(model, data, pin.neutral(model))
-        return data.oMf[kinematics.ee_frame].translation + kinematics.base_in_task, 0.0
+        return kinematics.to_task(data.oMf[kinematics.ee_frame].translation), 0.0
     first = chain[-1]
     radius = float(np.linalg.norm(frame.placement.translation))
     for joint in chain:
@@ -98,20 +99,21 @@ def reach_sphere(kinematics) -> tuple[np.ndarray, float]:
             radius += float(max(abs(model.lowerPositionLimit[index]), abs(model.upperPositionLimit[index])))
     data = model.createData()
     pin.forwardKinematics(model, data, pin.neutral(model))
-    return data.oMi[first].translation + kinematics.base_in_task, radius
+    return kinematics.to_task(data.oMi[first].translation), radius
 
 
 def point_boxes(spec, kinematics) -> PointBoxes:
     robot = spec.robot
-    origin = np.asarray(robot.task_origin_world, float)
-    floor_z = float(0.0 - origin[2])
+    frame = TaskFrame.of(robot)
+    origin = frame.origin
+    floor_z = float(0.0 - origin[2])  # a rotated task frame turns about z only: heights stay heights
     ee = Box(*(np.asarray(b, float) for b in robot.ee_bounds))
     if kinematics is not None:
         centre, radius = reach_sphere(kinematics)
         reach_low = centre - radius
         reach_low[2] = max(reach_low[2], floor_z)  # the safety check keeps the gripper above the floor
         ee = ee.union(Box(reach_low, centre + radius))
-    table_min, table_max = table_bounds_xy(spec.scene.table, origin)
+    table_min, table_max = table_bounds_xy(spec.scene.table, frame)
     top = spec.scene.table.top_z - origin[2]
     objects = {}
     for name, obj in spec.task.objects.items():
@@ -145,8 +147,7 @@ def derived_boxes(spec, asset_root) -> PointBoxes:
 
     try:
         urdf = assemble(spec.robot.model, asset_root, spec.robot.name)
-        kinematics = Kinematics(urdf, spec.robot, np.asarray(spec.robot.mount, float)
-                                - np.asarray(spec.robot.task_origin_world, float))
+        kinematics = Kinematics(urdf, spec.robot, TaskFrame.of(spec.robot))
         return point_boxes(spec, kinematics)
     except Exception:  # a model or a joint name that does not resolve: the robot model checks report it
         return point_boxes(spec, None)

@@ -21,7 +21,7 @@ import gymnasium as gym
 from gymnasium.envs.registration import ENV_ID_RE
 from pydantic import ValidationError
 
-from envfactory import user_config
+from envfactory import user_config, verdicts
 from envfactory.spec.compose import FamilyFile, load_env_spec, validation_problems
 from envfactory.spec.errors import Problem, SpecError, suggest
 from envfactory.spec.schema import Registration
@@ -152,19 +152,56 @@ def _location(path: Path, env_id: str) -> tuple[str, int | None]:
     return problem.file or str(path), problem.line
 
 
-def check_family(records: list[IdRecord]) -> None:
+def check_family(records: list[IdRecord], whole: bool = True) -> None:
     """Compose and compile each distinct ID, so nothing invalid is registered. IDs that differ
-    only in name compile alike, so each (backend, goal_env, kwargs) is compiled once."""
+    only in name compile alike, so each (backend, goal_env, kwargs) is compiled once. The verdict
+    is remembered for later imports (`whole`: the records are all the family declares)."""
     from envfactory.compiler import compile_blueprint
 
     seen = set()
-    for record in records:
-        key = (record.backend, record.goal_env, repr(record.kwargs))
-        if key in seen:
-            continue
-        seen.add(key)
-        loaded = load_env_spec(record.family, (), dict(record.kwargs), env_id=record.env_id)
-        compile_blueprint(loaded, record.env_id, record.backend, record.goal_env)
+    try:
+        for record in records:
+            key = (record.backend, record.goal_env, repr(record.kwargs))
+            if key in seen:
+                continue
+            seen.add(key)
+            loaded = load_env_spec(record.family, (), dict(record.kwargs), env_id=record.env_id)
+            compile_blueprint(loaded, record.env_id, record.backend, record.goal_env)
+    except SpecError as exc:
+        if records:
+            _remember_failure(records[0], exc)
+        raise
+    if records and whole:
+        verdicts.remember(records[0].family.path, True)
+
+
+# Problems a command fixes without editing the family: its IDs must stay registered for that
+# command (`envfactory collision-pairs ROBOT` finds the robot through them).
+_FIXED_BY_COMMAND = {"robot.safety.collision_pairs"}
+
+
+def _remember_failure(record: IdRecord, error: SpecError) -> None:
+    if record.source == BUILTIN_SOURCE or not error.problems:
+        return
+    if all(problem.path in _FIXED_BY_COMMAND for problem in error.problems):
+        return
+    # the family's own line first: that is where the user looks
+    own = [p for p in error.problems if p.file and Path(p.file).resolve() == record.family.path.resolve()]
+    first = (own or error.problems)[0]
+    verdicts.remember(record.family.path, False, {"path": first.path, "message": first.message,
+                                                  "file": first.file, "line": first.line})
+
+
+def _remembered_problem(path: Path, known: dict, stats) -> SpecError | None:
+    """The problem an earlier check found in this family, if the family has not changed since."""
+    remembered = verdicts.recall(path, known, stats)
+    if remembered is None or remembered[0]:
+        return None
+    problem = remembered[1]
+    message = (f"{problem.get('message', 'invalid')} (found by an earlier validate or make; it registers again once "
+               f"its folder changes or `envfactory validate {path}` passes)")
+    return SpecError([Problem(str(problem.get("path") or ""), message, problem.get("file") or str(path),
+                              problem.get("line"))], path.stem)
 
 
 def _register_family(records: list[IdRecord]) -> None:
@@ -201,6 +238,9 @@ def register_specs(folder: str | Path, validate: bool = True, source: str = CALL
     if len(paths) > MAX_FAMILY_FILES:
         return [], [SpecError([Problem("", f"{len(paths)} family files; a spec folder may hold at most "
                                            f"{MAX_FAMILY_FILES}", str(folder))])]
+    # a user family that an earlier check found broken stays out whole (import composes nothing)
+    remembered = verdicts.read() if not validate and source != BUILTIN_SOURCE else None
+    stats = verdicts.folder_stats(folder_of(paths[0])) if remembered and paths else None
     for path in paths:
         try:
             records = scan_family(path, roots, source)
@@ -209,7 +249,11 @@ def register_specs(folder: str | Path, validate: bool = True, source: str = CALL
                 raise SpecError(clashes, path.stem)
             fresh = [r for r in records if r.env_id not in _records]
             if validate and fresh:
-                check_family(fresh)
+                check_family(fresh, whole=len(fresh) == len(records))
+            elif remembered:
+                broken = _remembered_problem(path, remembered, stats)
+                if broken is not None:
+                    raise broken
             _register_family(fresh)
         except SpecError as exc:
             problems.append(exc)
@@ -296,8 +340,13 @@ def _blueprint_cached(env_id: str, overrides: tuple[str, ...], frozen_kwargs: tu
     from envfactory.compiler import compile_blueprint
 
     entry = record(env_id)
-    loaded = load_env_spec(entry.family, overrides, dict(entry.kwargs), dict(kwargs_items), env_id=env_id)
-    return compile_blueprint(loaded, env_id, entry.backend, entry.goal_env)
+    try:
+        loaded = load_env_spec(entry.family, overrides, dict(entry.kwargs), dict(kwargs_items), env_id=env_id)
+        return compile_blueprint(loaded, env_id, entry.backend, entry.goal_env)
+    except SpecError as exc:
+        if not overrides and not kwargs_items:  # the ID as registered: the family itself is broken
+            _remember_failure(entry, exc)
+        raise
 
 
 def blueprint(env_id: str, overrides: Iterable[str] = (), **kwargs):

@@ -285,23 +285,33 @@ class SafetyCheck:
         sweep = pairs[(anchor.level[pairs] < 2) & (motion.reserve[pairs] > 0)]
         if sweep.size == 0:
             return
-        # coal at gripper values along its range: a few first, finer only for pairs still in doubt
-        for count in (self.COARSE_SWEEP, None):
-            if count is None:
-                count = int(np.ceil(2 * motion.reserve[sweep].max() / (2 * self.SWEEP_RESOLUTION))) + 1
-            lowest = np.full(sweep.size, np.inf)
-            for value in np.linspace(motion.gripper_from, motion.gripper_to, count):
-                collision.pose(anchor.q_arm, value)
-                np.minimum(lowest, collision.exact(sweep), out=lowest)
-            bound = lowest - motion.reserve[sweep] / (count - 1)
-            settled = bound >= motion.threshold[sweep]
-            anchor.bound[sweep] = np.where(settled, bound, anchor.bound[sweep])
-            anchor.level[sweep[settled]] = 2
-            sweep = sweep[~settled]
-            if sweep.size == 0:
-                return
-        anchor.bound[sweep] = bound[~settled]
+        # Coal at a few gripper values along its range, then halving only the intervals where a pair is in
+        # doubt: over an interval a clearance dips below the mean of its ends by at most the gripper's
+        # lever times half the interval's travel (its reserve times the interval's share of the range).
+        reserve, threshold = motion.reserve[sweep], motion.threshold[sweep]
+        fractions = np.linspace(0.0, 1.0, self.COARSE_SWEEP)
+        ends = [self._gripper_clearance(anchor.q_arm, motion, fraction, sweep) for fraction in fractions]
+        bound = np.full(sweep.size, np.inf)
+        every = np.arange(sweep.size)
+        intervals = [(fractions[k], ends[k], fractions[k + 1], ends[k + 1], every) for k in range(len(fractions) - 1)]
+        while intervals:
+            a, clearance_a, b, clearance_b, rows = intervals.pop()
+            within = (clearance_a + clearance_b) / 2 - reserve[rows] * (b - a)
+            done = (within >= threshold[rows]) | (reserve[rows] * (b - a) <= self.SWEEP_RESOLUTION)
+            bound[rows[done]] = np.minimum(bound[rows[done]], within[done])
+            if done.all():
+                continue
+            rows, clearance_a, clearance_b = rows[~done], clearance_a[~done], clearance_b[~done]
+            middle = (a + b) / 2
+            clearance = self._gripper_clearance(anchor.q_arm, motion, middle, sweep[rows])
+            intervals += [(a, clearance_a, middle, clearance, rows), (middle, clearance, b, clearance_b, rows)]
+        anchor.bound[sweep] = bound
         anchor.level[sweep] = 2
+
+    def _gripper_clearance(self, q_arm: np.ndarray, motion: Motion, fraction: float, pairs: np.ndarray) -> np.ndarray:
+        """Exact clearances of these pairs with the arm at q_arm and the gripper this far along its motion."""
+        self.collision.pose(q_arm, motion.gripper_from + fraction * (motion.gripper_to - motion.gripper_from))
+        return self.collision.exact(pairs)
 
     def _settle(self, anchor: Anchor, motion: Motion, where: str, pairs: np.ndarray | None = None) -> Verdict:
         """Tighten every pair (of these) the capsules cannot clear, and refuse if one is truly too close."""

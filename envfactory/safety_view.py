@@ -43,7 +43,7 @@ def render_clearance(compiled, out: Path, q_arm=None, width: int = 800, height: 
     margin = spec.env.safety.surface_margin
     lowest = link_clearances(compiled, q_arm, gripper)
     backend = PyBulletBackend(spec, assemble(robot.model, compiled.asset_root, robot.name),
-                              np.asarray(robot.task_origin_world, float))
+                              TaskFrame.of(robot))
     try:
         backend.reset(q_arm, gripper, {})
         client, body = backend.client, backend.body

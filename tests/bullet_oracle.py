@@ -29,8 +29,10 @@ class BulletJudge:
                                                                       physicsClientId=self.client),
                                             basePosition=list(o.center), physicsClientId=self.client)
                           for o in scene_obstacles(spec)]
-        self.body = p.loadURDF(str(env.kinematics.urdf_path), basePosition=list(spec.robot.mount), useFixedBase=True,
-                               physicsClientId=self.client)
+        # the base turned by PyBullet's own reading of the rpy, not by envfactory's
+        self.body = p.loadURDF(str(env.kinematics.urdf_path), basePosition=list(spec.robot.mount),
+                               baseOrientation=p.getQuaternionFromEuler(list(spec.robot.mount_rpy)),
+                               useFixedBase=True, physicsClientId=self.client)
         infos = [p.getJointInfo(self.body, j, physicsClientId=self.client)
                  for j in range(p.getNumJoints(self.body, physicsClientId=self.client))]
         self.joint_index = {info[1].decode(): info[0] for info in infos}

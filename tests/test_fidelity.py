@@ -133,7 +133,7 @@ def test_motions_proven_clear_of_the_cube_are_clear_in_pybullet(env_id):
             q_to = q_from + rng.uniform(-0.3, 0.3, u.home.size)
             g_from, g_to = rng.uniform(low, high, 2)
             ee, _ = u.kinematics.ee_pose(q_from, g_from)
-            centre = ee + u.task_origin + rng.uniform(-0.12, 0.12, 3)
+            centre = u.task_frame.to_world(ee) + rng.uniform(-0.12, 0.12, 3)
             p.resetBasePositionAndOrientation(cube, centre.tolist(), [0, 0, 0, 1], physicsClientId=client)
             if not clearance.motion_is_clear(q_from, g_from, q_to, g_to, centre[None], np.array([radius]),
                                              NEAR_CONTACT):

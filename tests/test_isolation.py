@@ -102,3 +102,44 @@ def test_corrupt_config_file_is_one_warning(tmp_path):
     result = _python("import envfactory; print(len(envfactory.records()))", ENVFACTORY_CONFIG_DIR=str(config))
     assert result.returncode == 0 and result.stdout.strip() == "24"
     assert "'spec_folders' must be a list" in result.stderr
+
+
+def test_a_file_broken_below_its_registration_stays_out_whole_once_checked(tmp_path):
+    """Import reads only the registration block; a family an earlier validate or make found
+    broken is skipped whole (one warning line with the remembered file:line), until it changes."""
+    config = tmp_path / "config"
+    folder = tmp_path / "user"
+    folder.mkdir()
+    broken = folder / "broken.yaml"
+    broken.write_text((BROKEN / "unknown_key.yaml").read_text().replace("BrokenKey-v0", "BelowBroken-v0"))
+    (folder / "fine.yaml").write_text(GOOD.replace("BrokenKey-v0", "CheckedFine-v0"))
+    env = {"ENVFACTORY_SPEC_PATH": str(folder), "ENVFACTORY_CONFIG_DIR": str(config)}
+    probe = ("import gymnasium as gym, envfactory\n"
+             "print('ids', sorted(i for i in ('BelowBroken-v0', 'CheckedFine-v0') if i in gym.registry))\n")
+    # never checked: registered lazily, as before (import composes nothing)
+    assert "ids ['BelowBroken-v0', 'CheckedFine-v0']" in _python(probe, **env).stdout
+    runner = CliRunner()
+    result = runner.invoke(app, ["validate", str(folder)], env=env)
+    assert result.exit_code == 1 and "tolerence" in result.output
+    later = _python(probe, **env)
+    assert "ids ['CheckedFine-v0']" in later.stdout, later.stdout + later.stderr
+    warnings = [line for line in later.stderr.splitlines() if line.startswith("envfactory:")]
+    assert len(warnings) == 1 and "broken.yaml:9: task.goal.tolerence: unknown key 'tolerence'" in warnings[0]
+    # fixed: the remembered verdict no longer holds, the file registers again
+    broken.write_text(broken.read_text().replace("tolerence", "tolerance"))
+    assert "ids ['BelowBroken-v0', 'CheckedFine-v0']" in _python(probe, **env).stdout
+
+
+def test_a_failed_make_keeps_the_family_out_of_later_imports(tmp_path):
+    config = tmp_path / "config"
+    folder = tmp_path / "user"
+    folder.mkdir()
+    (folder / "broken.yaml").write_text((BROKEN / "unknown_key.yaml").read_text()
+                                        .replace("BrokenKey-v0", "MadeBroken-v0"))
+    env = {"ENVFACTORY_SPEC_PATH": str(folder), "ENVFACTORY_CONFIG_DIR": str(config)}
+    first = _python("import gymnasium as gym, envfactory\n"
+                    "try:\n    gym.make('MadeBroken-v0')\nexcept envfactory.SpecError as exc:\n    print('refused')\n",
+                    **env)
+    assert "refused" in first.stdout, first.stderr
+    later = _python("import gymnasium as gym, envfactory\nprint('MadeBroken-v0' in gym.registry)\n", **env)
+    assert later.stdout.strip() == "False" and "unknown key 'tolerence'" in later.stderr

@@ -75,3 +75,29 @@ def test_missing_files_are_named(tmp_path, broken, expected):
     added, problems = register_specs(folder)
     assert added == [] and len(problems) == 1
     assert "myarm.yaml:" in str(problems[0]) and expected in str(problems[0]), str(problems[0])
+
+
+def test_collision_pairs_rewrites_a_stale_list(tmp_path):
+    """A stale pair list makes every ID of the robot invalid; the command that rewrites it must
+    still find the robot."""
+    import os
+    import subprocess
+    import sys
+
+    folder = _robot_folder(tmp_path, packages="  packages: {arm_description: ..}\n")
+    robot = folder / "robots" / "myarm.yaml"
+    robot.write_text(robot.read_text() + "safety:\n  collision_pairs: assets/myarm.collision.yaml\n")
+    pairs = folder / "robots" / "assets" / "myarm.collision.yaml"
+    pairs.write_text((ROOT / "robots" / "assets" / "vx300s.collision.yaml").read_text()
+                     .replace("fingerprint:", "fingerprint: stale", 1))
+    env = {**os.environ, "ENVFACTORY_SPEC_PATH": str(folder)}
+    cli = str(Path(sys.executable).parent / "envfactory")
+    run = lambda *args: subprocess.run([cli, *args], env=env, capture_output=True, text=True,  # noqa: E731
+                                       timeout=300)
+    before = run("validate", str(folder))
+    assert before.returncode == 1 and "stale" in before.stderr + before.stdout
+    written = run("collision-pairs", "myarm", "--samples", "200")
+    assert written.returncode == 0, written.stderr + written.stdout
+    assert "stale" not in pairs.read_text()
+    after = run("validate", str(folder))
+    assert after.returncode == 0, after.stderr + after.stdout

@@ -31,22 +31,37 @@ def _box(low, high) -> str:
 
 
 class TaskFrameScene:
-    """The table and the floor in the task frame."""
+    """The table and the floor in the task frame (which turns about z at most, so heights stay heights)."""
 
     def __init__(self, spec: EnvSpec):
-        origin = np.asarray(spec.robot.task_origin_world, float)
+        from envfactory.frames import TaskFrame
+        from envfactory.obstacles import table_bounds_xy
+
+        self.frame = TaskFrame.of(spec.robot)
+        origin = self.frame.origin
         table = spec.scene.table
-        half = np.asarray(table.size) / 2
-        centre = np.asarray(table.center) - origin[:2]
-        self.table_min, self.table_max = centre - half, centre + half
+        self.table_min, self.table_max = table_bounds_xy(table, self.frame)
+        # a turned frame judges "inside the table" in the world, where the table is a box
+        self._world_table = table_bounds_xy(table, TaskFrame(np.zeros(3)))
         self.top_z = table.top_z - origin[2]
         self.floor_z = spec.env.safety.floor_z - origin[2]
 
     def over_table(self, low_xy, high_xy) -> bool:
         return bool(np.all(np.asarray(low_xy) <= self.table_max) and np.all(np.asarray(high_xy) >= self.table_min))
 
+    def inside_table(self, low_xy, high_xy) -> bool:
+        """Whether the x/y box (task frame) lies within the table's footprint."""
+        if not self.frame.rotated:
+            return bool(np.all(np.asarray(low_xy) >= self.table_min) and np.all(np.asarray(high_xy) <= self.table_max))
+        corners = np.array([self.frame.to_world([x, y, 0.0])[:2] for x in (low_xy[0], high_xy[0])
+                            for y in (low_xy[1], high_xy[1])])
+        low, high = self._world_table
+        return bool(np.all(corners >= low) and np.all(corners <= high))
+
     def footprint(self) -> str:
-        return f"x in [{self.table_min[0]:g}, {self.table_max[0]:g}], y in [{self.table_min[1]:g}, {self.table_max[1]:g}]"
+        low, high = self._world_table if self.frame.rotated else (self.table_min, self.table_max)
+        world = " (world frame)" if self.frame.rotated else ""
+        return f"x in [{low[0]:g}, {high[0]:g}], y in [{low[1]:g}, {high[1]:g}]{world}"
 
 
 def scene_problems(spec: EnvSpec, report: Report) -> list[Problem]:
@@ -113,8 +128,7 @@ def _goal(spec: EnvSpec, scene: TaskFrameScene, report: Report) -> list[Problem]
     if outside:
         problems.append(report("task.goal.box", f"goal box {_box(low, high)} leaves {name} {_box(*bounds)} in "
                                                 f"{', '.join(outside)}; valid: a box inside it"))
-    if source != "ee" and source in spec.task.objects and not (
-            np.all(low[:2] >= scene.table_min) and np.all(high[:2] <= scene.table_max)):
+    if source != "ee" and source in spec.task.objects and not scene.inside_table(low[:2], high[:2]):
         problems.append(report("task.goal.box", f"goal box x/y {_box(low[:2], high[:2])} leaves the table "
                                                 f"({scene.footprint()}); {source} goals must lie over the table"))
     surface = scene.top_z if scene.over_table(low[:2], high[:2]) else scene.floor_z
@@ -133,7 +147,7 @@ def _objects(spec: EnvSpec, scene: TaskFrameScene, report: Report) -> list[Probl
         half = obj.size / 2
         reach = np.asarray(obj.spawn.offset if obj.spawn.random else (0.0, 0.0)) + half
         lo, hi = position[:2] - reach, position[:2] + reach
-        if np.any(lo < scene.table_min) or np.any(hi > scene.table_max):
+        if not scene.inside_table(lo, hi):
             problems.append(report(f"{path}.position", f"{name} at x/y {_fmt(position[:2])} ± offset "
                                                        f"{_fmt(obj.spawn.offset)} ± half its size {half:g} leaves "
                                                        f"the table ({scene.footprint()})"))

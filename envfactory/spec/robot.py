@@ -57,7 +57,7 @@ class ModelSpec(Model):
         base = self.parts[0]
         if base.parent is not None or any(base.xyz) or any(base.rpy):
             raise located("parts.0", "parts[0] is the base: it takes no parent, xyz or rpy (place the robot with "
-                                     "'mount'; a rotated base is not supported)")
+                                     "'mount' and turn it with 'mount_rpy')")
         for index, part in enumerate(self.parts[1:], start=1):
             if part.parent is None:
                 raise ValueError(f"parts[{index}] needs 'parent': the link it is mounted on")
@@ -182,6 +182,7 @@ class RobotSpec(Model):
     label: str
     model: ModelSpec
     mount: Position  # world position of the robot base
+    mount_rpy: Rpy = (0.0, 0.0, 0.0)  # world orientation of the robot base (roll, pitch, yaw; URDF convention)
     pedestal: PedestalSpec | None = None
     task_frame: Literal["world", "base"]
     arm_joints: list[ArmJoint] = Field(min_length=1)
@@ -235,6 +236,14 @@ class RobotSpec(Model):
 
     @model_validator(mode="after")
     def _consistent(self) -> "RobotSpec":
+        tilted = bool(self.mount_rpy[0] or self.mount_rpy[1])
+        if tilted and self.task_frame == "base":
+            raise located("mount_rpy", f"a base tilted by roll/pitch {list(self.mount_rpy[:2])} needs 'task_frame: "
+                                       f"world': a base task frame may only turn about z (yaw), so that its z stays "
+                                       f"up and goals, spawns and the table stay level in it")
+        if tilted and self.pedestal is not None:
+            raise located("mount_rpy", f"a base tilted by roll/pitch {list(self.mount_rpy[:2])} cannot stand on a "
+                                       f"pedestal (its top is level): drop 'pedestal' or the tilt")
         try:
             ordered(self.ee_bounds[0], self.ee_bounds[1], "ee_bounds")
         except ValueError as exc:

@@ -1,10 +1,22 @@
-"""A robot's topics under rosbridge; every one can be overridden in YAML or by kwarg."""
+"""A robot's topics under rosbridge; every one can be overridden in YAML or by kwarg.
+
+Each topic's messages follow a template (envfactory.spec.messages): `encoding`
+names a shipped one or writes one in place.
+"""
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, ClassVar
 
-from envfactory.spec.base import Model, Position, Rpy
+from pydantic import PrivateAttr, model_validator
+
+from envfactory.spec.base import Model, Position, Rpy, located
+from envfactory.spec.messages import MessageTemplate, checked
+
+
+def _same_type(a: str, b: str) -> bool:
+    # ROS 2 spells pkg/msg/Type what ROS 1 spells pkg/Type
+    return a.replace("/msg/", "/") == b.replace("/msg/", "/")
 
 
 class RosTopic(Model):
@@ -12,18 +24,51 @@ class RosTopic(Model):
     type: str
 
 
-class ArmCommand(RosTopic):
-    # joint_trajectory: trajectory_msgs/JointTrajectory, one point at time_from_start (ur_robot_driver)
-    # joint_group: interbotix_xs_msgs/JointGroupCommand {name: group, cmd: positions} (xs_sdk)
-    encoding: Literal["joint_trajectory", "joint_group"]
-    group: str = "arm"
+class _Templated(RosTopic):
+    """A topic whose messages follow a template; ROLE says what kind of message it carries."""
+
+    ROLE: ClassVar[str] = ""
+    encoding: str | dict[str, Any]  # a shipped template's name, or a template written in place
+    _template: MessageTemplate | None = PrivateAttr(None)
+
+    @model_validator(mode="after")
+    def _template_fits(self):
+        self._template = checked(self.encoding, self.ROLE)
+        return self
+
+    def type_problem(self) -> str | None:
+        template = self.template
+        if template.type is not None and not _same_type(template.type, self.type):
+            return f"type {self.type!r} differs from the type of its message template ({template.type!r})"
+        return None
+
+    @property
+    def template(self) -> MessageTemplate:
+        return self._template
 
 
-class GripperCommand(RosTopic):
-    # float64_array: std_msgs/Float64MultiArray with the one driven value (the Robotiq knuckle)
-    # joint_single: interbotix_xs_msgs/JointSingleCommand {name, cmd} (xs_sdk gripper in linear_position mode)
-    encoding: Literal["float64_array", "joint_single"]
-    name: str = "gripper"
+class JointStatesTopic(_Templated):
+    ROLE: ClassVar[str] = "joint_state"
+    encoding: str | dict[str, Any] = "joint_state"
+
+
+class PoseTopic(_Templated):
+    ROLE: ClassVar[str] = "pose"
+    encoding: str | dict[str, Any] = "pose_stamped"
+
+
+class ArmCommand(_Templated):
+    # shipped: joint_trajectory (trajectory_msgs/JointTrajectory, ur_robot_driver),
+    # joint_group (interbotix_xs_msgs/JointGroupCommand, xs_sdk)
+    ROLE: ClassVar[str] = "arm"
+    group: str = "arm"  # $group
+
+
+class GripperCommand(_Templated):
+    # shipped: float64_array (std_msgs/Float64MultiArray, the Robotiq knuckle),
+    # joint_single (interbotix_xs_msgs/JointSingleCommand, xs_sdk gripper in linear_position mode)
+    ROLE: ClassVar[str] = "gripper"
+    name: str = "gripper"  # $name
 
 
 class StaticTransform(Model):
@@ -35,10 +80,21 @@ class StaticTransform(Model):
 
 
 class RosSpec(Model):
-    joint_states: RosTopic
+    joint_states: JointStatesTopic
     arm_command: ArmCommand
     gripper_command: GripperCommand | None = None
-    object_poses: dict[str, RosTopic] = {}  # object name -> geometry_msgs/PoseStamped topic
+    object_poses: dict[str, PoseTopic] = {}  # object name -> pose topic (geometry_msgs/PoseStamped by default)
     task_frame_id: str  # the ROS frame of the task frame (goals and observations)
     static_transforms: dict[str, StaticTransform] = {}  # frame -> its pose in the parent frame
     use_tf: bool = False  # also learn transforms from /tf and /tf_static
+
+    @model_validator(mode="after")
+    def _types_match_templates(self) -> "RosSpec":
+        topics = {"joint_states": self.joint_states, "arm_command": self.arm_command,
+                  "gripper_command": self.gripper_command,
+                  **{f"object_poses.{name}": topic for name, topic in self.object_poses.items()}}
+        for path, topic in topics.items():
+            problem = topic.type_problem() if topic is not None else None
+            if problem:
+                raise located(f"{path}.type", problem)
+        return self

@@ -16,6 +16,7 @@ import time
 import numpy as np
 
 from envfactory.backends.rosbridge import messages
+from envfactory.frames import TaskFrame
 from envfactory.twin.server import Faults, Node, Received, RosbridgeServer
 
 __all__ = ["Faults", "Received", "Twin"]
@@ -58,7 +59,7 @@ class Twin:
         if self.ros is None:
             raise ValueError(f"robot {robot!r} declares no 'ros:' topic map")
         self.sim = PyBulletBackend(spec, assemble(spec.robot.model, blueprint.asset_root, spec.robot.name),
-                                   np.asarray(spec.robot.task_origin_world, float))
+                                   TaskFrame.of(spec.robot))
         spawn = {name: (np.asarray(obj.spawn.position, float), np.array([0.0, 0.0, 0.0, 1.0]))
                  for name, obj in spec.task.objects.items()}
         self.sim.reset(np.asarray(spec.robot.home, float), spec.gripper_at_reset, spawn)
@@ -157,7 +158,7 @@ class Twin:
             position = position.copy()
             position[-1] = float("nan")  # a driver glitch; the server sends it as null
         await self.server.publish(topic, messages.encode_joint_state(self.state_names, position, velocity,
-                                                                     time.time()))
+                                                                     time.time(), self.ros.joint_states.template))
 
     async def _publish_poses(self) -> None:
         for name, topic_spec in self.ros.object_poses.items():
@@ -168,7 +169,8 @@ class Twin:
             reading = self.sim.read_object(name)
             quaternion = reading.quaternion * (3.0 if self.faults.take_malformed(topic_spec.topic) else 1.0)
             await self.server.publish(topic_spec.topic, messages.encode_pose(self.ros.task_frame_id, reading.position,
-                                                                             quaternion, time.time()))
+                                                                             quaternion, time.time(),
+                                                                             topic_spec.template))
 
     # ------------------------------------------------------------------ what it executes
 

@@ -7,12 +7,14 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 import pybullet as p
 
 from envfactory.backends.base import BackendError, CameraFrame, JointReading, ObjectReading
 from envfactory.backends.pybullet import scene
 from envfactory.backends.pybullet.fast_physics import (FastCycles, GripperResponse, ObjectClearance, Rig,
                                                        record_gripper_response)
+from envfactory.frames import TaskFrame, base_rotation
 from envfactory.obstacles import scene_obstacles
 from envfactory.spec.schema import CameraSpec, EnvSpec
 
@@ -26,11 +28,11 @@ _GRIPPER_RESPONSES: dict[tuple, GripperResponse] = {}
 
 class PyBulletBackend:
     teleports_on_reset = True  # reset sets the joints directly; no path is driven
-    def __init__(self, spec: EnvSpec, urdf_path: Path, task_origin_world: np.ndarray, render_mode: str | None = None):
+    def __init__(self, spec: EnvSpec, urdf_path: Path, task_frame: TaskFrame, render_mode: str | None = None):
         self.spec = spec
         self.robot = spec.robot
         self._urdf_path = Path(urdf_path)
-        self.task_origin = np.asarray(task_origin_world, float)
+        self.task_frame = task_frame
         self.dt = 1.0 / spec.sim.physics_hz
         self.realtime = spec.env.timing.realtime
         mode = p.GUI if spec.env.gui or render_mode == "human" else p.DIRECT
@@ -66,9 +68,10 @@ class PyBulletBackend:
         p.configureDebugVisualizer(p.COV_ENABLE_GUI, 0, physicsClientId=c)
         self.obstacle_bodies = scene.add_obstacles(c, scene_obstacles(self.spec))
         mount = np.asarray(self.robot.mount, float)
+        x, y, z, w = pin.Quaternion(base_rotation(self.robot)).coeffs()
         # Self-collision stays off: the gripper's linkage links overlap by design.
-        self.body = p.loadURDF(str(urdf_path), basePosition=mount.tolist(), useFixedBase=True,
-                               flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=c)
+        self.body = p.loadURDF(str(urdf_path), basePosition=mount.tolist(), baseOrientation=[x, y, z, w],
+                               useFixedBase=True, flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=c)
         infos = [p.getJointInfo(self.body, j, physicsClientId=c)
                  for j in range(p.getNumJoints(self.body, physicsClientId=c))]
         index = {info[1].decode(): info[0] for info in infos}
@@ -97,7 +100,7 @@ class PyBulletBackend:
                                  spinningFriction=pads.spinning_friction, rollingFriction=pads.rolling_friction,
                                  frictionAnchor=int(pads.friction_anchor), physicsClientId=c)
         self.objects: dict[str, int] = {}  # spawned fresh at every reset
-        self._goal_marker = scene.add_marker(c, self.task_origin + [0.0, 0.0, -10.0])
+        self._goal_marker = scene.add_marker(c, self.task_frame.to_world([0.0, 0.0, -10.0]))
         self._set_joint_state(np.asarray(self.robot.home, float), self._gripper_reset_value(None))
         self._hold(np.asarray(self.robot.home, float), None)
         self._saved = p.saveState(physicsClientId=c)
@@ -175,8 +178,9 @@ class PyBulletBackend:
             for name, (position, quaternion) in objects.items():
                 if name not in self.spec.task.objects:
                     raise BackendError(f"reset places {name!r}, which the task does not declare")
-                self.objects[name] = scene.add_object(c, self.spec.task.objects[name], self.task_origin + position,
-                                                      quaternion)
+                self.objects[name] = scene.add_object(c, self.spec.task.objects[name],
+                                                      self.task_frame.to_world(position),
+                                                      self.task_frame.quaternion_to_world(quaternion))
             # the bounding sphere of each (cubic) object, for the fast fidelity's clearance
             self._object_radii = {body: self.spec.task.objects[name].size * np.sqrt(3) / 2
                                   for name, body in self.objects.items()}
@@ -259,11 +263,12 @@ class PyBulletBackend:
         with self._lock:
             position, quaternion = p.getBasePositionAndOrientation(self.objects[name], physicsClientId=self.client)
             stamp = self._sim_time
-        return ObjectReading(np.array(position) - self.task_origin, np.array(quaternion), stamp)
+        return ObjectReading(self.task_frame.to_task(position), self.task_frame.quaternion_to_task(quaternion),
+                             stamp)
 
     def mark_goal(self, position: np.ndarray) -> None:
         with self._lock:
-            p.resetBasePositionAndOrientation(self._goal_marker, (self.task_origin + position).tolist(), [0, 0, 0, 1],
+            p.resetBasePositionAndOrientation(self._goal_marker, self.task_frame.to_world(position).tolist(), [0, 0, 0, 1],
                                               physicsClientId=self.client)
 
     def render(self, width: int = 480, height: int = 360) -> np.ndarray:

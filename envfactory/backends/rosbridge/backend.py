@@ -57,7 +57,7 @@ def require_motion_gate(flag: bool, what: str) -> None:
 class RosbridgeBackend:
     teleports_on_reset = False  # the arm drives home
 
-    def __init__(self, spec: EnvSpec, urdf_path: Path, task_origin_world: np.ndarray, render_mode: str | None = None):
+    def __init__(self, spec: EnvSpec, urdf_path: Path, task_frame, render_mode: str | None = None):
         robot, real = spec.robot, spec.env.real
         self.spec, self.real = spec, real
         if robot.ros is None:
@@ -127,7 +127,7 @@ class RosbridgeBackend:
 
     def _on_joint_state(self, msg: dict) -> None:
         try:
-            values = messages.decode_joint_state(msg, self.state_names)
+            values = messages.decode_joint_state(msg, self.state_names, self.ros_spec.joint_states.template)
         except messages.MalformedMessage as exc:
             self.joints.fail(f"malformed message on {self.joints.topic}: {exc}")
             return
@@ -137,7 +137,7 @@ class RosbridgeBackend:
     def _on_pose(self, name: str, msg: dict) -> None:
         feed = self.objects[name]
         try:
-            frame, position, quaternion = messages.decode_pose(msg)
+            frame, position, quaternion = messages.decode_pose(msg, self.ros_spec.object_poses[name].template)
             position, quaternion = self.frames.to_task(frame, position, quaternion)
         except messages.MalformedMessage as exc:
             feed.fail(f"malformed message on {feed.topic}: {exc}")
@@ -308,7 +308,7 @@ class RosbridgeBackend:
     def _drive_plan(self, start: np.ndarray, home: np.ndarray) -> list[tuple[float, np.ndarray, float]]:
         """(send at s, target, duration s) for each command of the drive home at reset_speed."""
         total = max(1.0, float(np.max(np.abs(home - start))) / self.real.reset_speed)
-        if self.ros_spec.arm_command.encoding == "joint_trajectory":
+        if messages.carries_duration(self.ros_spec.arm_command):
             return [(0.0, home, total)]  # the trajectory itself carries the duration
         count = max(1, math.ceil(total / RESET_SEGMENT_S))
         step = total / count

@@ -1,8 +1,9 @@
 """The ROS messages envfactory speaks, as rosbridge JSON dicts, in both directions.
 
 The client encodes commands and decodes states; the digital twin does the
-reverse. Keeping both here means one place knows each message's shape, and
-every decoder rejects a malformed message with a reason instead of guessing.
+reverse. Each message's shape is a template declared in YAML (the robot's
+`ros:` map, or robots/_messages.yaml); here the values go in and come out,
+and every decoder rejects a malformed message with a reason instead of guessing.
 """
 
 from __future__ import annotations
@@ -11,6 +12,8 @@ import math
 
 import numpy as np
 
+from envfactory.backends.rosbridge.templates import TemplateMismatch, fill, read
+from envfactory.spec.messages import MessageTemplate, placeholder_paths, resolve
 from envfactory.spec.schema import ArmCommand, GripperCommand
 
 
@@ -47,18 +50,35 @@ def _finite_floats(values, what: str, count: int | None = None) -> np.ndarray:
 # ------------------------------------------------------------------ joint states
 
 
-def encode_joint_state(names: list[str], position, velocity, stamp: float) -> dict:
-    return {"header": {"stamp": _stamp(stamp), "frame_id": ""}, "name": list(names),
-            "position": [float(v) for v in position], "velocity": [float(v) for v in velocity], "effort": []}
+def _lookup(message, path: str):
+    """The value at a dotted path of a message, or None."""
+    for key in path.split("."):
+        if isinstance(message, dict):
+            message = message.get(key)
+        elif isinstance(message, list) and key.isdigit() and int(key) < len(message):
+            message = message[int(key)]
+        else:
+            return None
+    return message
 
 
-def decode_joint_state(msg: dict, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
+def encode_joint_state(names: list[str], position, velocity, stamp: float,
+                       template: MessageTemplate | None = None) -> dict:
+    template = template or resolve("joint_state")
+    return fill(template.message, {"$stamp": _stamp(stamp), "$joint_names": list(names),
+                                   "$positions": [float(v) for v in position],
+                                   "$velocities": [float(v) for v in velocity]})
+
+
+def decode_joint_state(msg: dict, names: list[str], template: MessageTemplate | None = None
+                       ) -> tuple[np.ndarray, np.ndarray]:
     """Positions and velocities in the order of `names`, matched by name, not by index."""
-    if not isinstance(msg, dict) or not isinstance(msg.get("name"), list):
-        raise MalformedMessage("joint state without a 'name' list")
-    received = msg["name"]
-    position = _finite_floats(msg.get("position", []), "joint state position", len(received))
-    raw_velocity = msg.get("velocity") or [0.0] * len(received)
+    paths = placeholder_paths((template or resolve("joint_state")).message)
+    received = _lookup(msg, paths["$joint_names"]) if isinstance(msg, dict) else None
+    if not isinstance(received, list):
+        raise MalformedMessage(f"joint state without a '{paths['$joint_names']}' list")
+    position = _finite_floats(_lookup(msg, paths["$positions"]) or [], "joint state position", len(received))
+    raw_velocity = (_lookup(msg, paths["$velocities"]) if "$velocities" in paths else None) or [0.0] * len(received)
     velocity = _finite_floats(raw_velocity, "joint state velocity", len(received))
     index = {name: i for i, name in enumerate(received)}
     missing = [name for name in names if name not in index]
@@ -70,23 +90,26 @@ def decode_joint_state(msg: dict, names: list[str]) -> tuple[np.ndarray, np.ndar
 
 # ------------------------------------------------------------------ object poses
 
-
-def encode_pose(frame_id: str, position, quaternion, stamp: float) -> dict:
-    x, y, z, w = (float(v) for v in quaternion)
-    return {"header": {"stamp": _stamp(stamp), "frame_id": frame_id},
-            "pose": {"position": dict(zip("xyz", (float(v) for v in position))),
-                     "orientation": {"x": x, "y": y, "z": z, "w": w}}}
+_POSITION, _ORIENTATION = ("$x", "$y", "$z"), ("$qx", "$qy", "$qz", "$qw")
 
 
-def decode_pose(msg: dict) -> tuple[str, np.ndarray, np.ndarray]:
-    """(frame_id, position, quaternion x y z w) of a geometry_msgs/PoseStamped."""
+def encode_pose(frame_id: str, position, quaternion, stamp: float, template: MessageTemplate | None = None) -> dict:
+    template = template or resolve("pose_stamped")
+    values = {"$stamp": _stamp(stamp), "$frame_id": frame_id}
+    values.update(zip(_POSITION, (float(v) for v in position)))
+    values.update(zip(_ORIENTATION, (float(v) for v in quaternion)))
+    return fill(template.message, values)
+
+
+def decode_pose(msg: dict, template: MessageTemplate | None = None) -> tuple[str, np.ndarray, np.ndarray]:
+    """(frame_id, position, quaternion x y z w) of a pose message."""
     try:
-        pose = msg["pose"]
-        position = _finite_floats([pose["position"][k] for k in "xyz"], "pose position")
-        quaternion = _finite_floats([pose["orientation"][k] for k in "xyzw"], "pose orientation")
-        frame = str(msg.get("header", {}).get("frame_id", ""))
-    except (KeyError, TypeError) as exc:
-        raise MalformedMessage(f"pose lacks {exc}") from exc
+        values = read((template or resolve("pose_stamped")).message, msg)
+    except TemplateMismatch as exc:
+        raise MalformedMessage(f"pose {exc}") from None
+    position = _finite_floats([values[k] for k in _POSITION], "pose position")
+    quaternion = _finite_floats([values[k] for k in _ORIENTATION], "pose orientation")
+    frame = str(values.get("$frame_id", ""))
     norm = np.linalg.norm(quaternion)
     if not 0.9 < norm < 1.1:
         raise MalformedMessage(f"pose orientation is not a unit quaternion (norm {norm:.3f})")
@@ -96,56 +119,70 @@ def decode_pose(msg: dict) -> tuple[str, np.ndarray, np.ndarray]:
 # ------------------------------------------------------------------ arm commands
 
 
+def _arm_values(command: ArmCommand, joints: list[str], q, duration: float) -> dict:
+    return {"$joint_names": list(joints), "$positions": None if q is None else [float(v) for v in q],
+            "$zeros": [0.0] * len(joints), "$duration": _stamp(duration), "$group": command.group}
+
+
+def carries_duration(command: ArmCommand) -> bool:
+    """Whether the arm command says how long the motion takes (else the driver decides)."""
+    return "$duration" in command.template.placeholders()
+
+
 def encode_arm(command: ArmCommand, joints: list[str], q_target, duration: float) -> dict:
-    if command.encoding == "joint_trajectory":
-        return {"header": {"stamp": _stamp(0.0), "frame_id": ""}, "joint_names": list(joints),
-                "points": [{"positions": [float(v) for v in q_target], "velocities": [0.0] * len(joints),
-                            "accelerations": [], "effort": [], "time_from_start": _stamp(duration)}]}
-    return {"name": command.group, "cmd": [float(v) for v in q_target]}
+    return fill(command.template.message, _arm_values(command, joints, q_target, duration))
 
 
 def encode_arm_stop(command: ArmCommand, joints: list[str], q_hold) -> dict | None:
-    """The stop: an empty trajectory (the controller's own stop: it holds where it is), or,
-    for group commands that have no such message, a command to hold at `q_hold`."""
-    if command.encoding == "joint_trajectory":
-        return {"header": {"stamp": _stamp(0.0), "frame_id": ""}, "joint_names": list(joints), "points": []}
+    """The stop: the template's stop message (a trajectory controller's own stop: it holds where it
+    is), or, for commands that have none, a command to hold at `q_hold` (None if there is nothing to hold)."""
+    template = command.template
+    if template.stop is not None and "$positions" not in template.placeholders("stop"):
+        return fill(template.stop, _arm_values(command, joints, None, 0.0))
     if q_hold is None:
         return None
-    return {"name": command.group, "cmd": [float(v) for v in q_hold]}
+    return fill(template.stop or template.message, _arm_values(command, joints, q_hold, 0.0))
 
 
 def decode_arm(command: ArmCommand, joints: list[str], msg: dict, default_duration: float
                ) -> tuple[np.ndarray | None, float]:
     """(target in `joints` order or None for a stop, duration)."""
-    if command.encoding == "joint_trajectory":
-        points = msg.get("points")
-        if not isinstance(points, list):
-            raise MalformedMessage("trajectory without a 'points' list")
-        if not points:
+    template = command.template
+    try:
+        values = read(template.message, msg)
+    except TemplateMismatch as exc:
+        if template.stop is None:
+            raise MalformedMessage(f"arm command {exc}") from None
+        try:  # a stop is told from a command by its fixed values
+            values = read(template.stop, msg, exact=True)
+        except TemplateMismatch:
+            raise MalformedMessage(f"arm command {exc}") from None
+        if "$positions" not in values:
             return None, 0.0
-        names = msg.get("joint_names", [])
-        if sorted(names) != sorted(joints):
-            raise MalformedMessage(f"trajectory joint_names {names} differ from {joints}")
-        positions = _finite_floats(points[-1].get("positions"), "trajectory positions", len(names))
-        by_name = dict(zip(names, positions))
-        return np.array([by_name[j] for j in joints]), _duration_seconds(points[-1].get("time_from_start", {}))
-    if msg.get("name") != command.group:
-        raise MalformedMessage(f"group command for {msg.get('name')!r}, expected {command.group!r}")
-    return _finite_floats(msg.get("cmd"), "group command", len(joints)), default_duration
+    if "$group" in values and values["$group"] != command.group:
+        raise MalformedMessage(f"group command for {values['$group']!r}, expected {command.group!r}")
+    names = values.get("$joint_names", list(joints))
+    if not isinstance(names, list) or sorted(names) != sorted(joints):
+        raise MalformedMessage(f"arm command joint names {names} differ from {joints}")
+    positions = _finite_floats(values["$positions"], "arm command positions", len(names))
+    by_name = dict(zip(names, positions))
+    duration = _duration_seconds(values["$duration"]) if isinstance(values.get("$duration"), dict) \
+        else default_duration
+    return np.array([by_name[j] for j in joints]), duration
 
 
 # ------------------------------------------------------------------ gripper commands
 
 
 def encode_gripper(command: GripperCommand, value: float) -> dict:
-    if command.encoding == "float64_array":
-        return {"layout": {"dim": [], "data_offset": 0}, "data": [float(value)]}
-    return {"name": command.name, "cmd": float(value)}
+    return fill(command.template.message, {"$value": float(value), "$name": command.name})
 
 
 def decode_gripper(command: GripperCommand, msg: dict) -> float:
-    if command.encoding == "float64_array":
-        return float(_finite_floats(msg.get("data"), "gripper command", 1)[0])
-    if msg.get("name") != command.name:
-        raise MalformedMessage(f"gripper command for {msg.get('name')!r}, expected {command.name!r}")
-    return float(_finite_floats([msg.get("cmd")], "gripper command", 1)[0])
+    try:
+        values = read(command.template.message, msg)
+    except TemplateMismatch as exc:
+        raise MalformedMessage(f"gripper command {exc}") from None
+    if "$name" in values and values["$name"] != command.name:
+        raise MalformedMessage(f"gripper command for {values['$name']!r}, expected {command.name!r}")
+    return float(_finite_floats([values["$value"]], "gripper command", 1)[0])

@@ -1,0 +1,96 @@
+"""The safety check's own cost, apart from what the physics around it does to the CPU caches.
+
+    python benchmarks/safety_replay.py [--steps N] [--ids ID ...]
+
+Records the checks an env makes on full-scale random actions (joint and EE
+mode), then replays the same checks in one process and times them (CPU time
+of this thread, so other processes on the machine weigh less): back to back,
+and with the physics substeps of one action cycle run between two checks, as
+inside `env.step`. The gap between the two is the price of cold caches, not
+of the check. Also reports exact (coal) distance queries per check.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+import pybullet as p
+
+import envfactory  # noqa: F401  (registers the IDs)
+
+SIM_IDS = ["UR5eReacherSim-v0", "UR5ePushSim-v0", "UR5ePnPSim-v0",
+           "VX300SReacherSim-v0", "VX300SPushSim-v0", "VX300SPnPSim-v0"]
+
+
+def record(env, steps: int) -> list[tuple]:
+    calls, check = [], env.safety.check
+
+    def recording(*args):
+        calls.append(args)
+        return check(*args)
+
+    env.safety.check = recording
+    env.reset(seed=0)
+    env.action_space.seed(0)
+    for step in range(steps):
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        if terminated or truncated or step % 50 == 49:
+            env.reset()
+    env.safety.check = check
+    return calls
+
+
+def replay(env, calls: list[tuple], substeps: int) -> tuple[float, float, float]:
+    """Median CPU µs per check, exact queries per check, and the share of checks accepted."""
+    safety, client = env.safety, env.backend.client
+    collision = safety.collision
+    exact, queries = collision.exact, [0]
+
+    def counted(pairs):
+        queries[0] += len(pairs)
+        return exact(pairs)
+
+    collision.exact = counted
+    safety.forget()
+    times, accepted = [], 0
+    for args in calls:
+        for _ in range(substeps):
+            p.stepSimulation(physicsClientId=client)
+        start = time.thread_time()
+        verdict = safety.check(*args)
+        times.append(time.thread_time() - start)
+        accepted += verdict.accepted
+    collision.exact = exact
+    return float(np.median(times) * 1e6), queries[0] / len(calls), accepted / len(calls)
+
+
+def main() -> None:
+    import gymnasium as gym
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=500)
+    parser.add_argument("--ids", nargs="*", default=SIM_IDS)
+    args = parser.parse_args()
+    print(f"{'ID':<22} {'mode':<6} {'warm µs':>8} {'after physics µs':>17} {'coal/check':>11} {'accepted':>9}",
+          flush=True)
+    warm_all = []
+    for env_id in args.ids:
+        for ee in (False, True):
+            env = gym.make(env_id, ee_action_type=ee).unwrapped
+            calls = record(env, args.steps)
+            spec = env.blueprint.spec
+            substeps = round(spec.env.timing.action_cycle_time * spec.sim.physics_hz)
+            replay(env, calls[:20], 0)  # compiled code and caches in place
+            warm, queries, accepted = replay(env, calls, 0)
+            cold, _, _ = replay(env, calls, substeps)
+            warm_all.append(warm)
+            print(f"{env_id:<22} {'EE' if ee else 'joint':<6} {warm:>8.0f} {cold:>17.0f} {queries:>11.1f} "
+                  f"{accepted:>9.1%}", flush=True)
+            env.close()
+    print(f"median over IDs and modes, warm: {np.median(warm_all):.0f} µs")
+
+
+if __name__ == "__main__":
+    main()
