@@ -15,7 +15,8 @@ from envfactory.collision_pairs import StalePairs, read_pairs, write_pairs
 from envfactory.envs import RobotEnv
 
 SIM_IDS = ["UR5eReacherSim-v0", "UR5ePushSim-v0", "UR5ePnPSim-v0",
-           "VX300SReacherSim-v0", "VX300SPushSim-v0", "VX300SPnPSim-v0"]
+           "VX300SReacherSim-v0", "VX300SPushSim-v0", "VX300SPnPSim-v0",
+           "RX200ReacherSim-v0", "RX200PushSim-v0", "RX200PnPSim-v0"]
 
 
 def make(env_id, **kwargs):
