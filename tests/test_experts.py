@@ -6,7 +6,7 @@ from envfactory.episodes import run_episodes, success_rate
 from envfactory.experts import make_policy
 
 REACH_IDS = ["UR5eReacherSim-v0", "UR5eReacherGoalSim-v0", "VX300SReacherSim-v0", "VX300SReacherGoalSim-v0",
-             "RX200ReacherSim-v0", "RX200ReacherGoalSim-v0"]
+             "RX200ReacherSim-v0", "RX200ReacherGoalSim-v0", "NED2ReacherSim-v0", "NED2ReacherGoalSim-v0"]
 
 
 @pytest.mark.parametrize("env_id", REACH_IDS)
@@ -38,10 +38,20 @@ def test_scripted_manipulation_succeeds(env_id, make):
     assert sum(r.rejected for r in results) == 0  # the expert never asks for an unsafe motion
 
 
+@pytest.mark.parametrize("env_id", ["NED2PushSim-v0", "NED2PnPSim-v0"])
+def test_scripted_manipulation_succeeds_on_the_ned2(env_id, make):
+    """As above, less the rejection count: the Ned2's forearm folds to within 4 mm of its arm (Niryo's meshes), so
+    near the base the safety check rightly refuses some of the expert's steps (README, "RX200 and Ned2")."""
+    env = make(env_id)
+    results = run_episodes(env, make_policy("scripted", env), episodes=6, seed=500)
+    assert success_rate(results) >= 5 / 6, [(r.seed, r.length, r.success) for r in results]
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("env_id, bar", [("UR5ePushSim-v0", 0.9), ("VX300SPushSim-v0", 0.9),
                                          ("UR5ePnPSim-v0", 0.8), ("VX300SPnPSim-v0", 0.8),
-                                         ("RX200PushSim-v0", 0.9), ("RX200PnPSim-v0", 0.8)])
+                                         ("RX200PushSim-v0", 0.9), ("RX200PnPSim-v0", 0.8),
+                                         ("NED2PushSim-v0", 0.9), ("NED2PnPSim-v0", 0.8)])
 def test_scripted_manipulation_over_50_seeds(env_id, bar, make):
     env = make(env_id)
     results = run_episodes(env, make_policy("scripted", env), episodes=50, seed=0)

@@ -74,6 +74,18 @@ def test_interbotix_group_commands_on_the_wire(twin, make, robot, env_id, arm_jo
     assert gripper[-1] == {"name": "gripper", "cmd": pytest.approx(0.03)}
 
 
+def test_ned2_trajectory_on_the_niryo_topic(twin, make):
+    stand_in = twin("ned2", "reach")
+    env = make_real(make, "NED2ReacherReal-v0", stand_in, max_episode_steps=3)
+    env.reset(seed=0)
+    action = np.zeros(6, dtype=np.float32)
+    action[0] = 1.0
+    env.step(action)
+    arm = on(stand_in, "/niryo_robot_follow_joint_trajectory_controller/command")
+    assert arm[-1]["joint_names"] == [f"joint_{i}" for i in range(1, 7)]
+    assert arm[-1]["points"][0]["positions"][0] == pytest.approx(0.05, abs=1e-3)  # joint_1: 1.0 × 0.05 from home 0
+
+
 def test_motion_gate_refuses_construction_and_every_publish(twin, make, monkeypatch):
     stand_in = twin()
     monkeypatch.delenv("ALLOW_REAL_ROBOT_MOTION", raising=False)

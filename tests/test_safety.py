@@ -16,7 +16,8 @@ from envfactory.envs import RobotEnv
 
 SIM_IDS = ["UR5eReacherSim-v0", "UR5ePushSim-v0", "UR5ePnPSim-v0",
            "VX300SReacherSim-v0", "VX300SPushSim-v0", "VX300SPnPSim-v0",
-           "RX200ReacherSim-v0", "RX200PushSim-v0", "RX200PnPSim-v0"]
+           "RX200ReacherSim-v0", "RX200PushSim-v0", "RX200PnPSim-v0",
+           "NED2ReacherSim-v0", "NED2PushSim-v0", "NED2PnPSim-v0"]
 
 
 def make(env_id, **kwargs):

@@ -113,6 +113,10 @@ def test_ee_mode_shrinks_previous_action():
     ("RX200ReacherSim-v0", 28, 26, 24),
     ("RX200PushSim-v0", 46, 44, 42),
     ("RX200PnPSim-v0", 48, 46, 44),
+    # the Ned2 pages': 8 joint_states entries, 6 arm joints
+    ("NED2ReacherSim-v0", 29, 26, 25),
+    ("NED2PushSim-v0", 47, 44, 43),
+    ("NED2PnPSim-v0", 49, 46, 45),
 ])
 def test_observation_sizes(env_id, standard, ee_mode, goal_env):
     assert envfactory.blueprint(env_id).observation_size == standard
