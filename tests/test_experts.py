@@ -25,7 +25,7 @@ def test_scripted_reach_in_ee_mode(env_id, make):
     assert success_rate(results) >= 0.9
 
 
-MANIPULATION_IDS = ["UR5ePushSim-v0", "VX300SPushSim-v0", "UR5ePnPSim-v0", "VX300SPnPSim-v0",
+MANIPULATION_IDS = ["UR5ePushSim-v0", "UR5ePnPSim-v0", "VX300SPnPSim-v0",
                     "RX200PushSim-v0", "RX200PnPSim-v0"]
 
 
@@ -38,10 +38,11 @@ def test_scripted_manipulation_succeeds(env_id, make):
     assert sum(r.rejected for r in results) == 0  # the expert never asks for an unsafe motion
 
 
-@pytest.mark.parametrize("env_id", ["NED2PushSim-v0", "NED2PnPSim-v0"])
-def test_scripted_manipulation_succeeds_on_the_ned2(env_id, make):
-    """As above, less the rejection count: the Ned2's forearm folds to within 4 mm of its arm (Niryo's meshes), so
-    near the base the safety check rightly refuses some of the expert's steps (README, "RX200 and Ned2")."""
+@pytest.mark.parametrize("env_id", ["VX300SPushSim-v0", "NED2PushSim-v0", "NED2PnPSim-v0"])
+def test_scripted_manipulation_succeeds_near_the_base(env_id, make):
+    """As above, less the rejection count: near the base the safety check rightly refuses some of the expert's
+    steps. The VX300S's gripper bar (15 cm wide) meets the base when the cube lies close to it; the Ned2's
+    forearm folds to within 4 mm of its arm (the makers' meshes; README, "RX200 and Ned2")."""
     env = make(env_id)
     results = run_episodes(env, make_policy("scripted", env), episodes=6, seed=500)
     assert success_rate(results) >= 5 / 6, [(r.seed, r.length, r.success) for r in results]

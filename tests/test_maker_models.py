@@ -22,8 +22,6 @@ ROTATION_TOLERANCE = 0.001  # rad
 SLACK = 0.01  # m of a maker's mesh allowed outside our primitives
 MASS_TOLERANCE = 0.002  # kg: frame-only links carry 1 g where a maker gives none
 SAMPLES = 50
-# robots whose URDF is known not to follow its maker's model yet: their checks must fail (strict xfail)
-NOT_YET_TRUE = {"vx300s": "the shipped VX300S URDF is hand-written, not from the Interbotix numbers (issue 14, item 1)"}
 
 
 def _our_robots() -> dict[str, Path]:
@@ -45,8 +43,7 @@ def _pairs():
     pairs = [(name, ours, folder / name / f"{name}.urdf") for name, ours in _our_robots().items()
              if (folder / name / f"{name}.urdf").is_file()]
     assert pairs, f"{folder} holds no model of any robot in robots/"
-    return [pytest.param(*pair, id=pair[0], marks=[pytest.mark.xfail(reason=NOT_YET_TRUE[pair[0]], strict=True)]
-                         if pair[0] in NOT_YET_TRUE else []) for pair in pairs]
+    return [pytest.param(*pair, id=pair[0]) for pair in pairs]
 
 
 def _frames(model: pin.Model, data: pin.Data, q: np.ndarray, strip: str) -> dict[str, pin.SE3]:
