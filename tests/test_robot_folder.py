@@ -75,3 +75,12 @@ def test_missing_files_are_named(tmp_path, broken, expected):
     added, problems = register_specs(folder)
     assert added == [] and len(problems) == 1
     assert "myarm.yaml:" in str(problems[0]) and expected in str(problems[0]), str(problems[0])
+
+
+def test_library_names_no_robot_added_as_yaml():
+    """The RX200 and Ned2 came as robot YAML, URDF and family files only: no library file knows them."""
+    added = [yaml_file.stem for yaml_file in (ROOT / "robots").glob("*.yaml") if yaml_file.stem in ("rx200", "ned2")]
+    assert sorted(added) == ["ned2", "rx200"]
+    for source in (ROOT / "envfactory").rglob("*.py"):
+        text = source.read_text().lower()
+        assert not any(name in text for name in added), f"{source} names one of {added}"
