@@ -5,7 +5,8 @@ import pytest
 from envfactory.episodes import run_episodes, success_rate
 from envfactory.experts import make_policy
 
-REACH_IDS = ["UR5eReacherSim-v0", "UR5eReacherGoalSim-v0", "VX300SReacherSim-v0", "VX300SReacherGoalSim-v0"]
+REACH_IDS = ["UR5eReacherSim-v0", "UR5eReacherGoalSim-v0", "VX300SReacherSim-v0", "VX300SReacherGoalSim-v0",
+             "RX200ReacherSim-v0", "RX200ReacherGoalSim-v0", "NED2ReacherSim-v0", "NED2ReacherGoalSim-v0"]
 
 
 @pytest.mark.parametrize("env_id", REACH_IDS)
@@ -16,7 +17,7 @@ def test_scripted_reach_succeeds(env_id, make):
     assert success_rate(results) >= 0.9, [(r.seed, r.length, r.success) for r in results]
 
 
-@pytest.mark.parametrize("env_id", ["UR5eReacherSim-v0", "VX300SReacherSim-v0"])
+@pytest.mark.parametrize("env_id", ["UR5eReacherSim-v0", "VX300SReacherSim-v0", "RX200ReacherSim-v0"])
 def test_scripted_reach_in_ee_mode(env_id, make):
     env = make(env_id, ee_action_type=True)
     env.reset(seed=0)
@@ -24,7 +25,8 @@ def test_scripted_reach_in_ee_mode(env_id, make):
     assert success_rate(results) >= 0.9
 
 
-MANIPULATION_IDS = ["UR5ePushSim-v0", "VX300SPushSim-v0", "UR5ePnPSim-v0", "VX300SPnPSim-v0"]
+MANIPULATION_IDS = ["UR5ePushSim-v0", "UR5ePnPSim-v0", "VX300SPnPSim-v0",
+                    "RX200PushSim-v0", "RX200PnPSim-v0"]
 
 
 @pytest.mark.parametrize("env_id", MANIPULATION_IDS)
@@ -36,9 +38,21 @@ def test_scripted_manipulation_succeeds(env_id, make):
     assert sum(r.rejected for r in results) == 0  # the expert never asks for an unsafe motion
 
 
+@pytest.mark.parametrize("env_id", ["VX300SPushSim-v0", "NED2PushSim-v0", "NED2PnPSim-v0"])
+def test_scripted_manipulation_succeeds_near_the_base(env_id, make):
+    """As above, less the rejection count: near the base the safety check rightly refuses some of the expert's
+    steps. The VX300S's gripper bar (15 cm wide) meets the base when the cube lies close to it; the Ned2's
+    forearm folds to within 4 mm of its arm (the makers' meshes; README, "RX200 and Ned2")."""
+    env = make(env_id)
+    results = run_episodes(env, make_policy("scripted", env), episodes=6, seed=500)
+    assert success_rate(results) >= 5 / 6, [(r.seed, r.length, r.success) for r in results]
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("env_id, bar", [("UR5ePushSim-v0", 0.9), ("VX300SPushSim-v0", 0.9),
-                                         ("UR5ePnPSim-v0", 0.8), ("VX300SPnPSim-v0", 0.8)])
+                                         ("UR5ePnPSim-v0", 0.8), ("VX300SPnPSim-v0", 0.8),
+                                         ("RX200PushSim-v0", 0.9), ("RX200PnPSim-v0", 0.8),
+                                         ("NED2PushSim-v0", 0.9), ("NED2PnPSim-v0", 0.8)])
 def test_scripted_manipulation_over_50_seeds(env_id, bar, make):
     env = make(env_id)
     results = run_episodes(env, make_policy("scripted", env), episodes=50, seed=0)

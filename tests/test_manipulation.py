@@ -112,7 +112,7 @@ def test_grasp_direction_comes_from_open_and_closed_values():
     from envfactory.terms.grasp import bind_grasp
     from envfactory.terms.library import Layout
 
-    for env_id, holding, loose in (("UR5ePnPSim-v0", 0.45, 0.2), ("VX300SPnPSim-v0", 0.0215, 0.04)):
+    for env_id, holding, loose in (("UR5ePnPSim-v0", 0.45, 0.2), ("VX300SPnPSim-v0", 0.0335, 0.04)):
         spec = envfactory.blueprint(env_id).spec
         layout = Layout(spec.robot, spec.task, 7, np.zeros(7), np.ones(7))
         test = bind_grasp(layout, bind_grasp.__globals__["GraspParams"](object="cube"))

@@ -59,18 +59,31 @@ def test_push_goal_real_episode_reads_the_cube(twin, make):
     np.testing.assert_allclose(observation["achieved_goal"], cube, atol=5e-3)
 
 
-def test_vx300s_group_commands_on_the_wire(twin, make):
-    stand_in = twin("vx300s")
-    env = make_real(make, "VX300SPnPReal-v0", stand_in, max_episode_steps=3)
+@pytest.mark.parametrize("robot, env_id, arm_joints", [("vx300s", "VX300SPnPReal-v0", 6), ("rx200", "RX200PnPReal-v0", 5)])
+def test_interbotix_group_commands_on_the_wire(twin, make, robot, env_id, arm_joints):
+    stand_in = twin(robot)
+    env = make_real(make, env_id, stand_in, max_episode_steps=3)
     env.reset(seed=0)
-    action = np.zeros(7, dtype=np.float32)
+    action = np.zeros(arm_joints + 1, dtype=np.float32)
     action[0], action[-1] = 1.0, 0.03
     env.step(action)
-    arm = on(stand_in, "/vx300s/commands/joint_group")
-    gripper = on(stand_in, "/vx300s/commands/joint_single")
-    assert arm[-1]["name"] == "arm" and len(arm[-1]["cmd"]) == 6
+    arm = on(stand_in, f"/{robot}/commands/joint_group")
+    gripper = on(stand_in, f"/{robot}/commands/joint_single")
+    assert arm[-1]["name"] == "arm" and len(arm[-1]["cmd"]) == arm_joints
     assert arm[-1]["cmd"][0] == pytest.approx(0.05, abs=1e-3)  # waist: delta 1.0 × delta_coeff 0.05 from home 0
     assert gripper[-1] == {"name": "gripper", "cmd": pytest.approx(0.03)}
+
+
+def test_ned2_trajectory_on_the_niryo_topic(twin, make):
+    stand_in = twin("ned2", "reach")
+    env = make_real(make, "NED2ReacherReal-v0", stand_in, max_episode_steps=3)
+    env.reset(seed=0)
+    action = np.zeros(6, dtype=np.float32)
+    action[0] = 1.0
+    env.step(action)
+    arm = on(stand_in, "/niryo_robot_follow_joint_trajectory_controller/command")
+    assert arm[-1]["joint_names"] == [f"joint_{i}" for i in range(1, 7)]
+    assert arm[-1]["points"][0]["positions"][0] == pytest.approx(0.05, abs=1e-3)  # joint_1: 1.0 × 0.05 from home 0
 
 
 def test_motion_gate_refuses_construction_and_every_publish(twin, make, monkeypatch):

@@ -101,3 +101,12 @@ def test_collision_pairs_rewrites_a_stale_list(tmp_path):
     assert "stale" not in pairs.read_text()
     after = run("validate", str(folder))
     assert after.returncode == 0, after.stderr + after.stdout
+
+
+def test_library_names_no_robot_added_as_yaml():
+    """The RX200 and Ned2 came as robot YAML, URDF and family files only: no library file knows them."""
+    added = [yaml_file.stem for yaml_file in (ROOT / "robots").glob("*.yaml") if yaml_file.stem in ("rx200", "ned2")]
+    assert sorted(added) == ["ned2", "rx200"]
+    for source in (ROOT / "envfactory").rglob("*.py"):
+        text = source.read_text().lower()
+        assert not any(name in text for name in added), f"{source} names one of {added}"

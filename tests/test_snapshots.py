@@ -48,6 +48,14 @@ SEED_TABLES = {
         ("16–21", "6", "Previous action", "matches action space"),
         ("22–30", "9", "Current joint velocities", "rad/s / m/s"),
     ],
+    "RX200ReacherSim-v0": [  # the RX200 Reach page's list (it has no index table)
+        ("0–2", "3", "EE position", "m"),
+        ("3–5", "3", "Unit vector EE → goal", "unitless"),
+        ("6", "1", "Euclidean distance EE → goal", "m"),
+        ("7–14", "8", "Current joint positions", "rad / m"),
+        ("15–19", "5", "Previous action", "matches action space"),
+        ("20–27", "8", "Current joint velocities", "rad/s / m/s"),
+    ],
     "UR5ePushSim-v0": [
         ("0–2", "3", "EE position", "m"),
         ("3–5", "3", "EE rpy", "rad"),
@@ -101,6 +109,14 @@ def test_ee_mode_shrinks_previous_action():
     ("UR5ePnPSim-v0", 47, 44, 43),
     ("VX300SPushSim-v0", 49, 46, 45),
     ("VX300SPnPSim-v0", 51, 48, 47),
+    # the RX200 pages' layouts: 8 joint_states entries, 5 arm joints
+    ("RX200ReacherSim-v0", 28, 26, 24),
+    ("RX200PushSim-v0", 46, 44, 42),
+    ("RX200PnPSim-v0", 48, 46, 44),
+    # the Ned2 pages': 8 joint_states entries, 6 arm joints
+    ("NED2ReacherSim-v0", 29, 26, 25),
+    ("NED2PushSim-v0", 47, 44, 43),
+    ("NED2PnPSim-v0", 49, 46, 45),
 ])
 def test_observation_sizes(env_id, standard, ee_mode, goal_env):
     assert envfactory.blueprint(env_id).observation_size == standard
