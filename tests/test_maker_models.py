@@ -27,6 +27,8 @@ SAMPLES = 50
 def _our_robots() -> dict[str, Path]:
     robots = {}
     for path in sorted((ROOT / "robots").glob("*.yaml")):
+        if path.name.startswith("_"):  # shared files beside the robots (message templates), not robots
+            continue
         spec = yaml.safe_load(path.read_text())
         parts = [part["urdf"] for part in spec["model"]["parts"] if "urdf" in part]
         if len(parts) == 1 and len(spec["model"]["parts"]) == 1:
