@@ -79,10 +79,12 @@ def expert_lengths(env, episodes: int) -> dict:
 
 
 def _kwargs(pairs):
+    import yaml
+
     out = {}
     for pair in pairs:
         name, _, value = pair.partition("=")
-        out[name] = {"true": True, "false": False}.get(value.lower(), value)
+        out[name] = yaml.safe_load(value)  # as the CLI's -k reads it: numbers and booleans typed
     return out
 
 

@@ -47,13 +47,10 @@ def builtin_folder() -> Path:
     return builtin_root() / "specs" / "train"
 
 
-def _folders(family_path: Path) -> list[Path]:
-    """Built-in first, then the family's own folder (applied later, so it wins)."""
-    folders = [builtin_folder()]
+def _folders(family_path: Path, builtin: bool) -> list[Path]:
+    """Built-in first, then a user family's own folder (applied later, so it wins)."""
     own = family_path.parent / "train"  # beside the family file (in specs/ when the folder has one)
-    if own.is_dir() and own.resolve() != folders[0].resolve():
-        folders.append(own)
-    return folders
+    return [builtin_folder()] + ([own] if not builtin and own.is_dir() else [])
 
 
 def _read(path: Path) -> dict:
@@ -112,7 +109,9 @@ def load(algo: str, env_id: str, overrides: list[str] | tuple[str, ...] = ()) ->
     family_path = Path(record.family.path)
     values: dict = {}
     sources: list[str] = []
-    for folder in _folders(family_path):
+    from envfactory.registry import BUILTIN_SOURCE
+
+    for folder in _folders(family_path, record.source == BUILTIN_SOURCE):
         path = folder / f"{algo}.yaml"
         if not path.is_file():
             continue

@@ -90,6 +90,12 @@ def make_model(env_id: str, hyper: Hyperparameters, env, seed: int):
     kwargs = _algorithm_kwargs(cls, hyper, env)
     goal_env = hasattr(env.observation_space, "spaces") and "desired_goal" in env.observation_space.spaces
     if goal_env:
+        limit = env.spec.max_episode_steps if env.spec is not None else None
+        if limit and kwargs.get("learning_starts", 100) <= limit:
+            # HER samples goals from finished episodes only: SB3 would fail at the first update
+            raise HyperparameterError(f"{hyper.algo}: learning_starts={kwargs.get('learning_starts', 100)} must "
+                                      f"exceed the episode limit of {env_id} ({limit} steps) with HER (from "
+                                      f"{'; '.join(hyper.sources)})")
         kwargs["replay_buffer_class"] = HerReplayBuffer
         kwargs["replay_buffer_kwargs"] = dict(hyper.trainer("her") or {})
     policy = "MultiInputPolicy" if hasattr(env.observation_space, "spaces") else "MlpPolicy"
