@@ -133,6 +133,7 @@ def train(env_id: str, folder: Path, algo: str = "sac", seed: int = 0, steps: in
             success, mean_return, length = evaluate(eval_env, policy, eval_episodes)
             row = Evaluation(timesteps, success, mean_return, length, eval_episodes, time.monotonic() - start)
             writer.add(row)
+            model.save(folder / MODEL_FILE)  # a run stopped later keeps the model of its last evaluation
             if on_evaluation is not None:
                 on_evaluation(row)
 
