@@ -8,7 +8,8 @@ hyperparameters of specs/train/<algo>.yaml (env kwargs included), evaluated
 every `--every` steps on 50 fixed-goal deterministic episodes. Writes each run
 folder (model, curve.csv, curve.png), plus `learning.md` (the success table),
 `learning.json` and `learning.png` (every curve) in --out. Runs already
-finished in --out are read back, not trained again (delete the folder to redo).
+finished in --out are read back, not trained again (delete the folder to redo);
+`--report-only` tabulates the curves written so far, of runs still going too.
 """
 
 from __future__ import annotations
@@ -28,8 +29,12 @@ IDS = ["UR5eReacherGoalSim-v0", "VX300SReacherGoalSim-v0"]
 
 def run_one(env_id: str, seed: int, args) -> list:
     folder = args.out / f"{env_id}-{args.algo}-seed{seed}"
-    if (folder / MODEL_FILE).is_file():
-        return read_csv(folder / CSV_FILE)
+    if args.report_only:
+        return read_csv(folder / CSV_FILE) if (folder / CSV_FILE).is_file() else []
+    if (folder / MODEL_FILE).is_file() and (folder / CSV_FILE).is_file():
+        rows = read_csv(folder / CSV_FILE)
+        if rows and rows[-1].timesteps >= args.steps:
+            return rows
     kwargs = {}
     for pair in args.kwarg:
         name, _, value = pair.partition("=")
@@ -61,6 +66,8 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/learning"))
     parser.add_argument("-p", "--hyperparameter", action="append", default=[])
     parser.add_argument("-k", "--kwarg", action="append", default=[])
+    parser.add_argument("--report-only", action="store_true",
+                        help="Train nothing: tabulate and plot the curves in --out so far (runs still going too)")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     results = {(env_id, seed): run_one(env_id, seed, args) for env_id in args.ids for seed in args.seeds}
