@@ -39,7 +39,9 @@ def test_train_saves_a_model_and_a_curve_that_run_replays(tmp_path, algo):
     assert all(0.0 <= float(r["success_rate"]) <= 1.0 and int(r["episodes"]) == 2 for r in rows)
     assert (folder / "curve.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     meta = json.loads((folder / "model.json").read_text())
-    assert meta["algo"] == algo and meta["env_kwargs"] == {"ee_action_type": True, "normalize_actions": True}
+    assert meta["algo"] == algo
+    # the default block's kwargs, updated by the vx300s_reach family block
+    assert meta["env_kwargs"] == {"ee_action_type": True, "normalize_actions": True, "delta_coeff": 0.035}
     assert meta["hyperparameters"]["batch_size"] == 32  # the command line won over the YAML's 256
 
     video = tmp_path / "replay.mp4"
