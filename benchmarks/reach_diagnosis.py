@@ -10,6 +10,9 @@ Per ID (kwargs apply to every env made, e.g. -k normalize_actions=true):
   an accepted random step moves the EE, against the goal tolerance;
 - observation scales: per column, the spread a random policy produces against
   the declared bound's width;
+- pushing one way: a constant saturated action per direction, the share of steps refused
+  (an unreachable target is refused and the arm holds: a learner that pushes past
+  the arm's reach stays where it is);
 - episode length: the scripted expert's steps to success against max_episode_steps.
 """
 
@@ -70,6 +73,32 @@ def random_steps(env, steps: int, seed: int) -> dict:
             "width": space.high - space.low, "slots": u.observations.slots}
 
 
+def pushing(env, steps: int = 100) -> dict:
+    """A policy that keeps pushing one way (as a saturated learner does): for each of the 26
+    directions of {-1, 0, 1}^n (first three rows, the rest 0), `steps` steps from the start pose.
+    An unreachable target is refused and the arm holds, so a push past the arm's reach stays refused."""
+    import itertools
+
+    size = env.action_space.shape[0]
+    refused = clipped = stuck = 0
+    directions = [d for d in itertools.product([-1.0, 0.0, 1.0], repeat=3) if any(d)]
+    for direction in directions:
+        action = np.zeros(size, np.float32)
+        action[:3] = np.array(direction) * env.action_space.high[:3]
+        env.reset(seed=0)
+        last = False
+        for _ in range(steps):
+            _, _, terminated, truncated, info = env.step(action)
+            last = info["action_rejected"] > 0
+            refused += last
+            clipped += info["action_out_of_bounds"] > 0
+            if terminated or truncated:
+                break
+        stuck += last
+    total = len(directions) * steps
+    return {"refused": refused / total, "clipped": clipped / total, "stuck": stuck, "directions": len(directions)}
+
+
 def expert_lengths(env, episodes: int) -> dict:
     results = run_episodes(env, make_policy("scripted", env), episodes=episodes, seed=100)
     lengths = np.array([r.length for r in results if r.success])
@@ -79,10 +108,12 @@ def expert_lengths(env, episodes: int) -> dict:
 
 
 def _kwargs(pairs):
+    import yaml
+
     out = {}
     for pair in pairs:
         name, _, value = pair.partition("=")
-        out[name] = {"true": True, "false": False}.get(value.lower(), value)
+        out[name] = yaml.safe_load(value)  # as the CLI's -k reads it: numbers and booleans typed
     return out
 
 
@@ -114,6 +145,10 @@ def main() -> None:
             for i in range(slot.start, slot.stop):
                 print(f"    {slot.name}[{i - slot.start}]  {steps['min'][i]:+.3f}..{steps['max'][i]:+.3f}  "
                       f"{steps['std'][i]:.3f}  {steps['width'][i]:.3f}  {steps['std'][i] / steps['width'][i]:.3f}")
+        push = pushing(env)
+        print(f"pushing one way for 100 steps (26 directions): {push['refused']:.0%} of steps refused, "
+              f"{push['clipped']:.0%} clipped to the action box; {push['stuck']} of {push['directions']} "
+              f"directions end refused")
         lengths = expert_lengths(env, args.episodes)
         print(f"scripted expert ({args.episodes} episodes): success {lengths['success']:.0%}, steps to success "
               f"mean {lengths['mean']:.1f}, median {lengths['median']:.0f}, max {lengths['max']}; "

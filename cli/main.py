@@ -26,7 +26,10 @@ _debug = {"on": False}
 
 
 def _fail(message: str, code: int = 1) -> None:
-    errors.print(f"[bold red]error:[/] {message}", highlight=False, markup=True, soft_wrap=True)
+    from rich.markup import escape
+
+    # the message is plain text: brackets in it ([train], list values) are not markup
+    errors.print(f"[bold red]error:[/] {escape(message)}", highlight=False, markup=True, soft_wrap=True)
     raise typer.Exit(code)
 
 
@@ -319,7 +322,9 @@ VIDEO_SUFFIXES = (".mp4", ".gif", ".webm", ".avi", ".mkv")
 def run(
     env_id: str,
     episodes: int = typer.Option(5, "--episodes", "-n", min=1),
-    policy: str = typer.Option("scripted", help="'scripted' (the task's expert) or 'random'"),
+    policy: str = typer.Option("scripted", help="'scripted' (the task's expert), 'random', or a model.zip "
+                                                 "saved by `envfactory train`"),
+    algo: Optional[str] = typer.Option(None, help="Algorithm of a --policy model with no model.json beside it"),
     seed: int = typer.Option(0, help="Seed of the first episode; episode i uses seed + i"),
     video: Optional[Path] = typer.Option(None, help="Record the episodes to this video file (e.g. out.mp4)"),
     override: List[str] = typer.Option(None, "--override", "-o", help="Hydra override, repeatable"),
@@ -339,8 +344,10 @@ def run(
 
     _known(env_id)
     kwargs = _parse_kwargs(kwarg)
+    saved = None
     if policy not in ("scripted", "random"):
-        _fail(f"--policy {policy!r}: use 'scripted' or 'random'")
+        saved, trained_kwargs = _saved_policy(policy)
+        kwargs = {**trained_kwargs, **kwargs}  # the env it was trained on, unless -k says otherwise
     if video is not None:
         _check_output(video, VIDEO_SUFFIXES)
     if allow_real_robot_motion:
@@ -351,7 +358,7 @@ def run(
         _fail(str(exc).strip("'\""))
     frames, results, failure = [], [], ""
     try:
-        actor = make_policy(policy, env, seed)
+        actor = _bind_model(saved, env, algo) if saved is not None else make_policy(policy, env, seed)
         limit = env.spec.max_episode_steps or 100
         with Progress(console=console, transient=True) as progress:
             task = progress.add_task(f"{env_id} ({policy})", total=episodes * limit)
@@ -377,6 +384,40 @@ def run(
         fps = env.unwrapped.metadata.get("render_fps", 2)
         imageio.mimsave(video, frames, fps=max(1, int(round(fps))) * 2, macro_block_size=8)
         console.print(f"video: {video} ({len(frames)} frames)")
+
+
+def _saved_policy(path_text: str) -> tuple[Path, dict]:
+    """A model file saved by `envfactory train` and the env kwargs it was trained with."""
+    from envfactory.learn.extra import MissingExtra, TRAIN_MODULES, require
+
+    path = Path(path_text)
+    if path.suffix.lower() != ".zip":
+        _fail(f"--policy {path_text!r}: use 'scripted', 'random' or a model file (.zip) saved by `envfactory train`")
+    if not path.is_file():
+        _fail(f"--policy {path}: no such file")
+    try:
+        require(TRAIN_MODULES, "--policy MODEL.zip")
+    except MissingExtra as exc:
+        _fail(str(exc))
+    from envfactory.learn.trainer import read_meta
+
+    return path, dict(read_meta(path).get("env_kwargs", {}))
+
+
+def _bind_model(path: Path, env, algo: str | None):
+    """The saved model acting in `env`; a model trained on other spaces is refused before it acts."""
+    from envfactory.learn.trainer import load_policy
+
+    try:
+        return load_policy(path, env, algo)
+    except Exception as exc:  # SB3 names the mismatching spaces; a zip that is no model lands here too
+        env.close()
+        space = env.observation_space
+        shapes = {k: v.shape for k, v in space.spaces.items()} if hasattr(space, "spaces") else space.shape
+        reason = str(exc).splitlines()[0][:160]
+        _fail(f"--policy {path}: cannot act in {env.spec.id} (action shape {env.action_space.shape}, observation "
+              f"shapes {shapes}): {type(exc).__name__}: {reason}; a model runs on the ID and kwargs it was "
+              f"trained with (model.json beside it, or -k)")
 
 
 def _print_results(env_id: str, policy: str, results) -> None:
@@ -461,6 +502,7 @@ def twin(
         stand_in.stop()
 
 
+from envfactory.cli import learn as _learn_commands  # noqa: E402,F401  (registers its commands)
 from envfactory.cli import safety as _safety_commands  # noqa: E402,F401  (registers its commands)
 
 

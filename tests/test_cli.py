@@ -76,7 +76,7 @@ def test_bad_input_never_prints_a_traceback(tmp_path):
         (["describe", "UR5eReacherSim-v0", "-k", "delta_coeff=["], "not valid YAML"),
         (["describe", "UR5eReacherSim-v0", "-k", "delta_coeff=.nan"], "finite number"),
         (["describe", "UR5eReacherSim-v0", "task.goal=["], "composition failed"),
-        (["run", "UR5eReacherSim-v0", "--policy", "clever"], "use 'scripted' or 'random'"),
+        (["run", "UR5eReacherSim-v0", "--policy", "clever"], "use 'scripted', 'random' or a model file (.zip)"),
         (["unregister", str(tmp_path)], "is not recorded"),
     ]
     for args, expected in cases:

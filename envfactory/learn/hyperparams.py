@@ -1,0 +1,128 @@
+"""Per-family training hyperparameters, rl-zoo style: specs/train/<algo>.yaml.
+
+Each file maps a key to a block of hyperparameters: `default`, a family name
+(the spec file's stem, e.g. `ur5e_reach`) or an env ID. An ID's block is the
+default, updated by its family's, updated by its own, updated by the command
+line's `name=value` overrides (dotted names reach into nested blocks:
+`policy_kwargs.net_arch=[64,64]`). A user spec folder may carry its own
+`train/` beside its family files; their blocks win over the built-in ones.
+
+Keys the trainer reads itself (everything else goes to the algorithm's
+constructor): `n_timesteps`, `env_kwargs`, `her` (HER replay-buffer kwargs,
+used on goal envs only), `eval_every`, `eval_episodes`.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+ALGORITHMS = ("sac", "td3", "tqc")
+TRAINER_KEYS = ("n_timesteps", "env_kwargs", "her", "eval_every", "eval_episodes")
+
+
+class HyperparameterError(ValueError):
+    pass
+
+
+@dataclass
+class Hyperparameters:
+    algo: str
+    values: dict
+    sources: list[str] = field(default_factory=list)  # "file: key" of every block applied, in order
+
+    def trainer(self, key: str, default=None):
+        return self.values.get(key, default)
+
+    def algorithm_kwargs(self) -> dict:
+        return {k: v for k, v in self.values.items() if k not in TRAINER_KEYS}
+
+
+def builtin_folder() -> Path:
+    from envfactory.registry import builtin_root
+
+    return builtin_root() / "specs" / "train"
+
+
+def _folders(family_path: Path, builtin: bool) -> list[Path]:
+    """Built-in first, then a user family's own folder (applied later, so it wins)."""
+    own = family_path.parent / "train"  # beside the family file (in specs/ when the folder has one)
+    return [builtin_folder()] + ([own] if not builtin and own.is_dir() else [])
+
+
+def _read(path: Path) -> dict:
+    try:
+        data = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"{path}:{mark.line + 1}" if mark else str(path)
+        raise HyperparameterError(f"{where}: not valid YAML ({getattr(exc, 'problem', exc)})") from None
+    if not isinstance(data, dict) or any(not isinstance(v, dict) for v in data.values()):
+        raise HyperparameterError(f"{path}: must map keys (default, a family or an env ID) to blocks of "
+                                  f"hyperparameters")
+    return data
+
+
+def merge(base: dict, update: dict) -> dict:
+    """Nested blocks merge key by key; anything else is replaced."""
+    out = copy.deepcopy(base)
+    for key, value in update.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = merge(out[key], value)
+        else:
+            out[key] = copy.deepcopy(value)
+    return out
+
+
+def parse_overrides(items: list[str]) -> dict:
+    """`name=value` (value as YAML, dotted names nest) into a block to merge."""
+    block: dict = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        if not sep or not name:
+            raise HyperparameterError(f"hyperparameter {item!r}: write name=value (e.g. learning_rate=3e-4)")
+        try:
+            value = yaml.safe_load(text)
+        except yaml.YAMLError as exc:
+            raise HyperparameterError(f"hyperparameter {item!r}: the value is not valid YAML "
+                                      f"({str(exc).splitlines()[0]})") from None
+        target = block
+        *parents, leaf = name.split(".")
+        for parent in parents:
+            target = target.setdefault(parent, {})
+            if not isinstance(target, dict):
+                raise HyperparameterError(f"hyperparameter {item!r}: {parent} is set to a value and a block")
+        target[leaf] = value
+    return block
+
+
+def load(algo: str, env_id: str, overrides: list[str] | tuple[str, ...] = ()) -> Hyperparameters:
+    import envfactory
+
+    algo = algo.lower()
+    if algo not in ALGORITHMS:
+        raise HyperparameterError(f"algorithm {algo!r}: use one of {', '.join(ALGORITHMS)}")
+    record = envfactory.records()[env_id]
+    family_path = Path(record.family.path)
+    values: dict = {}
+    sources: list[str] = []
+    from envfactory.registry import BUILTIN_SOURCE
+
+    for folder in _folders(family_path, record.source == BUILTIN_SOURCE):
+        path = folder / f"{algo}.yaml"
+        if not path.is_file():
+            continue
+        data = _read(path)
+        for key in ("default", family_path.stem, env_id):
+            if key in data:
+                values = merge(values, data[key])
+                sources.append(f"{path}: {key}")
+    if not sources:
+        raise HyperparameterError(f"no hyperparameters for {algo} ({builtin_folder() / (algo + '.yaml')} missing)")
+    if overrides:
+        values = merge(values, parse_overrides(list(overrides)))
+        sources.append("command line: " + " ".join(overrides))
+    return Hyperparameters(algo, values, sources)
