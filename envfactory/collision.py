@@ -53,7 +53,7 @@ def _revolute_axis(joint_model) -> np.ndarray | None:
     return None
 
 
-def _shape_points(geometry) -> np.ndarray:
+def shape_points(geometry) -> np.ndarray:
     """Points whose convex hull is the shape (cylinders and spheres: their capsule's axis)."""
     if isinstance(geometry, coal.Box):
         half = np.asarray(geometry.halfSide)
@@ -105,7 +105,7 @@ def _box_of(geometry_object) -> np.ndarray:
             half = radius
         local = np.array([[sx * radius, sy * radius, sz * half] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
     else:
-        local = _shape_points(geometry)
+        local = shape_points(geometry)
     corners = fit_box(local @ placement.rotation.T + placement.translation)
     # rounding must not shrink it: push each corner out from the centre by a nanometre
     middle = corners.mean(axis=0)
@@ -121,7 +121,7 @@ def _capsule_of(geometry_object) -> tuple[np.ndarray, np.ndarray, float]:
     if isinstance(geometry, coal.Sphere):
         center = placement.translation.copy()
         return center, center.copy(), float(geometry.radius)
-    local = _shape_points(geometry)
+    local = shape_points(geometry)
     start, end, radius = fit_capsule(local @ placement.rotation.T + placement.translation)
     return start, end, radius * (1 + 1e-9) + 1e-9
 

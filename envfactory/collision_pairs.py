@@ -28,11 +28,12 @@ import hashlib
 import json
 from pathlib import Path
 
+import coal
 import numpy as np
 import pinocchio as pin
 import yaml
 
-from envfactory.collision import CollisionModel, _capsule_of
+from envfactory.collision import CollisionModel, shape_points
 from envfactory.kinematics import Kinematics
 from envfactory.obstacles import scene_obstacles
 from envfactory.safety import SafetyCheck
@@ -60,15 +61,12 @@ def fingerprint(collision: CollisionModel, margin: float) -> str:
     # the universe as the URDF places it, so one list serves the robot however it is mounted
     unturn = pin.SE3(kin.base_rotation, np.zeros(3)).inverse()
     for shape, geometry_object in zip(collision.shapes, collision.geometry.geometryObjects):
-        placement, (start, end, radius) = geometry_object.placement, (shape.capsule_start, shape.capsule_end,
-                                                                      shape.radius)
-        if shape.joint == 0:  # a base shape's capsule is fitted anew as the URDF places it
-            placement = unturn * placement
-            start, end, radius = _capsule_of(pin.GeometryObject(geometry_object.name, 0, geometry_object.parentFrame,
-                                                                placement, geometry_object.geometry))
-            radius += shape.padding
-        digest.update(json.dumps([shape.name, shape.link, model.names[shape.joint], rounded(start),
-                                  rounded(end), round(radius, 6), rounded(placement.homogeneous)]).encode())
+        # the shape as the URDF gives it (kind, sizes, placement), not what is fitted around it: a fit
+        # may settle on another of equally good axes when the base is turned
+        placement = unturn * geometry_object.placement if shape.joint == 0 else geometry_object.placement
+        digest.update(json.dumps([shape.name, shape.link, model.names[shape.joint],
+                                  _shape_digest(geometry_object.geometry, rounded), round(shape.padding, 6),
+                                  rounded(placement.homogeneous)]).encode())
     for joint in range(1, model.njoints):
         placement = model.jointPlacements[joint]
         placement = unturn * placement if model.parents[joint] == 0 else placement
@@ -80,6 +78,20 @@ def fingerprint(collision: CollisionModel, margin: float) -> str:
         digest.update(json.dumps([robot.gripper.open, robot.gripper.closed, robot.gripper.mimic]).encode())
     digest.update(json.dumps(round(margin, 6)).encode())
     return digest.hexdigest()[:16]
+
+
+def _shape_digest(geometry, rounded) -> list:
+    """A shape's kind and sizes; a mesh by a digest of its hull's points."""
+    kind = type(geometry).__name__
+    if isinstance(geometry, coal.Box):
+        return [kind, rounded(geometry.halfSide)]
+    if isinstance(geometry, (coal.Cylinder, coal.Capsule)):
+        return [kind, rounded([geometry.radius, geometry.halfLength])]
+    if isinstance(geometry, coal.Sphere):
+        return [kind, rounded([geometry.radius])]
+    points = np.round(shape_points(geometry), 6) + 0.0
+    points = points[np.lexsort(points.T[::-1])]
+    return [kind, len(points), hashlib.sha256(points.tobytes()).hexdigest()[:16]]
 
 
 def sample_pairs(collision: CollisionModel, margin: float, samples: int = DEFAULT_SAMPLES,
