@@ -133,19 +133,24 @@ def _segment_distance(ends, a, b):
 
 
 @njit(cache=True)
-def capsule_bounds(frames, shape_joint, local_ends, radius, local_corners, padding, moving, obstacle_low,
-                   obstacle_high, self_a, self_b, out):
-    """Lower bounds on the clearance of every measured pair, in the order the collision model numbers
-    them: each moving shape against each obstacle (the better of its capsule's and its box's), then the
-    self pairs (capsule against capsule)."""
-    shapes = shape_joint.shape[0]
-    ends = np.empty((shapes, 2, 3))
-    for shape in range(shapes):
+def capsule_ends(frames, shape_joint, local_ends, ends):
+    """Each shape's capsule end points in the base frame (shapes x 2 x 3)."""
+    for shape in range(shape_joint.shape[0]):
         frame = frames[shape_joint[shape]]
         for end in range(2):
             for i in range(3):
                 ends[shape, end, i] = (frame[i, 0] * local_ends[shape, end, 0] + frame[i, 1] * local_ends[shape, end, 1]
                                        + frame[i, 2] * local_ends[shape, end, 2] + frame[i, 3])
+
+
+@njit(cache=True)
+def capsule_bounds(frames, shape_joint, local_ends, radius, local_corners, padding, moving, obstacle_low,
+                   obstacle_high, self_a, self_b, out):
+    """Lower bounds on the clearance of every measured pair, in the order the collision model numbers
+    them: each moving shape against each obstacle (the better of its capsule's and its box's), then the
+    self pairs (capsule against capsule)."""
+    ends = np.empty((shape_joint.shape[0], 2, 3))
+    capsule_ends(frames, shape_joint, local_ends, ends)
     obstacles = obstacle_low.shape[0]
     corner_low, corner_high = np.empty(3), np.empty(3)
     row = 0

@@ -99,10 +99,11 @@ def _box_of(geometry_object) -> np.ndarray:
     geometry, placement = geometry_object.geometry, geometry_object.placement
     if isinstance(geometry, (coal.Cylinder, coal.Capsule, coal.Sphere)):
         radius = float(geometry.radius)
-        half = radius + (float(geometry.halfLength) if isinstance(geometry, coal.Capsule) else 0.0)
-        half = float(geometry.halfLength) if isinstance(geometry, coal.Cylinder) else half
+        # half height along the shape's z: a cylinder's half length, a capsule's plus its cap, a sphere's radius
         if isinstance(geometry, coal.Sphere):
             half = radius
+        else:
+            half = float(geometry.halfLength) + (radius if isinstance(geometry, coal.Capsule) else 0.0)
         local = np.array([[sx * radius, sy * radius, sz * half] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
     else:
         local = shape_points(geometry)
@@ -364,13 +365,23 @@ class CollisionModel:
             self._coordinates[arm] = gripper
         self._frames_current = self._pinocchio_current = False
 
-    def bounds(self) -> np.ndarray:
-        """A lower bound on the clearance of every measured pair at the current pose."""
-        joints = self._joints
+    def _place_frames(self) -> None:
         if not self._frames_current:
+            joints = self._joints
             capsule_kernel.joint_frames(self._coordinates, joints.parent, joints.placement, joints.kind, joints.axis,
                                         joints.coordinate, joints.gain, self._frames)
             self._frames_current = True
+
+    def capsule_ends(self) -> np.ndarray:
+        """Every shape's capsule end points at the current pose (shapes x 2 x 3, base frame)."""
+        self._place_frames()
+        ends = np.empty((len(self.shapes), 2, 3))
+        capsule_kernel.capsule_ends(self._frames, self._shape_joint, self._local_ends, ends)
+        return ends
+
+    def bounds(self) -> np.ndarray:
+        """A lower bound on the clearance of every measured pair at the current pose."""
+        self._place_frames()
         out = np.empty(self.pair_count)
         capsule_kernel.capsule_bounds(self._frames, self._shape_joint, self._local_ends, self.radius,
                                       self._local_corners, self.padding, self._moving_shapes, self.obstacle_low,

@@ -26,7 +26,6 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-import pinocchio as pin
 import pybullet as p
 
 from envfactory.collision import CollisionModel
@@ -125,32 +124,25 @@ class ObjectClearance:
     """Lower bounds on the gap between the arm's moving collision shapes and a sphere, over a motion.
 
     The shapes are the safety check's own (the capsule fitted around each URDF collision shape,
-    and its lever arms per coordinate); this class only poses them with its own Pinocchio data."""
+    and its lever arms per coordinate), posed by its compiled forward kinematics."""
 
     # the finest piece of a motion the proof looks at: finer pieces would cost more than the substeps
     MIN_PIECE = 1.0 / 8
 
     def __init__(self, collision: CollisionModel):
         kinematics = collision.kinematics
-        self.kinematics = kinematics
-        self.data = kinematics.model.createData()
-        moving = np.flatnonzero(collision.lever.sum(axis=1) > 0)
-        shapes = [collision.shapes[i] for i in moving]
-        # the joints that carry shapes, each placed once per pose; shapes index into them
-        self.carriers = sorted({s.joint for s in shapes})
-        self.carrier_of = np.array([self.carriers.index(s.joint) for s in shapes])
-        self.local = np.array([[np.append(s.capsule_start, 1.0), np.append(s.capsule_end, 1.0)] for s in shapes])
-        self.radius = np.array([s.radius for s in shapes])
-        self.lever = collision.lever[moving]
+        self.collision = collision
+        self.moving = np.flatnonzero(collision.lever.sum(axis=1) > 0)
+        self.radius = collision.radius[self.moving]
+        self.lever = collision.lever[self.moving]
         self.arm = len(kinematics.robot.arm_joints)
         self.base_in_world = np.asarray(kinematics.robot.mount, float)
 
     def gaps(self, q_arm: np.ndarray, gripper: float, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
         """(shapes, spheres) lower bounds on the gap at one pose; sphere centres in the world frame."""
-        pin.forwardKinematics(self.kinematics.model, self.data, self.kinematics.full_q(q_arm, gripper))
-        placements = self.data.oMi
-        frames = np.array([placements[j].homogeneous[:3] for j in self.carriers])[self.carrier_of]  # (shapes, 3, 4)
-        ends = np.einsum("sij,skj->ski", frames, self.local)  # (shapes, 2, 3)
+        # the safety check's own compiled frames and capsules: one forward kinematics for both
+        self.collision.pose(q_arm, gripper)
+        ends = self.collision.capsule_ends()[self.moving]
         start, axis = ends[:, 0], ends[:, 1] - ends[:, 0]
         points = centers - self.base_in_world  # base frame: the mount is a translation
         offset = points[None, :, :] - start[:, None, :]  # (shapes, spheres, 3)
