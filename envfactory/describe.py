@@ -82,7 +82,11 @@ def ros_table(compiled: Blueprint) -> Table:
     table.add_row("out (arm)", ros.arm_command.topic, ros.arm_command.type)
     uses_gripper = compiled.action.gripper_in_action or compiled.spec.gripper_at_reset is not None
     if ros.gripper_command is not None and uses_gripper:
-        table.add_row("out (gripper)", ros.gripper_command.topic, ros.gripper_command.type)
+        command, ends = ros.gripper_command, compiled.spec.robot.gripper
+        direction = "out (gripper)" if command.states is None else \
+            (f"out (gripper: open/close only; nearer {ends.closed:g} sends {command.states.closed!r}, "
+             f"else {command.states.open!r})")
+        table.add_row(direction, command.topic, command.type)
     return table
 
 

@@ -47,7 +47,7 @@ def test_the_shipped_templates_write_the_bytes_of_before():
         assert json.dumps(messages.encode_arm_stop(command, JOINTS, np.array(q))) == BEFORE[f"{encoding} stop"]
     for encoding in ("float64_array", "joint_single"):
         command = GripperCommand(topic="/g", type="t", encoding=encoding)
-        assert json.dumps(messages.encode_gripper(command, 0.7)) == BEFORE[encoding]
+        assert json.dumps(messages.encode_gripper(command, 0.7, 0.0, 0.8)) == BEFORE[encoding]
     assert json.dumps(messages.encode_joint_state(JOINTS, q, [1.0, 2.0, 3.0], 12.5)) == BEFORE["joint_state"]
     assert json.dumps(messages.encode_pose("world", q, [0, 0, 0, 1], 12.5)) == BEFORE["pose"]
 
@@ -188,3 +188,43 @@ def test_a_broken_shipped_library_names_its_file_line_and_path(tmp_path, monkeyp
             GripperCommand(topic="/g", type="std_msgs/Float64", encoding="good")
     finally:
         templates.library.cache_clear()
+
+
+# ------------------------------------------------------------ grippers that only open and close
+
+TOOL_GOAL = "niryo_robot_tools_commander/ToolActionGoal"
+
+
+def test_an_open_close_gripper_sends_the_nearer_end_with_a_fresh_goal_id():
+    command = GripperCommand(topic="/g", type=TOOL_GOAL, encoding="tool_action_goal", states={"open": 1, "closed": 2})
+    sent = [messages.encode_gripper(command, value, 0.01, -0.01) for value in (0.01, 0.004, -0.004, -0.01)]
+    assert [m["goal"]["cmd"]["cmd_type"] for m in sent] == [1, 1, 2, 2]
+    assert len({m["goal_id"]["id"] for m in sent}) == 4  # each goal is its own; a repeated id would be ignored
+    assert [messages.decode_gripper(command, m, 0.01, -0.01) for m in sent] == [0.01, 0.01, -0.01, -0.01]
+    foreign = json.loads(json.dumps(sent[0]))
+    foreign["goal"]["cmd"]["cmd_type"] = 3  # CONTROL_GRIPPER: not a state this gripper declares
+    with pytest.raises(messages.MalformedMessage, match=r"state 3 is neither open \(1\) nor closed \(2\)"):
+        messages.decode_gripper(command, foreign, 0.01, -0.01)
+
+
+@pytest.mark.parametrize("fields, words", [
+    ({"encoding": "tool_action_goal"}, "the template holds $state: declare states"),
+    ({"encoding": "joint_single", "type": "interbotix_xs_msgs/JointSingleCommand", "states": {"open": 1, "closed": 2}},
+     "states are declared but the template has no $state placeholder"),
+    ({"encoding": {"message": {"data": "$value", "mode": "$state"}}, "states": {"open": 1, "closed": 2}},
+     "needs exactly one of the placeholders $state or $value"),
+])
+def test_an_open_close_gripper_is_declared_whole(fields, words):
+    with pytest.raises(ValueError, match=re.escape(words)):
+        GripperCommand(**{"topic": "/g", "type": TOOL_GOAL, **fields})
+
+
+def test_a_driver_type_with_an_unknown_field_type_is_named():
+    from envfactory.twin import msgtypes
+
+    types = msgtypes.with_driver_types({"pkg/Goal": {"cmd": "pkg/Command"}, "pkg/Command": {"kind": "uint8"}})
+    msgtypes.check("pkg/Goal", {"cmd": {"kind": 2}}, types=types)
+    with pytest.raises(msgtypes.FieldError, match="must be an integer"):
+        msgtypes.check("pkg/Goal", {"cmd": {"kind": "close"}}, types=types)
+    with pytest.raises(msgtypes.FieldError, match=r"pkg/Goal.cmd: unknown field type 'pkg/Comand'"):
+        msgtypes.with_driver_types({"pkg/Goal": {"cmd": "pkg/Comand"}})

@@ -220,3 +220,45 @@ def test_topics_are_overridable_by_kwarg(twin, make):
     env.step(np.zeros(6, dtype=np.float32))
     assert wait_for(lambda: len(on(moved, "/my_arm/command")) >= 2)
     assert on(moved, UR5E_ARM) == [] and on(stand_in, "/my_arm/command") == []
+
+
+NED2_GRIPPER = "/niryo_robot_tools_commander/action_server/goal"
+
+
+def test_ned2_gripper_takes_open_and_close_goals(twin, make):
+    """The Ned2's Gripper 1 only opens and closes: a command nearer closed sends CLOSE_GRIPPER (2), the
+    twin's rosbridge server accepts the goal as the driver's own type, and its jaws close."""
+    stand_in = twin("ned2", "pnp")
+    env = make_real(make, "NED2PnPReal-v0", stand_in, max_episode_steps=4)
+    env.reset(seed=0)
+    jaws = lambda: stand_in.sim.read_joints().position[-2]  # noqa: E731  (joint_base_to_mors_1)
+    assert wait_for(lambda: jaws() > 0.009)  # the reset opened them
+    for value, cmd_type in ((-0.004, 2), (0.003, 1)):
+        action = np.zeros(7, dtype=np.float32)
+        action[-1] = value
+        env.step(action)
+        goals = on(stand_in, NED2_GRIPPER)
+        assert goals[-1]["goal"]["cmd"] == {"cmd_type": cmd_type, "tool_id": 11, "max_torque_percentage": 100,
+                                            "hold_torque_percentage": 30}
+        end = -0.01 if cmd_type == 2 else 0.01
+        assert wait_for(lambda: abs(jaws() - end) < 1e-3), jaws()  # the twin drove them to that end
+    ids = [goal["goal_id"]["id"] for goal in on(stand_in, NED2_GRIPPER)]
+    assert len(set(ids)) == len(ids)
+    assert stand_in.server.errors == []
+    env.close()
+
+
+@pytest.mark.slow
+def test_ned2_pnp_expert_succeeds_through_open_close_goals(twin, make):
+    stand_in = twin("ned2", "pnp")
+    # the seeds' timing: the jaws need 0.4 s to close, longer than the tests' fast cycle
+    env = make("NED2PnPReal-v0", rosbridge_port=stand_in.port, allow_real_robot_motion=True, max_episode_steps=80)
+    observation, _ = env.reset(seed=0)
+    policy = make_policy("scripted", env)
+    for _ in range(80):
+        observation, reward, terminated, truncated, info = env.step(policy(observation))
+        if info["is_success"] or truncated:
+            break
+    assert info["is_success"], "the expert did not place the cube"
+    assert {goal["goal"]["cmd"]["cmd_type"] for goal in on(stand_in, NED2_GRIPPER)} == {1, 2}
+    env.close()

@@ -66,8 +66,8 @@ def test_arm_command_round_trip_and_stop(encoding):
                                                 ("joint_single", {"name": "gripper", "cmd": 0.7})])
 def test_gripper_command_encodings(encoding, expected):
     command = GripperCommand(topic="/g", type="t", encoding=encoding)
-    assert messages.encode_gripper(command, 0.7) == expected
-    assert messages.decode_gripper(command, expected) == 0.7
+    assert messages.encode_gripper(command, 0.7, 0.0, 0.8) == expected
+    assert messages.decode_gripper(command, expected, 0.0, 0.8) == 0.7
 
 
 def test_camera_pose_reaches_the_task_frame_through_static_and_tf_transforms():

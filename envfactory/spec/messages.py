@@ -22,16 +22,18 @@ Role = Literal["arm", "gripper", "joint_state", "pose"]
 # The placeholders each kind of message may hold, and those it must hold.
 PLACEHOLDERS: dict[str, set[str]] = {
     "arm": {"$joint_names", "$positions", "$zeros", "$duration", "$group"},
-    "gripper": {"$value", "$name"},
+    "gripper": {"$value", "$state", "$name", "$goal_id"},
     "joint_state": {"$joint_names", "$positions", "$velocities", "$stamp"},
     "pose": {"$frame_id", "$stamp", "$x", "$y", "$z", "$qx", "$qy", "$qz", "$qw"},
 }
 REQUIRED: dict[str, set[str]] = {
     "arm": {"$positions"},
-    "gripper": {"$value"},
+    "gripper": set(),
     "joint_state": {"$joint_names", "$positions"},
     "pose": {"$x", "$y", "$z", "$qx", "$qy", "$qz", "$qw"},
 }
+# Exactly one of these: a gripper takes a position ($value), or only opens and closes ($state).
+ONE_OF: dict[str, set[str]] = {"gripper": {"$value", "$state"}}
 ALL_PLACEHOLDERS = set().union(*PLACEHOLDERS.values())
 LIBRARY_FILE = "_messages.yaml"  # in the built-in robots folder
 
@@ -103,6 +105,10 @@ class MessageTemplate(Model):
         missing = sorted(REQUIRED[role] - self.placeholders())
         if missing:
             return ("message", f"{_kind(role)} message needs the placeholder(s) {', '.join(missing)}")
+        alternatives = ONE_OF.get(role, set())
+        if alternatives and len(alternatives & self.placeholders()) != 1:
+            return ("message", f"{_kind(role)} message needs exactly one of the placeholders "
+                               f"{' or '.join(sorted(alternatives))}")
         if self.stop is not None and role != "arm":
             return ("stop", "only an arm command has a stop message")
         return None

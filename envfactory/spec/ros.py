@@ -6,12 +6,17 @@ names a shipped one or writes one in place.
 
 from __future__ import annotations
 
+import re
 from typing import Any, ClassVar
 
 from pydantic import PrivateAttr, model_validator
 
 from envfactory.spec.base import Model, Position, Rpy, located
 from envfactory.spec.messages import MessageTemplate, checked
+
+
+_MESSAGE_TYPE = re.compile(r"[A-Za-z]\w*/[A-Za-z]\w*")
+_FIELD_TYPE = re.compile(r"([a-z]\w*|[A-Za-z]\w*/[A-Za-z]\w*)(\[\d*\])?")
 
 
 def _same_type(a: str, b: str) -> bool:
@@ -64,11 +69,30 @@ class ArmCommand(_Templated):
     group: str = "arm"  # $group
 
 
+class GripperStates(Model):
+    """What a driver that only opens and closes takes for each: the template's $state."""
+
+    open: int | float | str | bool
+    closed: int | float | str | bool
+
+
 class GripperCommand(_Templated):
     # shipped: float64_array (std_msgs/Float64MultiArray, the Robotiq knuckle),
-    # joint_single (interbotix_xs_msgs/JointSingleCommand, xs_sdk gripper in linear_position mode)
+    # joint_single (interbotix_xs_msgs/JointSingleCommand, xs_sdk gripper in linear_position mode),
+    # tool_action_goal (niryo_robot_tools_commander/ToolActionGoal, open/close only)
     ROLE: ClassVar[str] = "gripper"
     name: str = "gripper"  # $name
+    states: GripperStates | None = None  # $state
+
+    @model_validator(mode="after")
+    def _states_declared(self) -> "GripperCommand":
+        holds_state = "$state" in self.template.placeholders()
+        if holds_state and self.states is None:
+            raise located("states", "the template holds $state: declare states: {open: ..., closed: ...}, "
+                                    "what the driver takes to open and to close")
+        if self.states is not None and not holds_state:
+            raise located("states", "states are declared but the template has no $state placeholder")
+        return self
 
 
 class StaticTransform(Model):
@@ -87,6 +111,21 @@ class RosSpec(Model):
     task_frame_id: str  # the ROS frame of the task frame (goals and observations)
     static_transforms: dict[str, StaticTransform] = {}  # frame -> its pose in the parent frame
     use_tf: bool = False  # also learn transforms from /tf and /tf_static
+    # The driver's own message types (type -> field -> field type), as its ROS installation defines
+    # them: the digital twin's rosbridge server knows the ROS core types and these.
+    message_types: dict[str, dict[str, str]] = {}
+
+    @model_validator(mode="after")
+    def _message_types_well_formed(self) -> "RosSpec":
+        for type_name, fields in self.message_types.items():
+            if not _MESSAGE_TYPE.fullmatch(type_name):
+                raise located(f"message_types.{type_name}", "a message type is spelled package/Type")
+            for field, field_type in fields.items():
+                if not _FIELD_TYPE.fullmatch(field_type):
+                    raise located(f"message_types.{type_name}.{field}",
+                                  f"{field_type!r} is not a field type (a primitive such as float64 or uint8, "
+                                  "a message type package/Type, either with [] for a list)")
+        return self
 
     @model_validator(mode="after")
     def _types_match_templates(self) -> "RosSpec":

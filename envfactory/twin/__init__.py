@@ -17,6 +17,7 @@ import numpy as np
 
 from envfactory.backends.rosbridge import messages
 from envfactory.frames import TaskFrame
+from envfactory.twin import msgtypes
 from envfactory.twin.server import Faults, Node, Received, RosbridgeServer
 
 __all__ = ["Faults", "Received", "Twin"]
@@ -67,7 +68,7 @@ class Twin:
         self.arm_names = spec.robot.arm_state_names
         self._arm_in_states = spec.robot.arm_state_indices
         self.group_move_s = group_move_s
-        self.server = RosbridgeServer(host, port)
+        self.server = RosbridgeServer(host, port, msgtypes.with_driver_types(self.ros.message_types))
         self._add_nodes(robot, topic_types or {})
         self._loop = asyncio.new_event_loop()
         self._thread = threading.Thread(target=self._loop.run_forever, name="envfactory-twin", daemon=True)
@@ -186,4 +187,5 @@ class Twin:
                 duration = 0.05
             self.sim.command_joints(target, max(duration, 0.05))
         else:
-            self.sim.command_gripper(messages.decode_gripper(ros.gripper_command, msg))
+            gripper = self.spec.robot.gripper
+            self.sim.command_gripper(messages.decode_gripper(ros.gripper_command, msg, gripper.open, gripper.closed))

@@ -37,6 +37,7 @@ MESSAGES: dict[str, dict[str, str]] = {
     "geometry_msgs/TransformStamped": {"header": "std_msgs/Header", "child_frame_id": "string",
                                        "transform": "geometry_msgs/Transform"},
     "tf2_msgs/TFMessage": {"transforms": "geometry_msgs/TransformStamped[]"},
+    "actionlib_msgs/GoalID": {"stamp": "time", "id": "string"},
 }
 
 # rosapi's topic services: request fields, response fields
@@ -57,18 +58,33 @@ class FieldError(ValueError):
     """The JSON does not fill the type: a missing field type, a wrong kind of value."""
 
 
-def known(type_name: str) -> bool:
-    return type_name in MESSAGES
+PRIMITIVES = _INTEGERS | _FLOATS | _STAMPS | {"bool", "string"}
 
 
-def check(type_name: str, value, path: str = "") -> None:
+def with_driver_types(declared: dict[str, dict[str, str]]) -> dict[str, dict[str, str]]:
+    """The core types and a driver's own (a robot's `ros.message_types`), every field type resolvable;
+    else FieldError naming the type and field."""
+    types = {**MESSAGES, **declared}
+    for type_name, fields in declared.items():
+        for field, field_type in fields.items():
+            element = field_type.split("[")[0]
+            if element not in PRIMITIVES and element not in types:
+                raise FieldError(f"{type_name}.{field}: unknown field type {field_type!r}")
+    return types
+
+
+def known(type_name: str, types: dict[str, dict[str, str]] = MESSAGES) -> bool:
+    return type_name in types
+
+
+def check(type_name: str, value, path: str = "", types: dict[str, dict[str, str]] = MESSAGES) -> None:
     """Raise FieldError naming the first field that `value` cannot fill as `type_name`."""
     where = path or "the message"
-    if type_name.endswith("[]"):
+    if type_name.endswith("]"):
         if not isinstance(value, list):
             raise FieldError(f"{where} must be a list ({type_name}), got {_kind(value)}")
         for i, item in enumerate(value):
-            check(type_name[:-2], item, f"{path}[{i}]")
+            check(type_name[:type_name.index("[")], item, f"{path}[{i}]", types)
         return
     if type_name in _FLOATS:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -86,20 +102,21 @@ def check(type_name: str, value, path: str = "") -> None:
         if not isinstance(value, str):
             raise FieldError(f"{where} must be a string, got {_kind(value)}")
         return
-    fields = {"secs": "int32", "nsecs": "int32"} if type_name in _STAMPS else MESSAGES.get(type_name)
+    fields = {"secs": "int32", "nsecs": "int32"} if type_name in _STAMPS else types.get(type_name)
     if fields is None:
         raise FieldError(f"{type_name} is not a type this server knows")
-    check_fields(type_name, fields, value, path)
+    check_fields(type_name, fields, value, path, types)
 
 
-def check_fields(type_name: str, fields: dict[str, str], value, path: str = "") -> None:
+def check_fields(type_name: str, fields: dict[str, str], value, path: str = "",
+                 types: dict[str, dict[str, str]] = MESSAGES) -> None:
     """Every key of the object `value` is one of `fields` and fills it."""
     if not isinstance(value, dict):
         raise FieldError(f"{path or 'the message'} must be an object ({type_name}), got {_kind(value)}")
     for key, item in value.items():
         if key not in fields:
             raise FieldError(f"{type_name} has no field {key!r}" + (f" (at {path})" if path else ""))
-        check(fields[key], item, f"{path}.{key}" if path else key)
+        check(fields[key], item, f"{path}.{key}" if path else key, types)
 
 
 def nulls_for_non_finite(value):

@@ -95,8 +95,10 @@ class ProtocolError(Exception):
 
 
 class RosbridgeServer:
-    def __init__(self, host: str = "127.0.0.1", port: int = 0):
+    def __init__(self, host: str = "127.0.0.1", port: int = 0,
+                 message_types: dict[str, dict[str, str]] = msgtypes.MESSAGES):
         self.host, self.port = host, port
+        self.message_types = message_types  # what its ROS installation defines
         self.faults = Faults()
         self.received: list[Received] = []
         self.errors: list[str] = []  # what the server logged as refused
@@ -253,7 +255,7 @@ class RosbridgeServer:
             raise ProtocolError(f"topic {topic} is established with type {established}; {type_name} conflicts")
         if not established and not type_name:
             raise ProtocolError(f"cannot infer the type of {topic}: nothing has advertised it")
-        if type_name and not msgtypes.known(type_name):
+        if type_name and not msgtypes.known(type_name, self.message_types):
             raise ProtocolError(f"unknown message type {type_name}")
         self._types.setdefault(topic, type_name)
         return self._types[topic]
@@ -284,7 +286,7 @@ class RosbridgeServer:
         topic, msg = message.get("topic", ""), message.get("msg", {})
         type_name = self._establish(topic, None)  # a publish takes the topic's established type
         try:
-            msgtypes.check(type_name, msg)
+            msgtypes.check(type_name, msg, types=self.message_types)
         except msgtypes.FieldError as exc:
             raise ProtocolError(f"{topic} ({type_name}): {exc}") from None
         for node in self.nodes:

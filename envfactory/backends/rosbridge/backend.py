@@ -213,12 +213,16 @@ class RosbridgeBackend:
         self._command_arm(here, q_arm_target, duration)
         self._deadman_armed = True
 
+    def _gripper_message(self, value: float) -> dict:
+        ends = self.spec.robot.gripper
+        return messages.encode_gripper(self.ros_spec.gripper_command, value, ends.open, ends.closed)
+
     def command_gripper(self, value: float) -> None:
         gripper = self.ros_spec.gripper_command
         if gripper is None:
             raise BackendError(f"robot {self.spec.robot.name!r} declares no ros.gripper_command")
         self._check_inputs()
-        self._guarded(lambda: self._publish(gripper.topic, messages.encode_gripper(gripper, value)))
+        self._guarded(lambda: self._publish(gripper.topic, self._gripper_message(value)))
 
     def stop(self) -> None:
         """Hold the arm where it is, once per event. Allowed with the gate closed: stopping is not motion."""
@@ -291,9 +295,8 @@ class RosbridgeBackend:
                 self._command_arm(here, target, segment_s)
                 sent += 1
                 if sent == 1 and gripper is not None and self.ros_spec.gripper_command is not None:
-                    gripper_command = self.ros_spec.gripper_command
-                    self._guarded(lambda: self._publish(gripper_command.topic,
-                                                        messages.encode_gripper(gripper_command, gripper)))
+                    gripper_topic = self.ros_spec.gripper_command.topic
+                    self._guarded(lambda: self._publish(gripper_topic, self._gripper_message(gripper)))
             self._check_follow()
             if sent == len(plan) and np.max(np.abs(here - home)) < self.real.reset_tolerance:
                 break

@@ -8,7 +8,10 @@ and every decoder rejects a malformed message with a reason instead of guessing.
 
 from __future__ import annotations
 
+import itertools
 import math
+import os
+import time
 
 import numpy as np
 
@@ -174,15 +177,34 @@ def decode_arm(command: ArmCommand, joints: list[str], msg: dict, default_durati
 # ------------------------------------------------------------------ gripper commands
 
 
-def encode_gripper(command: GripperCommand, value: float) -> dict:
-    return fill(command.template.message, {"$value": float(value), "$name": command.name})
+_goal_ids = itertools.count()
 
 
-def decode_gripper(command: GripperCommand, msg: dict) -> float:
+def encode_gripper(command: GripperCommand, value: float, open_value: float, closed_value: float) -> dict:
+    """The command for a gripper position; a driver that only opens and closes gets the end the value is
+    nearer (a value halfway opens: the safer side for whatever the jaws hold is not knowable here)."""
+    values = {"$value": float(value), "$name": command.name,
+              "$goal_id": f"envfactory-{os.getpid()}-{next(_goal_ids)}-{time.time_ns()}"}
+    if command.states is not None:
+        closes = abs(value - closed_value) < abs(value - open_value)
+        values["$state"] = command.states.closed if closes else command.states.open
+    return fill(command.template.message, values)
+
+
+def decode_gripper(command: GripperCommand, msg: dict, open_value: float, closed_value: float) -> float:
+    """The gripper position a command asks for (an open/close driver's: the open or the closed end)."""
     try:
         values = read(command.template.message, msg)
     except TemplateMismatch as exc:
         raise MalformedMessage(f"gripper command {exc}") from None
     if "$name" in values and values["$name"] != command.name:
         raise MalformedMessage(f"gripper command for {values['$name']!r}, expected {command.name!r}")
+    if command.states is not None:
+        state = values["$state"]
+        if state == command.states.open and type(state) is type(command.states.open):
+            return float(open_value)
+        if state == command.states.closed and type(state) is type(command.states.closed):
+            return float(closed_value)
+        raise MalformedMessage(f"gripper command state {state!r} is neither open ({command.states.open!r}) "
+                               f"nor closed ({command.states.closed!r})")
     return float(_finite_floats([values["$value"]], "gripper command", 1)[0])
