@@ -6,6 +6,8 @@ Times `SafetyCheck.check` inside real env steps (full-scale random actions from
 the action space), and reports the median and 90th percentile, the poses it
 measured per check, the share of actions it refused, and, from the same run,
 the median env.step time and the check's share of it, so machine load shows.
+In Push and PnP it also times the object press guard that follows an accepted
+check (`ObjectPressGuard.check`, CPU time, median).
 Wall-clock medians are joined by CPU-time medians (the check's own thread):
 on a shared machine the two part ways, and the CPU time is the check's cost.
 The pooled median is over every timed check of every ID and mode.
@@ -44,6 +46,17 @@ def measure(env_id: str, ee: bool, steps: int) -> dict:
         return verdict
 
     safety.check, safety._anchor = timed_check, counted_anchor
+    guard_cpu = []
+    if env.object_guard is not None:
+        guard_check = env.object_guard.check
+
+        def timed_guard(*args):
+            cpu_start = time.thread_time()
+            verdict = guard_check(*args)
+            guard_cpu.append(time.thread_time() - cpu_start)
+            return verdict
+
+        env.object_guard.check = timed_guard
     env.reset(seed=0)
     env.action_space.seed(0)
     refused, step_times = 0, []
@@ -59,7 +72,8 @@ def measure(env_id: str, ee: bool, steps: int) -> dict:
     micro, cpu = np.array(times) * 1e6, np.array(cpu_times) * 1e6
     return {"median": np.median(micro), "p90": np.percentile(micro, 90), "cpu": np.median(cpu), "all_cpu": cpu,
             "all": micro, "poses": poses[0] / max(len(times), 1),
-            "refused": refused / steps, "checks": len(times), "step": np.median(step_times) * 1e6}
+            "refused": refused / steps, "checks": len(times), "step": np.median(step_times) * 1e6,
+            "guard": np.median(guard_cpu) * 1e6 if guard_cpu else float("nan")}
 
 
 def main() -> None:
@@ -68,7 +82,7 @@ def main() -> None:
     parser.add_argument("--ids", nargs="*", default=SIM_IDS)
     args = parser.parse_args()
     print(f"{'ID':<22} {'mode':<6} {'median µs':>10} {'p90 µs':>8} {'CPU µs':>7} {'poses/check':>12} "
-          f"{'refused':>8} {'step µs':>8} {'share':>6}")
+          f"{'refused':>8} {'step µs':>8} {'share':>6} {'object µs':>9}")
     pooled, pooled_cpu = [], []
     for env_id in args.ids:
         for ee in (False, True):
@@ -76,7 +90,7 @@ def main() -> None:
             pooled.append(r["all"])
             pooled_cpu.append(r["all_cpu"])
             print(f"{env_id:<22} {'EE' if ee else 'joint':<6} {r['median']:>10.0f} {r['p90']:>8.0f} {r['cpu']:>7.0f} "
-                  f"{r['poses']:>12.2f} {r['refused']:>8.1%} {r['step']:>8.0f} {r['median'] / r['step']:>6.1%}",
+                  f"{r['poses']:>12.2f} {r['refused']:>8.1%} {r['step']:>8.0f} {r['median'] / r['step']:>6.1%} {r['guard']:>9.0f}",
                   flush=True)
     print(f"pooled median: {np.median(np.concatenate(pooled)):.0f} µs wall, "
           f"{np.median(np.concatenate(pooled_cpu)):.0f} µs CPU")

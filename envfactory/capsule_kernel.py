@@ -181,3 +181,17 @@ def capsule_bounds(frames, shape_joint, local_ends, radius, local_corners, paddi
         bound = _segment_distance(ends, a, b) - radius[a] - radius[b]
         out[row] = bound if bound >= 0.0 else NO_BOUND
         row += 1
+
+
+@njit(cache=True)
+def capsule_sphere_gaps(ends, radius, centers, radii, out):
+    """(capsules, spheres) gaps between capsules (ends: capsules x 2 x 3) and spheres, negative when they
+    overlap: a lower bound on the gap between anything inside them."""
+    for c in range(ends.shape[0]):
+        ax, ay, az = ends[c, 1, 0] - ends[c, 0, 0], ends[c, 1, 1] - ends[c, 0, 1], ends[c, 1, 2] - ends[c, 0, 2]
+        length2 = max(ax * ax + ay * ay + az * az, 1e-12)
+        for s in range(centers.shape[0]):
+            ox, oy, oz = centers[s, 0] - ends[c, 0, 0], centers[s, 1] - ends[c, 0, 1], centers[s, 2] - ends[c, 0, 2]
+            t = min(max((ox * ax + oy * ay + oz * az) / length2, 0.0), 1.0)
+            nx, ny, nz = ox - t * ax, oy - t * ay, oz - t * az
+            out[c, s] = np.sqrt(nx * nx + ny * ny + nz * nz) - radius[c] - radii[s]

@@ -189,6 +189,7 @@ class CollisionModel:
         self.set_ignored_pairs({})
         self.geometry_data = self.geometry.createData()
         self.data = model.createData()
+        self._distance_request = coal.DistanceRequest()
 
 
     # ----------------------------------------------------------- structure
@@ -388,14 +389,17 @@ class CollisionModel:
                                       self.obstacle_high, self.self_a, self.self_b, out)
         return out
 
-    def exact(self, pairs: np.ndarray) -> np.ndarray:
-        """coal's clearance of the given measured pairs at the current pose."""
+    def _place_geometry(self) -> None:
         if not self._pinocchio_current:
             arm = len(self.kinematics.robot.arm_joints)
             q = self.kinematics.full_q(self._coordinates[:arm], self._coordinates[arm] if self.coordinates > arm else 0.0)
             pin.forwardKinematics(self.kinematics.model, self.data, q)
             pin.updateGeometryPlacements(self.kinematics.model, self.data, self.geometry, self.geometry_data)
             self._pinocchio_current = True
+
+    def exact(self, pairs: np.ndarray) -> np.ndarray:
+        """coal's clearance of the given measured pairs at the current pose."""
+        self._place_geometry()
         out = np.empty(len(pairs))
         for row, pair in enumerate(pairs):
             result = pin.computeDistance(self.geometry, self.geometry_data, int(self._pin_pairs[pair]))
@@ -405,3 +409,24 @@ class CollisionModel:
     def all_exact(self) -> np.ndarray:
         return self.exact(np.arange(self.pair_count))
 
+    def box_clearances(self, shapes: np.ndarray, box: coal.Box, center: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+        """coal's clearance of the given shapes from a box outside the scene (an object; base frame)
+        at the current pose."""
+        self._place_geometry()
+        placement = coal.Transform3s(rotation, center)
+        out = np.empty(len(shapes))
+        for row, shape in enumerate(shapes):
+            pose = self.geometry_data.oMg[int(shape)]
+            out[row] = coal.distance(self.geometry.geometryObjects[int(shape)].geometry,
+                                     coal.Transform3s(pose.rotation, pose.translation), box, placement,
+                                     self._distance_request, coal.DistanceResult()) - self.padding[shape]
+        return out
+
+
+def capsule_sphere_gaps(ends: np.ndarray, radius: np.ndarray, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """(capsules, spheres) gaps between capsules (ends: capsules x 2 x 3) and spheres, negative when they
+    overlap: a lower bound on the gap between anything inside them."""
+    out = np.empty((len(ends), len(centers)))
+    capsule_kernel.capsule_sphere_gaps(np.ascontiguousarray(ends, float), np.ascontiguousarray(radius, float),
+                                       np.ascontiguousarray(centers, float), np.ascontiguousarray(radii, float), out)
+    return out

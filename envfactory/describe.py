@@ -152,6 +152,15 @@ def safety_table(compiled: Blueprint) -> Table:
     table.caption = (f"{collision.pair_count} pairs measured ({len(collision.scene_shape)} link–obstacle, "
                      f"{len(collision.self_a)} link–link); {skipped} link pairs skipped as rigid, adjacent, "
                      f"gripper mechanism or always touching")
+    objects = compiled.spec.task.objects
+    if objects:
+        from envfactory.frames import TaskFrame
+        from envfactory.object_press import ObjectPressGuard
+
+        guard = ObjectPressGuard(collision, objects, TaskFrame.of(compiled.spec.robot))
+        links = list(dict.fromkeys(collision.shapes[i].link for i in guard.guarded))
+        table.caption += (f". No motion may end with {', '.join(links)} inside the {', '.join(objects)} while it rests "
+                          f"on the table (the fingers may touch it)")
     return table
 
 

@@ -19,6 +19,7 @@ from envfactory.backends.base import BackendError, EpisodeAbort
 from envfactory.compiler import Blueprint
 from envfactory.goals import GoalSampler, LiftCurriculum
 from envfactory.managers import ImageManager, ObservationManager, RewardManager
+from envfactory.object_press import ObjectPressGuard
 from envfactory.objects import ObjectSpawner, ObjectTracker
 from envfactory.frames import TaskFrame
 from envfactory.state import EnvState
@@ -44,6 +45,8 @@ class RobotEnv(gym.Env):
         geometry = robot_geometry(spec, blueprint.asset_root)
         urdf, self.kinematics, self.safety = geometry.urdf, geometry.kinematics, geometry.safety
         self.actions = ActionAdapter(blueprint.action, self.kinematics, spec.workspace, spec.env.safety.max_joint_delta)
+        self.object_guard = ObjectPressGuard(self.safety.collision, spec.task.objects, self.task_frame) \
+            if spec.task.objects else None
         self.home = np.asarray(robot.home, float)
         reset_gripper = spec.gripper_at_reset if spec.gripper_at_reset is not None else \
             (robot.gripper.open if robot.gripper is not None else 0.0)
@@ -178,6 +181,10 @@ class RobotEnv(gym.Env):
         if not rejection:
             verdict = self.safety.check(state.q_arm, command.q_arm, state.gripper, command.gripper)
             rejection = verdict.reason
+        if not rejection and self.object_guard is not None:
+            gripper_to = state.gripper if command.gripper is None else command.gripper
+            rejection = self.object_guard.check(state.q_arm, command.q_arm, state.gripper, gripper_to,
+                                                state.objects).reason
         if rejection and self._verbose:
             log.info("%s: action rejected: %s", self.blueprint.env_id, rejection)
         if np.all(np.isfinite(action)):

@@ -28,7 +28,7 @@ from typing import Callable
 import numpy as np
 import pybullet as p
 
-from envfactory.collision import CollisionModel
+from envfactory.collision import CollisionModel, capsule_sphere_gaps
 
 # Closer than this to a movable object, a motion gets full dynamics. Bullet builds contact points
 # within its 2 cm breaking threshold but pushes only on a gap closed within one substep (a few mm
@@ -143,13 +143,8 @@ class ObjectClearance:
         # the safety check's own compiled frames and capsules: one forward kinematics for both
         self.collision.pose(q_arm, gripper)
         ends = self.collision.capsule_ends()[self.moving]
-        start, axis = ends[:, 0], ends[:, 1] - ends[:, 0]
-        points = centers - self.base_in_world  # base frame: the mount is a translation
-        offset = points[None, :, :] - start[:, None, :]  # (shapes, spheres, 3)
-        length2 = np.maximum(np.einsum("si,si->s", axis, axis), 1e-12)
-        t = np.clip(np.einsum("spi,si->sp", offset, axis) / length2[:, None], 0.0, 1.0)
-        nearest = offset - t[..., None] * axis[:, None, :]
-        return np.linalg.norm(nearest, axis=2) - self.radius[:, None] - radii[None, :]
+        # base frame: the mount is a translation
+        return capsule_sphere_gaps(ends, self.radius, centers - self.base_in_world, radii)
 
     def motion_is_clear(self, q_from, gripper_from, q_to, gripper_to, centers, radii, margin: float) -> bool:
         """Whether every moving shape stays `margin` from every sphere while the arm moves along the
