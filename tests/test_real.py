@@ -16,6 +16,8 @@ import pytest
 
 from envfactory.backends.base import BackendError, CommandRefused, ConnectionLost, MotionRefused
 from envfactory.experts import make_policy
+import envfactory
+from conftest import REAL_IDS
 from real_helpers import FAST, UR5E_ARM, UR5E_JOINTS, is_stop, make_real, on, settled, wait_for
 
 def test_reacher_real_full_episode(twin, make):
@@ -262,3 +264,26 @@ def test_ned2_pnp_expert_succeeds_through_open_close_goals(twin, make):
     assert info["is_success"], "the expert did not place the cube"
     assert {goal["goal"]["cmd"]["cmd_type"] for goal in on(stand_in, NED2_GRIPPER)} == {1, 2}
     env.close()
+
+
+def _robot_and_task(env_id):
+    spec = envfactory.blueprint(env_id).spec
+    return spec.robot.name, spec.task.name
+
+
+@pytest.mark.parametrize("env_id", [pytest.param(env_id, marks=() if env_id in ("NED2PnPGoalReal-v0", "RX200PushReal-v0")
+                                                 else pytest.mark.slow) for env_id in REAL_IDS])
+def test_every_real_id_keeps_the_api_against_the_twin(twin, make, env_id):
+    """gymnasium's passive checker (on in gym.make) and the spaces hold over a reset and random steps."""
+    robot, task = _robot_and_task(env_id)
+    stand_in = twin(robot, task)
+    env = make_real(make, env_id, stand_in, max_episode_steps=3)
+    observation, info = env.reset(seed=0)
+    assert env.observation_space.contains(observation)
+    env.action_space.seed(0)
+    for _ in range(3):
+        observation, reward, terminated, truncated, info = env.step(env.action_space.sample())
+        assert env.observation_space.contains(observation), env_id
+        assert np.isfinite(reward) and "abort_reason" not in info
+    assert truncated
+    assert stand_in.server.errors == []
