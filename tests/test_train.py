@@ -56,6 +56,7 @@ def test_replayed_model_acts_as_the_saved_network(tmp_path):
     """The policy `run` replays is the trained one: its actions equal SB3's own load of the file."""
     import gymnasium as gym
     from stable_baselines3 import SAC
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
     from envfactory.learn.trainer import load_policy, train
 
@@ -66,7 +67,12 @@ def test_replayed_model_acts_as_the_saved_network(tmp_path):
         observation, _ = env.reset(seed=3)
         policy = load_policy(tmp_path / "model.zip", env)
         reference = SAC.load(tmp_path / "model.zip", env=env)
-        assert np.array_equal(policy(observation), reference.predict(observation, deterministic=True)[0])
+        # trained with `normalize` (the YAML default): SB3's own statistics file scales what the network sees
+        scaling = VecNormalize.load(str(tmp_path / "vecnormalize.pkl"), DummyVecEnv([lambda: env]))
+        scaling.training = False
+        expected = reference.predict(scaling.normalize_obs(observation), deterministic=True)[0]
+        assert np.array_equal(policy(observation), expected)
+        assert not np.array_equal(reference.predict(observation, deterministic=True)[0], expected)  # it matters
     finally:
         env.close()
 

@@ -9,7 +9,8 @@ line's `name=value` overrides (dotted names reach into nested blocks:
 
 Keys the trainer reads itself (everything else goes to the algorithm's
 constructor): `n_timesteps`, `env_kwargs`, `her` (HER replay-buffer kwargs,
-used on goal envs only), `eval_every`, `eval_episodes`.
+used on goal envs only), `normalize` (observations scaled by running statistics,
+SB3's VecNormalize), `eval_every`, `eval_episodes`.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from pathlib import Path
 import yaml
 
 ALGORITHMS = ("sac", "td3", "tqc")
-TRAINER_KEYS = ("n_timesteps", "env_kwargs", "her", "eval_every", "eval_episodes")
+TRAINER_KEYS = ("n_timesteps", "env_kwargs", "her", "normalize", "eval_every", "eval_episodes")
 
 
 class HyperparameterError(ValueError):

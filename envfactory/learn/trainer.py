@@ -4,6 +4,8 @@ The run folder gets the saved model (`model.zip`), what it was trained on
 (`model.json`: ID, algorithm, env kwargs, hyperparameters), and the learning
 curve (`curve.csv`, `curve.png`): the success rate of deterministic episodes
 on a separate env every `eval_every` steps, on the same evaluation goals each time.
+With `normalize` the policy sees observations scaled by running statistics
+(SB3's VecNormalize), saved beside the model (`vecnormalize.pkl`) for replay.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ ALGORITHM_CLASSES = {"sac": ("stable_baselines3", "SAC"), "td3": ("stable_baseli
                      "tqc": ("sb3_contrib", "TQC")}
 EVAL_SEED = 10_000  # evaluation episode i resets with EVAL_SEED + i: the same goals at every evaluation
 MODEL_FILE, META_FILE, CSV_FILE, PNG_FILE = "model.zip", "model.json", "curve.csv", "curve.png"
+NORMALIZER_FILE = "vecnormalize.pkl"
 
 
 def algorithm_class(algo: str):
@@ -32,15 +35,19 @@ def algorithm_class(algo: str):
 
 
 class ModelPolicy:
-    """A saved model as the callable policy the episode runner takes."""
+    """A saved model as the callable policy the episode runner takes; with a normalizer (VecNormalize),
+    observations are scaled as they were in training."""
 
-    def __init__(self, model):
+    def __init__(self, model, normalizer=None):
         self.model = model
+        self.normalizer = normalizer
 
     def reset(self) -> None:
         pass
 
     def __call__(self, observation):
+        if self.normalizer is not None:
+            observation = self.normalizer.normalize_obs(observation)
         action, _ = self.model.predict(observation, deterministic=True)
         return action
 
@@ -83,14 +90,14 @@ def _algorithm_kwargs(cls, hyper: Hyperparameters, env) -> dict:
     return kwargs
 
 
-def make_model(env_id: str, hyper: Hyperparameters, env, seed: int):
+def make_model(env_id: str, hyper: Hyperparameters, env, seed: int, limit: int | None):
+    """The algorithm on `env` (a gymnasium env, or a VecEnv around one); `limit` is the episode limit."""
     from stable_baselines3 import HerReplayBuffer
 
     cls = algorithm_class(hyper.algo)
     kwargs = _algorithm_kwargs(cls, hyper, env)
     goal_env = hasattr(env.observation_space, "spaces") and "desired_goal" in env.observation_space.spaces
     if goal_env:
-        limit = env.spec.max_episode_steps if env.spec is not None else None
         if limit and kwargs.get("learning_starts", 100) <= limit:
             # HER samples goals from finished episodes only: SB3 would fail at the first update
             raise HyperparameterError(f"{hyper.algo}: learning_starts={kwargs.get('learning_starts', 100)} must "
@@ -122,18 +129,26 @@ def train(env_id: str, folder: Path, algo: str = "sac", seed: int = 0, steps: in
     env, eval_env = gym.make(env_id, **kwargs), gym.make(env_id, **kwargs)
     try:
         env.reset(seed=seed)
-        model = make_model(env_id, hyper, env, seed)
+        limit = env.spec.max_episode_steps if env.spec is not None else None
+        normalizer = None
+        if hyper.trainer("normalize", False):
+            from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+            # goal coordinates vary by centimetres around offsets of a metre: unscaled, the networks
+            # barely see the 2 cm that decide success (README, "Learning benchmark")
+            normalizer = VecNormalize(DummyVecEnv([lambda: env]), norm_obs=True, norm_reward=False, clip_obs=10.0)
+        model = make_model(env_id, hyper, normalizer or env, seed, limit)
         (folder / META_FILE).write_text(json.dumps(
             {"env_id": env_id, "algo": hyper.algo, "seed": seed, "steps": steps, "env_kwargs": kwargs,
              "hyperparameters": hyper.values, "sources": hyper.sources}, indent=2, default=str))
         writer = CurveWriter(folder / CSV_FILE)
-        policy, start = ModelPolicy(model), time.monotonic()
+        policy, start = ModelPolicy(model, normalizer), time.monotonic()
 
         def record(timesteps: int) -> None:
             success, mean_return, length = evaluate(eval_env, policy, eval_episodes)
             row = Evaluation(timesteps, success, mean_return, length, eval_episodes, time.monotonic() - start)
             writer.add(row)
-            model.save(folder / MODEL_FILE)  # a run stopped later keeps the model of its last evaluation
+            save(model, normalizer, folder)  # a run stopped later keeps the model of its last evaluation
             if on_evaluation is not None:
                 on_evaluation(row)
 
@@ -146,12 +161,18 @@ def train(env_id: str, folder: Path, algo: str = "sac", seed: int = 0, steps: in
         model.learn(steps, callback=EvaluateEvery(), progress_bar=progress_bar)
         if steps % eval_every:
             record(steps)
-        model.save(folder / MODEL_FILE)
+        save(model, normalizer, folder)
     finally:
         env.close()
         eval_env.close()
     plot({f"{hyper.algo.upper()} seed {seed}": writer.rows}, folder / PNG_FILE, f"{env_id} ({hyper.algo.upper()})")
     return TrainResult(folder, writer.rows)
+
+
+def save(model, normalizer, folder: Path) -> None:
+    model.save(folder / MODEL_FILE)
+    if normalizer is not None:
+        normalizer.save(str(folder / NORMALIZER_FILE))
 
 
 def read_meta(path: Path) -> dict:
@@ -167,4 +188,10 @@ def load_policy(path: Path, env, algo: str | None = None) -> ModelPolicy:
     if algo not in ALGORITHM_CLASSES:
         raise ValueError(f"{path}: which algorithm trained it? no {path.with_suffix('.json').name} beside it; "
                          f"pass --algo ({', '.join(ALGORITHM_CLASSES)})")
-    return ModelPolicy(algorithm_class(algo).load(path, env=env, device="cpu"))
+    normalizer = None
+    if (path.parent / NORMALIZER_FILE).is_file():
+        from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+        normalizer = VecNormalize.load(str(path.parent / NORMALIZER_FILE), DummyVecEnv([lambda: env]))
+        normalizer.training = False  # replay reads the statistics, never updates them
+    return ModelPolicy(algorithm_class(algo).load(path, env=env, device="cpu"), normalizer)
