@@ -20,6 +20,7 @@ from envfactory.compiler import Blueprint
 from envfactory.goals import GoalSampler, LiftCurriculum
 from envfactory.managers import ImageManager, ObservationManager, RewardManager
 from envfactory.object_press import ObjectPressGuard
+from envfactory.observation_scale import AffineScale
 from envfactory.objects import ObjectSpawner, ObjectTracker
 from envfactory.frames import TaskFrame
 from envfactory.state import EnvState
@@ -55,6 +56,10 @@ class RobotEnv(gym.Env):
         self.rewards = RewardManager(blueprint.rewards, blueprint.terminations, spec.task.goal.tolerance,
                                      blueprint.info_keys)
         self.observations = ObservationManager(blueprint.policy_observation)
+        self._vector_scale = self._goal_scale = None
+        if spec.env.observation.normalize:  # normalize_observations
+            self._vector_scale = AffineScale(self.observations.low, self.observations.high)
+            self._goal_scale = AffineScale(*spec.task.goal.box)
         self.images = ImageManager(blueprint.images, spec.scene.camera)
         self.action_space = spaces.Box(blueprint.action.policy_low.astype(np.float32),
                                        blueprint.action.policy_high.astype(np.float32), dtype=np.float32)
@@ -85,6 +90,8 @@ class RobotEnv(gym.Env):
     # ------------------------------------------------------------ spaces
 
     def _vector_space(self) -> spaces.Box:
+        if self._vector_scale is not None:
+            return self._vector_scale.box(self.observations.low, self.observations.high)
         return spaces.Box(self.observations.low, self.observations.high, dtype=np.float32)
 
     def _observation_space(self) -> spaces.Space:
@@ -127,7 +134,7 @@ class RobotEnv(gym.Env):
         if self._clipped:
             log.warning("%s: observation outside its declared bounds, clipped and flagged in "
                         "info['observation_clipped']: %s", self.blueprint.env_id, ", ".join(self._clipped))
-        return vector
+        return vector if self._vector_scale is None else self._vector_scale.to_policy(vector)
 
     def _observe(self, state: EnvState):
         vector = self._vector(state)
@@ -302,26 +309,37 @@ class GoalRobotEnv(RobotEnv):
         goal_low, goal_high = (np.asarray(b, np.float32) for b in spec.task.goal.box)
         achieved = self.blueprint.boxes.of(self.blueprint.achieved_from)
         achieved_low, achieved_high = achieved.low.astype(np.float32), achieved.high.astype(np.float32)
+        scale = self._goal_scale
         return spaces.Dict({
             "observation": self._vector_space(),
-            "achieved_goal": spaces.Box(achieved_low, achieved_high, dtype=np.float32),
-            "desired_goal": spaces.Box(goal_low, goal_high, dtype=np.float32),
+            "achieved_goal": scale.box(achieved_low, achieved_high) if scale else
+            spaces.Box(achieved_low, achieved_high, dtype=np.float32),
+            "desired_goal": scale.box(goal_low, goal_high) if scale else
+            spaces.Box(goal_low, goal_high, dtype=np.float32),
             **self.images.spaces(),
         })
 
     def _observe(self, state: EnvState):
+        achieved, desired = self.achieved_goal(state), self._goal
+        if self._goal_scale is not None:
+            achieved, desired = self._goal_scale.to_policy(achieved), self._goal_scale.to_policy(desired)
         return {
             "observation": self._vector(state),
-            "achieved_goal": self.achieved_goal(state).astype(np.float32),
-            "desired_goal": self._goal.astype(np.float32),
+            "achieved_goal": achieved.astype(np.float32),
+            "desired_goal": desired.astype(np.float32),
             **self.images.capture(self.backend),
         }
 
+    def _in_metres(self, achieved_goal, desired_goal):
+        if self._goal_scale is None:
+            return achieved_goal, desired_goal
+        return self._goal_scale.to_metres(achieved_goal), self._goal_scale.to_metres(desired_goal)
+
     def compute_reward(self, achieved_goal, desired_goal, info):
-        return self.rewards.reward(achieved_goal, desired_goal, info)
+        return self.rewards.reward(*self._in_metres(achieved_goal, desired_goal), info)
 
     def compute_terminated(self, achieved_goal, desired_goal, info):
-        return self.rewards.terminated(achieved_goal, desired_goal, info)
+        return self.rewards.terminated(*self._in_metres(achieved_goal, desired_goal), info)
 
     def compute_truncated(self, achieved_goal, desired_goal, info):
         # truncation is the registered time limit's job

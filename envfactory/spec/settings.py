@@ -23,6 +23,12 @@ class ActionSettings(Model):
     normalize: bool = False  # normalize_actions: the policy acts in [-1, 1] (envfactory.action_scale)
 
 
+class ObservationSettings(Model):
+    # normalize_observations: every vector column and goal scaled by its declared bounds
+    # (envfactory.observation_scale)
+    normalize: bool = False
+
+
 class TimingSettings(Model):
     loop_rate: Positive = Field(default=10.0, le=1000.0)  # Hz
     action_cycle_time: Positive = Field(default=0.5, le=60.0)  # s of motion per step
@@ -71,6 +77,7 @@ class EnvSettings(Model):
     gui: bool = False
     reward_type: Literal["Dense", "Sparse"] = "Dense"
     action: ActionSettings = ActionSettings()
+    observation: ObservationSettings = ObservationSettings()
     timing: TimingSettings = TimingSettings()
     safety: SafetySettings = SafetySettings()
     use_kinect: bool = False  # adds the scene camera's image terms to the observation
