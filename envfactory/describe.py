@@ -17,7 +17,9 @@ def _table(title: str, *columns: str) -> Table:
 def observation_table(compiled: Blueprint) -> Table:
     manager = ObservationManager(compiled.policy_observation)
     name = "observation (Box)" if compiled.goal_env else "Observation"
-    table = _table(f"{name}: Box({manager.size},)", "Idx", "Dim", "Component", "Source", "Unit")
+    scaled = " normalised (normalize_observations): each column's declared bounds → [-1, 1]" \
+        + (", both goals by the goal box" if compiled.goal_env else "") if compiled.spec.env.observation.normalize else ""
+    table = _table(f"{name}: Box({manager.size},){scaled}", "Idx", "Dim", "Component", "Source", "Unit")
     for row in manager.table():
         table.add_row(*row)
     return table
