@@ -41,7 +41,8 @@ def test_train_saves_a_model_and_a_curve_that_run_replays(tmp_path, algo):
     meta = json.loads((folder / "model.json").read_text())
     assert meta["algo"] == algo
     # the default block's kwargs, updated by the vx300s_reach family block
-    assert meta["env_kwargs"] == {"ee_action_type": True, "normalize_actions": True, "delta_coeff": 0.035}
+    assert meta["env_kwargs"] == {"ee_action_type": True, "normalize_actions": True, "normalize_observations": True,
+                                  "delta_coeff": 0.035}
     assert meta["hyperparameters"]["batch_size"] == 32  # the command line won over the YAML's 256
 
     video = tmp_path / "replay.mp4"
@@ -61,13 +62,13 @@ def test_replayed_model_acts_as_the_saved_network(tmp_path):
     from envfactory.learn.trainer import load_policy, train
 
     train("VX300SReacherGoalSim-v0", tmp_path, steps=120, eval_every=120, eval_episodes=1, progress_bar=False,
-          overrides=("learning_starts=110", "batch_size=32", "policy_kwargs.net_arch=[32,32]"))
-    env = gym.make("VX300SReacherGoalSim-v0", ee_action_type=True, normalize_actions=True)
+          overrides=("learning_starts=110", "batch_size=32", "policy_kwargs.net_arch=[32,32]", "normalize=true"))
+    env = gym.make("VX300SReacherGoalSim-v0", ee_action_type=True, normalize_actions=True, normalize_observations=True)
     try:
         observation, _ = env.reset(seed=3)
         policy = load_policy(tmp_path / "model.zip", env)
         reference = SAC.load(tmp_path / "model.zip", env=env)
-        # trained with `normalize` (the YAML default): SB3's own statistics file scales what the network sees
+        # trained with `normalize`: SB3's own statistics file scales what the network sees
         scaling = VecNormalize.load(str(tmp_path / "vecnormalize.pkl"), DummyVecEnv([lambda: env]))
         scaling.training = False
         expected = reference.predict(scaling.normalize_obs(observation), deterministic=True)[0]
