@@ -271,10 +271,40 @@ class CollisionModel:
         """Levers of two shapes against each other: joints above both move them as one body."""
         shape_a, shape_b = self.shapes[a], self.shapes[b]
         _, common = self._path(shape_a.joint, shape_b.joint)
-        lever = self._lever(shape_a, drivers, common) + self._lever(shape_b, drivers, common)
+        levers = []
+        for this, other in ((a, b), (b, a)):
+            # turning a joint about an axis that `this` is round about cannot change the pair's distance
+            below = self._round_about(this, other, common, drivers)
+            levers.append(self._lever(self.shapes[other], drivers, below if below is not None else common))
+        lever = levers[0] + levers[1]
         if self.kinematics.robot.gripper is not None:
             lever[-1] = self.lever[a, -1] + self.lever[b, -1]
         return lever
+
+    def _round_about(self, this: int, other: int, common: int, drivers) -> int | None:
+        """The driven revolute joint right below `common` on the way to shape `other`, if shape `this`
+        is fixed to `common` and round about that joint's axis (a sphere centred on it, a cylinder or
+        capsule along it); else None."""
+        model = self.kinematics.model
+        if self.shapes[this].joint != common or self.shapes[other].joint == common:
+            return None
+        joint = self.shapes[other].joint
+        while model.parents[joint] != common:
+            joint = model.parents[joint]
+        axis = _revolute_axis(model.joints[joint])
+        if joint not in drivers or axis is None:
+            return None
+        placement = model.jointPlacements[joint]
+        origin, direction = placement.translation, placement.rotation @ axis
+        geometry_object = self.geometry.geometryObjects[this]
+        centre = geometry_object.placement.translation
+        on_axis = float(np.linalg.norm(np.cross(centre - origin, direction))) < 1e-9
+        if isinstance(geometry_object.geometry, coal.Sphere):
+            return joint if on_axis else None
+        if isinstance(geometry_object.geometry, (coal.Cylinder, coal.Capsule)):
+            along = float(np.linalg.norm(np.cross(geometry_object.placement.rotation[:, 2], direction))) < 1e-9
+            return joint if on_axis and along else None
+        return None
 
     GRIPPER_SAMPLES = 400
     GRIPPER_SAFETY_FACTOR = 1.25

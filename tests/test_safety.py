@@ -279,3 +279,53 @@ def test_pairs_proven_apart_stay_apart_by_bullet(env):
         judge.close()
     for a, b, claimed in proven:
         assert lowest[a, b] >= claimed - 2 * env.safety.SHAPE_TOLERANCE, (a, b, lowest[a, b], claimed)
+
+
+def test_a_sphere_round_the_first_joint_leaves_it_out_of_the_pair_lever():
+    """The UR5e base sphere sits on the shoulder-pan axis: turning the pan cannot change its distance to any
+    link, so the pairs it is in carry no pan lever. Judged by Bullet: a sphere body where the check's sphere
+    is, against the arm's links, over large random motions (the pan swinging up to a radian)."""
+    import pybullet as p
+
+    from envfactory.envs import RobotEnv
+
+    env = RobotEnv(envfactory.blueprint("UR5eReacherSim-v0"))
+    collision, kin = env.safety.collision, env.kinematics
+    sphere = next(i for i, s in enumerate(collision.shapes) if s.name == "base_link_inertia_0")
+    geometry = collision.geometry.geometryObjects[sphere]
+    scene = len(collision.scene_shape)
+    pairs = [(k, int(collision.self_b[k])) for k in range(len(collision.self_a)) if collision.self_a[k] == sphere]
+    assert pairs and all(collision.pair_lever[scene + k][0] == 0.0 for k, _ in pairs)  # no pan lever
+    judge = BulletJudge(env, 0.0)
+    centre = np.asarray(env.blueprint.spec.robot.mount) + geometry.placement.translation
+    ball = p.createMultiBody(0, p.createCollisionShape(p.GEOM_SPHERE, radius=geometry.geometry.radius,
+                                                       physicsClientId=judge.client),
+                             basePosition=list(centre), physicsClientId=judge.client)
+    link_of = {p.getJointInfo(judge.body, j, physicsClientId=judge.client)[12].decode(): j
+               for j in range(p.getNumJoints(judge.body, physicsClientId=judge.client))}
+
+    def distance(link):
+        points = p.getClosestPoints(ball, judge.body, 10.0, linkIndexB=link_of[link], physicsClientId=judge.client)
+        return min(point[8] for point in points)
+
+    rng = np.random.default_rng(3)
+    moved = 0
+    try:
+        for _ in range(60):
+            q = rng.uniform(kin.arm_lower, kin.arm_upper)
+            q2 = q.copy()
+            q2[0] = np.clip(q[0] + rng.uniform(-1.0, 1.0), kin.arm_lower[0], kin.arm_upper[0])  # the pan
+            q2[1:] = np.clip(q[1:] + rng.uniform(-0.02, 0.02, q.size - 1), kin.arm_lower[1:], kin.arm_upper[1:])
+            change = np.append(np.abs(q2 - q), 0.0)
+            for k, other in pairs:
+                link = collision.shapes[other].link
+                judge.pose(q, 0.0)
+                before = distance(link)
+                judge.pose(q2, 0.0)
+                after = distance(link)
+                bound = collision.pair_lever[scene + k] @ change
+                assert abs(after - before) <= bound + 2e-3, (link, before, after, bound)
+                moved += bound < 0.2 * abs(q2[0] - q[0])  # the pan alone would have allowed far more
+    finally:
+        judge.close()
+    assert moved > 100
