@@ -110,3 +110,26 @@ def test_library_names_no_robot_added_as_yaml():
     for source in (ROOT / "envfactory").rglob("*.py"):
         text = source.read_text().lower()
         assert not any(name in text for name in added), f"{source} names one of {added}"
+
+
+def test_collision_pairs_writes_a_missing_list(tmp_path):
+    """A new robot has no pair list yet: the command writes the file its YAML names, and the folder validates."""
+    import os
+    import subprocess
+    import sys
+
+    folder = _robot_folder(tmp_path, packages="  packages: {arm_description: ..}\n")
+    robot = folder / "robots" / "myarm.yaml"
+    robot.write_text(robot.read_text() + "safety:\n  collision_pairs: assets/myarm.collision.yaml\n")
+    pairs = folder / "robots" / "assets" / "myarm.collision.yaml"
+    assert not pairs.exists()
+    env = {**os.environ, "ENVFACTORY_SPEC_PATH": str(folder)}
+    cli = str(Path(sys.executable).parent / "envfactory")
+    run = lambda *args: subprocess.run([cli, *args], env=env, capture_output=True, text=True,  # noqa: E731
+                                       timeout=300)
+    assert run("validate", str(folder)).returncode == 1
+    written = run("collision-pairs", "myarm", "--samples", "200")
+    assert written.returncode == 0, written.stderr + written.stdout
+    assert pairs.is_file()
+    after = run("validate", str(folder))
+    assert after.returncode == 0, after.stderr + after.stdout
