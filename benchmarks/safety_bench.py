@@ -26,37 +26,33 @@ SIM_IDS = ["UR5eReacherSim-v0", "UR5ePushSim-v0", "UR5ePnPSim-v0",
            "VX300SReacherSim-v0", "VX300SPushSim-v0", "VX300SPnPSim-v0"]
 
 
+def _timed(function, wall: list, cpu: list):
+    """`function`, recording each call's wall-clock and thread CPU time."""
+    def timed(*args):
+        start, cpu_start = time.perf_counter(), time.thread_time()
+        result = function(*args)
+        wall.append(time.perf_counter() - start)
+        cpu.append(time.thread_time() - cpu_start)
+        return result
+    return timed
+
+
 def measure(env_id: str, ee: bool, steps: int) -> dict:
     import gymnasium as gym
 
     env = gym.make(env_id, ee_action_type=ee).unwrapped
     safety = env.safety
-    times, cpu_times, poses = [], [], [0]
-    check, anchor = safety.check, safety._anchor
+    times, cpu_times, guard_times, guard_cpu, poses = [], [], [], [], [0]
+    anchor = safety._anchor
 
     def counted_anchor(*args):
         poses[0] += 1
         return anchor(*args)
 
-    def timed_check(*args):
-        start, cpu_start = time.perf_counter(), time.thread_time()
-        verdict = check(*args)
-        times.append(time.perf_counter() - start)
-        cpu_times.append(time.thread_time() - cpu_start)
-        return verdict
-
-    safety.check, safety._anchor = timed_check, counted_anchor
-    guard_cpu = []
+    safety._anchor = counted_anchor
+    safety.check = _timed(safety.check, times, cpu_times)
     if env.object_guard is not None:
-        guard_check = env.object_guard.check
-
-        def timed_guard(*args):
-            cpu_start = time.thread_time()
-            verdict = guard_check(*args)
-            guard_cpu.append(time.thread_time() - cpu_start)
-            return verdict
-
-        env.object_guard.check = timed_guard
+        env.object_guard.check = _timed(env.object_guard.check, guard_times, guard_cpu)
     env.reset(seed=0)
     env.action_space.seed(0)
     refused, step_times = 0, []

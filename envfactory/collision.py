@@ -162,6 +162,10 @@ class CollisionModel:
         drivers = kinematics.coordinate_drivers()
         self.coordinates = len(kinematics.robot.arm_joints) + (kinematics.robot.gripper is not None)
         moved = [self._is_moved(shape.joint, drivers) for shape in self.shapes]
+        # the fingers: shapes the gripper moves (the rest of the arm holds still when only the gripper moves)
+        gripper = self.coordinates - 1 if kinematics.robot.gripper is not None else None
+        self.moved_by_gripper = np.array([gripper is not None and self._is_moved(shape.joint, drivers, gripper)
+                                          for shape in self.shapes], dtype=bool)
         self.lever = np.array([self._lever(shape, drivers) for shape in self.shapes])  # (shapes, coordinates)
         if kinematics.robot.gripper is not None:
             self.lever[:, -1] = self._gripper_levers(drivers)
@@ -177,7 +181,7 @@ class CollisionModel:
                                           for s, o in zip(self.scene_shape, self.scene_obstacle)], dtype=int)
         self.radius = np.array([shape.radius for shape in self.shapes])
         self.padding = np.array([shape.padding for shape in self.shapes])
-        self._moving_shapes = moving
+        self.moving_shapes = moving
         # what the compiled bounds need, as flat arrays
         self._joints = capsule_kernel.JointTable(model, drivers)
         self._frames = np.zeros((model.njoints, 3, 4))
@@ -194,9 +198,10 @@ class CollisionModel:
 
     # ----------------------------------------------------------- structure
 
-    def _is_moved(self, joint: int, drivers) -> bool:
+    def _is_moved(self, joint: int, drivers, coordinate: int | None = None) -> bool:
+        """Whether the joint or one above it is driven (by `coordinate`, if given)."""
         while joint > 0:
-            if joint in drivers:
+            if joint in drivers and (coordinate is None or drivers[joint][0] == coordinate):
                 return True
             joint = self.kinematics.model.parents[joint]
         return False
@@ -415,7 +420,7 @@ class CollisionModel:
         self._place_frames()
         out = np.empty(self.pair_count)
         capsule_kernel.capsule_bounds(self._frames, self._shape_joint, self._local_ends, self.radius,
-                                      self._local_corners, self.padding, self._moving_shapes, self.obstacle_low,
+                                      self._local_corners, self.padding, self.moving_shapes, self.obstacle_low,
                                       self.obstacle_high, self.self_a, self.self_b, out)
         return out
 

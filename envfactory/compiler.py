@@ -16,7 +16,7 @@ from pydantic import BaseModel, ValidationError
 
 from envfactory import backends, preflight
 from envfactory.experts import EXPERTS
-from envfactory.action_scale import ActionScale
+from envfactory.scaling import ActionScale
 from envfactory.reach import PointBoxes, derived_boxes
 from envfactory.spec.compose import LoadedSpec, validation_problems
 from envfactory.spec.errors import Problem, SpecError, suggest

@@ -20,7 +20,7 @@ from envfactory.compiler import Blueprint
 from envfactory.goals import GoalSampler, LiftCurriculum
 from envfactory.managers import ImageManager, ObservationManager, RewardManager
 from envfactory.object_press import ObjectPressGuard
-from envfactory.observation_scale import AffineScale
+from envfactory.scaling import AffineScale
 from envfactory.objects import ObjectSpawner, ObjectTracker
 from envfactory.frames import TaskFrame
 from envfactory.state import EnvState
@@ -134,7 +134,7 @@ class RobotEnv(gym.Env):
         if self._clipped:
             log.warning("%s: observation outside its declared bounds, clipped and flagged in "
                         "info['observation_clipped']: %s", self.blueprint.env_id, ", ".join(self._clipped))
-        return vector if self._vector_scale is None else self._vector_scale.to_policy(vector)
+        return vector if self._vector_scale is None else self._vector_scale.to_unit(vector).astype(np.float32)
 
     def _observe(self, state: EnvState):
         vector = self._vector(state)
@@ -309,20 +309,19 @@ class GoalRobotEnv(RobotEnv):
         goal_low, goal_high = (np.asarray(b, np.float32) for b in spec.task.goal.box)
         achieved = self.blueprint.boxes.of(self.blueprint.achieved_from)
         achieved_low, achieved_high = achieved.low.astype(np.float32), achieved.high.astype(np.float32)
-        scale = self._goal_scale
+        box = self._goal_scale.box if self._goal_scale is not None else \
+            (lambda low, high: spaces.Box(low, high, dtype=np.float32))
         return spaces.Dict({
             "observation": self._vector_space(),
-            "achieved_goal": scale.box(achieved_low, achieved_high) if scale else
-            spaces.Box(achieved_low, achieved_high, dtype=np.float32),
-            "desired_goal": scale.box(goal_low, goal_high) if scale else
-            spaces.Box(goal_low, goal_high, dtype=np.float32),
+            "achieved_goal": box(achieved_low, achieved_high),
+            "desired_goal": box(goal_low, goal_high),
             **self.images.spaces(),
         })
 
     def _observe(self, state: EnvState):
         achieved, desired = self.achieved_goal(state), self._goal
         if self._goal_scale is not None:
-            achieved, desired = self._goal_scale.to_policy(achieved), self._goal_scale.to_policy(desired)
+            achieved, desired = self._goal_scale.to_unit(achieved), self._goal_scale.to_unit(desired)
         return {
             "observation": self._vector(state),
             "achieved_goal": achieved.astype(np.float32),
@@ -333,7 +332,7 @@ class GoalRobotEnv(RobotEnv):
     def _in_metres(self, achieved_goal, desired_goal):
         if self._goal_scale is None:
             return achieved_goal, desired_goal
-        return self._goal_scale.to_metres(achieved_goal), self._goal_scale.to_metres(desired_goal)
+        return self._goal_scale.from_unit(achieved_goal), self._goal_scale.from_unit(desired_goal)
 
     def compute_reward(self, achieved_goal, desired_goal, info):
         return self.rewards.reward(*self._in_metres(achieved_goal, desired_goal), info)

@@ -20,12 +20,12 @@ class ActionSettings(Model):
     delta: bool = True
     # The action box times delta_coeff is the step: above 1 the step outgrows the box.
     delta_coeff: Positive = Field(default=0.05, le=1.0)
-    normalize: bool = False  # normalize_actions: the policy acts in [-1, 1] (envfactory.action_scale)
+    normalize: bool = False  # normalize_actions: the policy acts in [-1, 1] (envfactory.scaling)
 
 
 class ObservationSettings(Model):
     # normalize_observations: every vector column and goal scaled by its declared bounds
-    # (envfactory.observation_scale)
+    # (envfactory.scaling)
     normalize: bool = False
 
 

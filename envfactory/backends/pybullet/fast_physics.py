@@ -132,7 +132,7 @@ class ObjectClearance:
     def __init__(self, collision: CollisionModel):
         kinematics = collision.kinematics
         self.collision = collision
-        self.moving = np.flatnonzero(collision.lever.sum(axis=1) > 0)
+        self.moving = collision.moving_shapes
         self.radius = collision.radius[self.moving]
         self.lever = collision.lever[self.moving]
         self.arm = len(kinematics.robot.arm_joints)
