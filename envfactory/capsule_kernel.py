@@ -195,3 +195,34 @@ def capsule_sphere_gaps(ends, radius, centers, radii, out):
             t = min(max((ox * ax + oy * ay + oz * az) / length2, 0.0), 1.0)
             nx, ny, nz = ox - t * ax, oy - t * ay, oz - t * az
             out[c, s] = np.sqrt(nx * nx + ny * ny + nz * nz) - radius[c] - radii[s]
+
+
+@njit(cache=True)
+def swept_box_gaps(frames, mount_joint, sweep_corners, first, last, rows, obstacles, obstacle_low, obstacle_high,
+                   out):
+    """For each pair (a swept shape's row, an obstacle): the separation, along the obstacle box's axes, of
+    the shape's box corners at gripper samples first..last (in the frame of the joint they are mounted
+    on) from the obstacle."""
+    count = sweep_corners.shape[0]
+    low, high = np.empty((count, 3)), np.empty((count, 3))
+    placed = np.zeros(count, dtype=np.bool_)
+    for p in range(rows.shape[0]):
+        row = rows[p]
+        if not placed[row]:
+            frame = frames[mount_joint[row]]
+            low[row, :] = np.inf
+            high[row, :] = -np.inf
+            for sample in range(first, last + 1):
+                for corner in range(8):
+                    x, y, z = (sweep_corners[row, sample, corner, 0], sweep_corners[row, sample, corner, 1],
+                               sweep_corners[row, sample, corner, 2])
+                    for i in range(3):
+                        value = frame[i, 0] * x + frame[i, 1] * y + frame[i, 2] * z + frame[i, 3]
+                        low[row, i] = min(low[row, i], value)
+                        high[row, i] = max(high[row, i], value)
+            placed[row] = True
+        o = obstacles[p]
+        apart = -np.inf
+        for i in range(3):
+            apart = max(apart, low[row, i] - obstacle_high[o, i], obstacle_low[o, i] - high[row, i])
+        out[p] = apart

@@ -20,6 +20,7 @@ import numpy as np
 import pinocchio as pin
 
 from envfactory import capsule_kernel
+from envfactory.gripper_sweep import GripperSweep
 from envfactory.kinematics import Kinematics
 from envfactory.obstacles import Obstacle
 
@@ -168,7 +169,8 @@ class CollisionModel:
                                           for shape in self.shapes], dtype=bool)
         self.lever = np.array([self._lever(shape, drivers) for shape in self.shapes])  # (shapes, coordinates)
         if kinematics.robot.gripper is not None:
-            self.lever[:, -1] = self._gripper_levers(drivers)
+            # a shape the gripper does not move has no gripper lever (the measured sweep leaves rounding noise)
+            self.lever[:, -1] = np.where(self.moved_by_gripper, self._gripper_levers(drivers), 0.0)
 
         moving = np.flatnonzero(moved)
         self.scene_shape = np.repeat(moving, len(obstacles))
@@ -194,6 +196,7 @@ class CollisionModel:
         self.geometry_data = self.geometry.createData()
         self.data = model.createData()
         self._distance_request = coal.DistanceRequest()
+        self.gripper_sweep = GripperSweep(self)
 
 
     # ----------------------------------------------------------- structure
