@@ -197,32 +197,63 @@ def capsule_sphere_gaps(ends, radius, centers, radii, out):
             out[c, s] = np.sqrt(nx * nx + ny * ny + nz * nz) - radius[c] - radii[s]
 
 
+
 @njit(cache=True)
 def swept_box_gaps(frames, mount_joint, sweep_corners, first, last, rows, obstacles, obstacle_low, obstacle_high,
-                   out):
-    """For each pair (a swept shape's row, an obstacle): the separation, along the obstacle box's axes, of
-    the shape's box corners at gripper samples first..last (in the frame of the joint they are mounted
-    on) from the obstacle."""
-    count = sweep_corners.shape[0]
+                   others, other_joint, local_corners, out):
+    """For each pair, a finger's box corners at gripper samples first..last (tabulated in the frame of the
+    joint they are mounted on) against either an obstacle (obstacles[p] >= 0) or another shape's box
+    (others[p]): their separation along the obstacle's or the box's axes, which bounds the distance
+    between the convex hull of the corners and the obstacle or box."""
+    count, corners = sweep_corners.shape[0], 8 * (last - first + 1)
+    placed = np.empty((count, corners, 3))
     low, high = np.empty((count, 3)), np.empty((count, 3))
-    placed = np.zeros(count, dtype=np.bool_)
+    done = np.zeros(count, dtype=np.bool_)
+    box = np.empty((8, 3))
     for p in range(rows.shape[0]):
         row = rows[p]
-        if not placed[row]:
+        if not done[row]:
             frame = frames[mount_joint[row]]
             low[row, :] = np.inf
             high[row, :] = -np.inf
             for sample in range(first, last + 1):
                 for corner in range(8):
+                    k = 8 * (sample - first) + corner
                     x, y, z = (sweep_corners[row, sample, corner, 0], sweep_corners[row, sample, corner, 1],
                                sweep_corners[row, sample, corner, 2])
                     for i in range(3):
                         value = frame[i, 0] * x + frame[i, 1] * y + frame[i, 2] * z + frame[i, 3]
+                        placed[row, k, i] = value
                         low[row, i] = min(low[row, i], value)
                         high[row, i] = max(high[row, i], value)
-            placed[row] = True
-        o = obstacles[p]
+            done[row] = True
         apart = -np.inf
-        for i in range(3):
-            apart = max(apart, low[row, i] - obstacle_high[o, i], obstacle_low[o, i] - high[row, i])
+        if obstacles[p] >= 0:
+            o = obstacles[p]
+            for i in range(3):
+                apart = max(apart, low[row, i] - obstacle_high[o, i], obstacle_low[o, i] - high[row, i])
+        else:
+            other = others[p]
+            frame = frames[other_joint[p]]
+            for corner in range(8):
+                for i in range(3):
+                    box[corner, i] = (frame[i, 0] * local_corners[other, corner, 0]
+                                      + frame[i, 1] * local_corners[other, corner, 1]
+                                      + frame[i, 2] * local_corners[other, corner, 2] + frame[i, 3])
+            # the box's edges from its first corner (fit_box's order: x-, y- and z-steps are 4, 2 and 1)
+            for step in (4, 2, 1):
+                ux, uy, uz = box[step, 0] - box[0, 0], box[step, 1] - box[0, 1], box[step, 2] - box[0, 2]
+                length = np.sqrt(ux * ux + uy * uy + uz * uz)
+                if length < 1e-12:
+                    continue
+                ux, uy, uz = ux / length, uy / length, uz / length
+                box_low, box_high = np.inf, -np.inf
+                for corner in range(8):
+                    value = box[corner, 0] * ux + box[corner, 1] * uy + box[corner, 2] * uz
+                    box_low, box_high = min(box_low, value), max(box_high, value)
+                lowest, highest = np.inf, -np.inf
+                for k in range(corners):
+                    value = placed[row, k, 0] * ux + placed[row, k, 1] * uy + placed[row, k, 2] * uz
+                    lowest, highest = min(lowest, value), max(highest, value)
+                apart = max(apart, lowest - box_high, box_low - highest)
         out[p] = apart

@@ -192,11 +192,11 @@ class CollisionModel:
         self._local_corners = np.array([shape.corners for shape in self.shapes])
         self._coordinates = np.zeros(self.coordinates)
         self._frames_current = self._pinocchio_current = False
+        self.gripper_sweep = GripperSweep(self)
         self.set_ignored_pairs({})
         self.geometry_data = self.geometry.createData()
         self.data = model.createData()
         self._distance_request = coal.DistanceRequest()
-        self.gripper_sweep = GripperSweep(self)
 
 
     # ----------------------------------------------------------- structure
@@ -381,6 +381,7 @@ class CollisionModel:
         self.pair_padding = np.concatenate([self.padding[self.scene_shape],
                                             self.padding[self.self_a] + self.padding[self.self_b]])
         self._pin_pairs = np.concatenate([self._pin_pairs_scene, self._pin_pairs_self]).astype(int)
+        self.gripper_sweep.index_pairs()
 
     @property
     def pair_count(self) -> int:

@@ -1,16 +1,16 @@
-"""Where the fingers can be while the gripper moves, against the scene's obstacles, in one pass.
+"""Where the fingers can be while the gripper moves, against the scene and the arm, in one pass.
 
 A motion that moves the gripper is judged over every gripper value it may
-pass. Measuring each finger against the table with coal at several gripper
-values costs dozens of queries per step; but a finger's place relative to the
-link it is mounted on depends on the gripper value alone. So each finger's
-box is tabulated once, in its mount's frame, at gripper values spaced so
-finely that no point of it is more than half a millimetre from where it
-is at the nearest of them; at a pose, the corners of every tabulated box across a gripper range,
-placed by the mount's frame, are separated from each obstacle box along its
-axes. The result, less the half-spacing, is a lower bound on the finger's
-clearance at any gripper value in the range; coal measures only the pairs it
-leaves in doubt.
+pass. Measuring each finger with coal at several gripper values costs dozens
+of queries per step; but a finger's place relative to the link it is mounted
+on depends on the gripper value alone. So each finger's box is tabulated
+once, in its mount's frame, at gripper values so close that no point of it is
+more than half a millimetre from its place at the nearest of them. At a pose,
+the corners of the tabulated boxes across a gripper range, placed by the
+mount's frame, are separated from each obstacle box, or from the box around
+an arm link's shape, along that box's axes. Less the half millimetre, that is
+a lower bound on the finger's clearance at any gripper value in the range;
+coal measures only the pairs it leaves in doubt.
 """
 
 from __future__ import annotations
@@ -38,8 +38,6 @@ class GripperSweep:
         self.mount_joint = np.array([collision._gripper_mount(collision.shapes[s].joint, drivers) for s in self.shapes],
                                     dtype=np.int64)
         self.low, self.high = (float(gripper.low), float(gripper.high)) if gripper is not None else (0.0, 0.0)
-        # the scene pairs come first in the collision model's numbering: a finger's pair gets its table row
-        self.scene_row = self.row_of[collision.scene_shape]
         if not len(self.shapes):
             self.samples = 1
             self.corners, self.pad = np.zeros((0, 1, 8, 3)), np.zeros(0)
@@ -66,13 +64,26 @@ class GripperSweep:
                 out[row, k] = collision.shapes[shape].corners @ relative.rotation.T + relative.translation
         return out
 
+    def index_pairs(self) -> None:
+        """Which measured pairs are a finger against an obstacle or against a shape the gripper does not
+        move, and what each is measured against (called whenever the collision model renumbers its pairs)."""
+        collision = self.collision
+        moved = collision.moved_by_gripper
+        finger_a, finger_b = moved[collision.self_a], moved[collision.self_b]
+        one_finger = finger_a != finger_b  # two fingers move against each other: the gripper's own design
+        self_finger = np.where(finger_a, collision.self_a, collision.self_b)
+        self_other = np.where(finger_a, collision.self_b, collision.self_a)
+        self.pair_row = np.concatenate([self.row_of[collision.scene_shape], np.where(one_finger, self.row_of[self_finger], -1)])
+        self.pair_obstacle = np.concatenate([collision.scene_obstacle, np.full(len(self_other), -1)]).astype(np.int64)
+        self.pair_other = np.concatenate([np.full(len(collision.scene_shape), -1), self_other]).astype(np.int64)
+        self.pair_other_joint = np.where(self.pair_other >= 0, collision._shape_joint[self.pair_other], 0)
+
     def sweepable(self, pairs: np.ndarray) -> np.ndarray:
-        """Those of these pairs this bound can measure: a finger against an obstacle."""
-        scene = pairs[pairs < self.scene_row.size]
-        return scene[self.scene_row[scene] >= 0]
+        """Which of these pairs this bound can measure, as a mask."""
+        return self.pair_row[pairs] >= 0
 
     def clearances(self, pairs: np.ndarray, gripper_from: float, gripper_to: float) -> np.ndarray:
-        """A lower bound on each pair's clearance (pairs from `sweepable`) at the current arm pose, over
+        """A lower bound on each pair's clearance (pairs `sweepable` picks) at the current arm pose, over
         every gripper value between the two."""
         collision = self.collision
         low, high = sorted((gripper_from, gripper_to))
@@ -82,9 +93,10 @@ class GripperSweep:
         spacing = (self.high - self.low) / max(self.samples - 1, 1)
         first = int(np.clip(np.floor((low - self.low) / spacing + 1e-9), 0, self.samples - 1)) if spacing else 0
         last = int(np.clip(np.ceil((high - self.low) / spacing - 1e-9), 0, self.samples - 1)) if spacing else 0
-        rows = self.scene_row[pairs]
+        rows = self.pair_row[pairs]
         out = np.empty(len(pairs))
         capsule_kernel.swept_box_gaps(collision._frames, self.mount_joint, self.corners, first, last, rows,
-                                      collision.scene_obstacle[pairs], collision.obstacle_low, collision.obstacle_high,
+                                      self.pair_obstacle[pairs], collision.obstacle_low, collision.obstacle_high,
+                                      self.pair_other[pairs], self.pair_other_joint[pairs], collision._local_corners,
                                       out)
-        return out - self.pad[rows] - collision.padding[self.shapes[rows]]
+        return out - self.pad[rows] - collision.pair_padding[pairs]

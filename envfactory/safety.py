@@ -311,20 +311,22 @@ class SafetyCheck:
         anchor.level[sweep] = 2
 
     def _sweep_fingers(self, anchor: Anchor, pairs: np.ndarray, motion: Motion) -> np.ndarray:
-        """Prove the finger-against-obstacle pairs the tabulated sweep clears over the gripper's whole
-        range (level 2 at once, no coal); the pairs left to measure."""
+        """Prove the finger pairs the tabulated sweep clears over the gripper's whole range (level 2 at
+        once, no coal); the pairs left to measure."""
         sweep = self.collision.gripper_sweep
-        fingers = sweep.sweepable(pairs[anchor.level[pairs] < 2])
-        if fingers.size == 0:
+        fingers = sweep.sweepable(pairs) & (anchor.level[pairs] < 2)
+        if not fingers.any():
             return pairs
         self.collision.pose(anchor.q_arm, motion.gripper_middle)
-        clearance = sweep.clearances(fingers, motion.gripper_from, motion.gripper_to)
-        proven = clearance >= motion.threshold[fingers]
+        measured = pairs[fingers]
+        clearance = sweep.clearances(measured, motion.gripper_from, motion.gripper_to)
+        proven = clearance >= motion.threshold[measured]
         if not proven.any():
             return pairs
-        anchor.bound[fingers[proven]] = clearance[proven]
-        anchor.level[fingers[proven]] = 2
-        return np.setdiff1d(pairs, fingers[proven], assume_unique=True)
+        anchor.bound[measured[proven]] = clearance[proven]
+        anchor.level[measured[proven]] = 2
+        fingers[fingers] = proven
+        return pairs[~fingers]
 
     def _gripper_clearance(self, q_arm: np.ndarray, motion: Motion, fraction: float, pairs: np.ndarray) -> np.ndarray:
         """Exact clearances of these pairs with the arm at q_arm and the gripper this far along its motion."""
