@@ -15,6 +15,8 @@ coal measures only the pairs it leaves in doubt.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pinocchio as pin
 
@@ -91,8 +93,10 @@ class GripperSweep:
             return np.full(len(pairs), -np.inf)
         collision._place_frames()
         spacing = (self.high - self.low) / max(self.samples - 1, 1)
-        first = int(np.clip(np.floor((low - self.low) / spacing + 1e-9), 0, self.samples - 1)) if spacing else 0
-        last = int(np.clip(np.ceil((high - self.low) / spacing - 1e-9), 0, self.samples - 1)) if spacing else 0
+        # the tabulated values that bracket the range (scalar arithmetic: this runs thousands of times a second)
+        top = self.samples - 1
+        first = min(max(math.floor((low - self.low) / spacing + 1e-9), 0), top) if spacing else 0
+        last = min(max(math.ceil((high - self.low) / spacing - 1e-9), 0), top) if spacing else 0
         rows = self.pair_row[pairs]
         out = np.empty(len(pairs))
         capsule_kernel.swept_box_gaps(collision._frames, self.mount_joint, self.corners, first, last, rows,

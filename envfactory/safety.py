@@ -232,6 +232,12 @@ class SafetyCheck:
         if not motion.gripper_moves:
             self.collision.pose(q_arm, motion.gripper_middle)
             return float(self.collision.exact(single)[0])
+        sweep = self.collision.gripper_sweep
+        if sweep.sweepable(single)[0]:
+            self.collision.pose(q_arm, motion.gripper_middle)
+            clearance = float(sweep.clearances(single, motion.gripper_from, motion.gripper_to)[0])
+            if clearance >= motion.threshold[single[0]]:
+                return clearance
         anchor = Anchor(0.0, q_arm, np.full(self.collision.pair_count, -np.inf),
                         np.zeros(self.collision.pair_count, dtype=np.int8))
         self._refine(anchor, single, motion, 2)

@@ -147,6 +147,11 @@ class SceneSpec(Model):
 class SimSettings(Model):
     physics_hz: Positive = Field(default=240.0, le=100_000)
     solver_iterations: int = Field(default=50, ge=1, le=10_000)
+    # PyBullet's positionGain of the arm motors: the share of a joint's position error its motor
+    # corrects per substep. PyBullet's default, 0.1, leaves the arm a few hundredths of a milliradian
+    # off its target under gravity at the end of every cycle, and delta actions carry that on from step
+    # to step (measured in tests/test_fidelity.py); 1.0 holds the target.
+    motor_position_gain: float = Field(default=1.0, gt=0.0, le=1.0)
     # full: every step simulates the whole action cycle (the reference). fast: a motion proven clear
     # of every movable object is played kinematically and a scene at rest is not stepped
     # (envfactory/backends/pybullet/fast_physics.py); its distance to full is measured in tests/test_fidelity.py

@@ -34,6 +34,7 @@ class PyBulletBackend:
         self._urdf_path = Path(urdf_path)
         self.task_frame = task_frame
         self.dt = 1.0 / spec.sim.physics_hz
+        self._position_gain = spec.sim.motor_position_gain
         self.realtime = spec.env.timing.realtime
         mode = p.GUI if spec.env.gui or render_mode == "human" else p.DIRECT
         try:
@@ -153,7 +154,8 @@ class PyBulletBackend:
 
     def _hold_arm(self, q_arm) -> None:
         p.setJointMotorControlArray(self.body, self._arm, p.POSITION_CONTROL, targetPositions=list(q_arm),
-                                    forces=self._efforts, physicsClientId=self.client)
+                                    forces=self._efforts, positionGains=[self._position_gain] * len(self._arm),
+                                    physicsClientId=self.client)
 
     def _drive_gripper(self, value: float) -> None:
         gripper = self.robot.gripper
@@ -201,7 +203,8 @@ class PyBulletBackend:
                                                            self._velocities):
                 speed = min(max(abs(target - now) / duration, 1e-3), fastest)
                 p.setJointMotorControl2(self.body, joint, p.POSITION_CONTROL, targetPosition=float(target),
-                                        force=effort, maxVelocity=speed, physicsClientId=c)
+                                        force=effort, maxVelocity=speed, positionGain=self._position_gain,
+                                        physicsClientId=c)
             if self._fast is not None:
                 self._fast.commanded_arm(q_arm_target, duration)
 
