@@ -142,13 +142,19 @@ class Kinematics:
             target_position = self._task_rotation.T @ target_position
             if target_rotation is not None:
                 target_rotation = self._task_rotation.T @ target_rotation
-        error = np.inf
+        error, last_turn, closest, stalled = np.inf, np.inf, np.inf, 0
         for _ in range(max_iterations):
             q = self.full_q(q_arm, gripper)
             pin.forwardKinematics(model, data, q)
             placement = pin.updateFramePlacement(model, data, self.ee_frame)
             position_error = target_position - placement.translation
             error = float(np.linalg.norm(position_error))
+            if error < closest - 1e-7:
+                closest, stalled = error, 0
+            else:
+                stalled += 1
+                if stalled >= 5:
+                    break  # no longer closing in (out of reach, or held at a joint bound): more steps would not help
             jacobian = pin.computeFrameJacobian(model, data, q, self.ee_frame, pin.LOCAL_WORLD_ALIGNED)[:, self._arm_v]
             if target_rotation is None:
                 if error < tolerance:
@@ -156,10 +162,35 @@ class Kinematics:
                 rows, residual = jacobian[:3], position_error
             else:
                 rotation_error = pin.log3(target_rotation @ placement.rotation.T)
-                if error < tolerance and np.linalg.norm(rotation_error) * rotation_weight < 10 * tolerance:
+                turn = float(np.linalg.norm(rotation_error))
+                # on the point, and the orientation as near as the arm allows (an arm of fewer than six
+                # joints cannot hold every orientation anywhere: its rotation error stops shrinking)
+                if error < tolerance and (turn * rotation_weight < 10 * tolerance or abs(last_turn - turn) < 1e-6):
                     return IkResult(q_arm, True, error)
+                last_turn = turn
+                if len(q_arm) < 6:
+                    # fewer than six joints cannot hold every orientation: the position comes first and the
+                    # orientation gets only what the joints can do without moving the point
+                    step = self._prioritised_step(jacobian, position_error, rotation_weight * rotation_error,
+                                                  damping)
+                    q_arm = np.clip(q_arm + np.clip(step, -0.3, 0.3), self.arm_lower, self.arm_upper)
+                    continue
                 rows = np.vstack([jacobian[:3], rotation_weight * jacobian[3:]])
                 residual = np.concatenate([position_error, rotation_weight * rotation_error])
             step = rows.T @ np.linalg.solve(rows @ rows.T + damping**2 * np.eye(rows.shape[0]), residual)
             q_arm = np.clip(q_arm + np.clip(step, -0.3, 0.3), self.arm_lower, self.arm_upper)
         return IkResult(q_arm, error < tolerance, error)
+
+    @staticmethod
+    def _prioritised_step(jacobian: np.ndarray, position_error: np.ndarray, rotation_error: np.ndarray,
+                          damping: float) -> np.ndarray:
+        """A joint step that closes the position error, plus the orientation step projected onto the joint
+        motions that leave the point where it is (damped least squares for both)."""
+        position_rows, rotation_rows = jacobian[:3], jacobian[3:]
+        damped = np.eye(3) * damping**2
+        inverse = position_rows.T @ np.linalg.inv(position_rows @ position_rows.T + damped)
+        first = inverse @ position_error
+        null = np.eye(jacobian.shape[1]) - inverse @ position_rows
+        projected = rotation_rows @ null
+        second = projected.T @ np.linalg.solve(projected @ projected.T + damped, rotation_error - rotation_rows @ first)
+        return first + null @ second

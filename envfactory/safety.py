@@ -229,7 +229,7 @@ class SafetyCheck:
 
     def _pair_clearance(self, single: np.ndarray, q_arm: np.ndarray, motion: Motion) -> float:
         """A lower bound on one pair's clearance at an arm pose, over the gripper's range."""
-        if not motion.gripper_moves:
+        if not motion.gripper_moves or motion.reserve[single[0]] == 0.0:  # the gripper cannot change it
             self.collision.pose(q_arm, motion.gripper_middle)
             return float(self.collision.exact(single)[0])
         sweep = self.collision.gripper_sweep
