@@ -28,7 +28,8 @@ _GRIPPER_RESPONSES: dict[tuple, GripperResponse] = {}
 
 class PyBulletBackend:
     teleports_on_reset = True  # reset sets the joints directly; no path is driven
-    def __init__(self, spec: EnvSpec, urdf_path: Path, task_frame: TaskFrame, render_mode: str | None = None):
+    def __init__(self, spec: EnvSpec, urdf_path: Path, task_frame: TaskFrame, render_mode: str | None = None,
+                 headless: bool = False):
         self.spec = spec
         self.robot = spec.robot
         self._urdf_path = Path(urdf_path)
@@ -36,7 +37,7 @@ class PyBulletBackend:
         self.dt = 1.0 / spec.sim.physics_hz
         self._position_gain = spec.sim.motor_position_gain
         self.realtime = spec.env.timing.realtime
-        mode = p.GUI if spec.env.gui or render_mode == "human" else p.DIRECT
+        mode = p.GUI if (spec.env.gui or render_mode == "human") and not headless else p.DIRECT
         try:
             self.client = p.connect(mode)
         except p.error as exc:
@@ -119,12 +120,22 @@ class PyBulletBackend:
             key = (self.robot.name, str(self._urdf_path), self.dt, self.spec.sim.solver_iterations, gripper.open,
                    gripper.closed, gripper.force, gripper.max_velocity)
             if key not in _GRIPPER_RESPONSES:
-                _GRIPPER_RESPONSES[key] = record_gripper_response(self.client, self.body, self._gripper, gripper.open,
-                                                                  gripper.closed, self.dt, self._drive_gripper)
-                p.restoreState(self._saved, physicsClientId=self.client)
+                _GRIPPER_RESPONSES[key] = self._record_gripper_response()
             response = _GRIPPER_RESPONSES[key]
         self._fast = FastCycles(rig, ObjectClearance(collision), response)
         self._fast.reset(np.asarray(self.robot.home, float), self._gripper_reset_value(None), has_objects=False)
+
+    def _record_gripper_response(self) -> GripperResponse:
+        """The gripper's step response, recorded in a session of its own: seconds of recording in this one
+        would leave its solver warm where a later env's is cold, and two envs made from one seed would
+        then not play the same episode."""
+        recorder = PyBulletBackend(self.spec, self._urdf_path, self.task_frame, headless=True)
+        try:
+            gripper = self.robot.gripper
+            return record_gripper_response(recorder.client, recorder.body, recorder._gripper, gripper.open,
+                                           gripper.closed, self.dt, recorder._drive_gripper)
+        finally:
+            recorder.close()
 
     @property
     def cycle_counts(self):
