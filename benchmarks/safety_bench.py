@@ -4,7 +4,7 @@
 
 Times `SafetyCheck.check` inside real env steps (full-scale random actions from
 the action space), and reports the median and 90th percentile, the poses it
-measured per check, the share of actions it refused, and, from the same run,
+measured per check, the coal distance queries per check, the share of actions it refused, and, from the same run,
 the median env.step time and the check's share of it, so machine load shows.
 In Push and PnP it also times the object press guard that follows an accepted
 check (`ObjectPressGuard.check`, CPU time, median).
@@ -49,7 +49,13 @@ def measure(env_id: str, ee: bool, steps: int) -> dict:
         poses[0] += 1
         return anchor(*args)
 
-    safety._anchor = counted_anchor
+    exact, queries = safety.collision.exact, [0]
+
+    def counted_exact(pairs):
+        queries[0] += len(pairs)
+        return exact(pairs)
+
+    safety._anchor, safety.collision.exact = counted_anchor, counted_exact
     safety.check = _timed(safety.check, times, cpu_times)
     if env.object_guard is not None:
         env.object_guard.check = _timed(env.object_guard.check, guard_times, guard_cpu)
@@ -67,7 +73,7 @@ def measure(env_id: str, ee: bool, steps: int) -> dict:
     env.close()
     micro, cpu = np.array(times) * 1e6, np.array(cpu_times) * 1e6
     return {"median": np.median(micro), "p90": np.percentile(micro, 90), "cpu": np.median(cpu), "all_cpu": cpu,
-            "all": micro, "poses": poses[0] / max(len(times), 1),
+            "all": micro, "poses": poses[0] / max(len(times), 1), "coal": queries[0] / max(len(times), 1),
             "refused": refused / steps, "checks": len(times), "step": np.median(step_times) * 1e6,
             "guard": np.median(guard_cpu) * 1e6 if guard_cpu else float("nan")}
 
@@ -78,7 +84,7 @@ def main() -> None:
     parser.add_argument("--ids", nargs="*", default=SIM_IDS)
     args = parser.parse_args()
     print(f"{'ID':<22} {'mode':<6} {'median µs':>10} {'p90 µs':>8} {'CPU µs':>7} {'poses/check':>12} "
-          f"{'refused':>8} {'step µs':>8} {'share':>6} {'object µs':>9}")
+          f"{'coal/check':>10} {'refused':>8} {'step µs':>8} {'share':>6} {'object µs':>9}")
     pooled, pooled_cpu = [], []
     for env_id in args.ids:
         for ee in (False, True):
@@ -86,7 +92,7 @@ def main() -> None:
             pooled.append(r["all"])
             pooled_cpu.append(r["all_cpu"])
             print(f"{env_id:<22} {'EE' if ee else 'joint':<6} {r['median']:>10.0f} {r['p90']:>8.0f} {r['cpu']:>7.0f} "
-                  f"{r['poses']:>12.2f} {r['refused']:>8.1%} {r['step']:>8.0f} {r['median'] / r['step']:>6.1%} {r['guard']:>9.0f}",
+                  f"{r['poses']:>12.2f} {r['coal']:>10.1f} {r['refused']:>8.1%} {r['step']:>8.0f} {r['median'] / r['step']:>6.1%} {r['guard']:>9.0f}",
                   flush=True)
     print(f"pooled median: {np.median(np.concatenate(pooled)):.0f} µs wall, "
           f"{np.median(np.concatenate(pooled_cpu)):.0f} µs CPU")

@@ -73,6 +73,12 @@ def _compose(up, local, out):
             out[i, j] = value + up[i, 3] if j == 3 else value
 
 
+@njit(cache=True, inline="always")
+def _placed(frame, x, y, z, i):
+    """Coordinate i of the point (x, y, z) placed by the 3x4 rigid transform `frame`."""
+    return frame[i, 0] * x + frame[i, 1] * y + frame[i, 2] * z + frame[i, 3]
+
+
 @njit(cache=True)
 def joint_frames(coordinates, parent, placement, kind, axis, coordinate, gain, frames):
     """Base-frame placements of every joint at these coordinates, as 3x4 rows [R | t]."""
@@ -139,8 +145,8 @@ def capsule_ends(frames, shape_joint, local_ends, ends):
         frame = frames[shape_joint[shape]]
         for end in range(2):
             for i in range(3):
-                ends[shape, end, i] = (frame[i, 0] * local_ends[shape, end, 0] + frame[i, 1] * local_ends[shape, end, 1]
-                                       + frame[i, 2] * local_ends[shape, end, 2] + frame[i, 3])
+                ends[shape, end, i] = _placed(frame, local_ends[shape, end, 0], local_ends[shape, end, 1],
+                                              local_ends[shape, end, 2], i)
 
 
 @njit(cache=True)
@@ -161,8 +167,8 @@ def capsule_bounds(frames, shape_joint, local_ends, radius, local_corners, paddi
         corner_high[:] = -np.inf
         for corner in range(8):
             for i in range(3):
-                value = (frame[i, 0] * local_corners[shape, corner, 0] + frame[i, 1] * local_corners[shape, corner, 1]
-                         + frame[i, 2] * local_corners[shape, corner, 2] + frame[i, 3])
+                value = _placed(frame, local_corners[shape, corner, 0], local_corners[shape, corner, 1],
+                                local_corners[shape, corner, 2], i)
                 corner_low[i] = min(corner_low[i], value)
                 corner_high[i] = max(corner_high[i], value)
         for o in range(obstacles):
@@ -197,7 +203,6 @@ def capsule_sphere_gaps(ends, radius, centers, radii, out):
             out[c, s] = np.sqrt(nx * nx + ny * ny + nz * nz) - radius[c] - radii[s]
 
 
-
 @njit(cache=True)
 def swept_box_gaps(frames, mount_joint, sweep_corners, first, last, rows, obstacles, obstacle_low, obstacle_high,
                    others, other_joint, local_corners, out):
@@ -222,7 +227,7 @@ def swept_box_gaps(frames, mount_joint, sweep_corners, first, last, rows, obstac
                     x, y, z = (sweep_corners[row, sample, corner, 0], sweep_corners[row, sample, corner, 1],
                                sweep_corners[row, sample, corner, 2])
                     for i in range(3):
-                        value = frame[i, 0] * x + frame[i, 1] * y + frame[i, 2] * z + frame[i, 3]
+                        value = _placed(frame, x, y, z, i)
                         placed[row, k, i] = value
                         low[row, i] = min(low[row, i], value)
                         high[row, i] = max(high[row, i], value)
@@ -237,9 +242,8 @@ def swept_box_gaps(frames, mount_joint, sweep_corners, first, last, rows, obstac
             frame = frames[other_joint[p]]
             for corner in range(8):
                 for i in range(3):
-                    box[corner, i] = (frame[i, 0] * local_corners[other, corner, 0]
-                                      + frame[i, 1] * local_corners[other, corner, 1]
-                                      + frame[i, 2] * local_corners[other, corner, 2] + frame[i, 3])
+                    box[corner, i] = _placed(frame, local_corners[other, corner, 0], local_corners[other, corner, 1],
+                                             local_corners[other, corner, 2], i)
             # the box's edges from its first corner (fit_box's order: x-, y- and z-steps are 4, 2 and 1)
             for step in (4, 2, 1):
                 ux, uy, uz = box[step, 0] - box[0, 0], box[step, 1] - box[0, 1], box[step, 2] - box[0, 2]

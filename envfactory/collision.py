@@ -168,6 +168,9 @@ class CollisionModel:
         self.moved_by_gripper = np.array([gripper is not None and self._is_moved(shape.joint, drivers, gripper)
                                           for shape in self.shapes], dtype=bool)
         self.lever = np.array([self._lever(shape, drivers) for shape in self.shapes])  # (shapes, coordinates)
+        # per shape, the nearest joint at or above it that the gripper does not move
+        self.gripper_mount = np.array([self._gripper_mount(shape.joint, drivers) for shape in self.shapes],
+                                      dtype=np.int64)
         if kinematics.robot.gripper is not None:
             # a shape the gripper does not move has no gripper lever (the measured sweep leaves rounding noise)
             self.lever[:, -1] = np.where(self.moved_by_gripper, self._gripper_levers(drivers), 0.0)
@@ -322,17 +325,9 @@ class CollisionModel:
         one-dimensional range. A linkage's joints turn against each other (a parallel gripper keeps its
         pads upright), so the summed joint levers would overstate the motion several times; a dense
         sweep with a safety factor bounds it instead."""
-        kin, model = self.kinematics, self.kinematics.model
-        gripper = kin.robot.gripper
-        data = model.createData()
+        gripper = self.kinematics.robot.gripper
         values = np.linspace(gripper.low, gripper.high, self.GRIPPER_SAMPLES)
-        q_arm = np.zeros(len(kin.robot.arm_joints))
-        mounts = [self._gripper_mount(shape.joint, drivers) for shape in self.shapes]
-        frames = []
-        for value in values:
-            pin.forwardKinematics(model, data, kin.full_q(q_arm, value))
-            frames.append([data.oMi[mount].actInv(data.oMi[shape.joint])
-                           for shape, mount in zip(self.shapes, mounts)])
+        frames = self.mounted_placements(range(len(self.shapes)), values)
         levers = np.zeros(len(self.shapes))
         step = values[1] - values[0]
         for index, shape in enumerate(self.shapes):
@@ -345,6 +340,18 @@ class CollisionModel:
                 rate = max(rate, (moved + shape.radius * turned) / step)
             levers[index] = self.GRIPPER_SAFETY_FACTOR * rate
         return levers
+
+    def mounted_placements(self, shapes, values) -> list[list[pin.SE3]]:
+        """Per gripper value, each of these shapes' joint frame in the frame of its gripper mount: where
+        the gripper alone puts it (the arm's pose moves shape and mount together)."""
+        kin, model = self.kinematics, self.kinematics.model
+        data = model.createData()
+        q_arm = np.zeros(len(kin.robot.arm_joints))
+        out = []
+        for value in values:
+            pin.forwardKinematics(model, data, kin.full_q(q_arm, value))
+            out.append([data.oMi[int(self.gripper_mount[s])].actInv(data.oMi[self.shapes[s].joint]) for s in shapes])
+        return out
 
     def _gripper_mount(self, joint: int, drivers) -> int:
         """The nearest joint at or above this one that the gripper does not move."""

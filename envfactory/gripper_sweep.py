@@ -18,7 +18,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pinocchio as pin
 
 from envfactory import capsule_kernel
 
@@ -31,39 +30,34 @@ class GripperSweep:
 
     def __init__(self, collision):
         self.collision = collision
-        kin, model = collision.kinematics, collision.kinematics.model
-        gripper = kin.robot.gripper
+        gripper = collision.kinematics.robot.gripper
         self.shapes = np.flatnonzero(collision.moved_by_gripper)
         self.row_of = np.full(len(collision.shapes), -1, dtype=np.int64)
         self.row_of[self.shapes] = np.arange(len(self.shapes))
-        drivers = kin.coordinate_drivers()
-        self.mount_joint = np.array([collision._gripper_mount(collision.shapes[s].joint, drivers) for s in self.shapes],
-                                    dtype=np.int64)
+        self.mount_joint = collision.gripper_mount[self.shapes]
         self.low, self.high = (float(gripper.low), float(gripper.high)) if gripper is not None else (0.0, 0.0)
         if not len(self.shapes):
-            self.samples = 1
+            self.samples, self.spacing = 1, 1.0
             self.corners, self.pad = np.zeros((0, 1, 8, 3)), np.zeros(0)
             return
         dense = self._mounted_corners(np.linspace(self.low, self.high, self.DENSE_SAMPLES))
         # the fastest any corner moves per unit of gripper travel, measured on the dense table
         step = (self.high - self.low) / (dense.shape[1] - 1)
         rate = self.SAFETY_FACTOR * np.linalg.norm(np.diff(dense, axis=1), axis=-1).max(axis=(1, 2)) / step
-        self.samples = int(np.ceil(rate.max() * (self.high - self.low) / (2 * self.PAD))) + 1
+        self.samples = max(int(np.ceil(rate.max() * (self.high - self.low) / (2 * self.PAD))) + 1, 2)
         values = np.linspace(self.low, self.high, self.samples)
+        self.spacing = values[1] - values[0]
         self.corners = self._mounted_corners(values)
-        self.pad = rate * (values[1] - values[0]) / 2 if self.samples > 1 else np.zeros(len(self.shapes))
+        self.pad = rate * self.spacing / 2
 
     def _mounted_corners(self, values: np.ndarray) -> np.ndarray:
         """(fingers, values, 8, 3): each finger's box corners in its mount joint's frame at each gripper value."""
-        collision, kin = self.collision, self.collision.kinematics
-        model, data = kin.model, kin.model.createData()
-        q_arm = np.zeros(len(kin.robot.arm_joints))
+        shapes = self.collision.shapes
+        placements = self.collision.mounted_placements(self.shapes, values)
         out = np.empty((len(self.shapes), len(values), 8, 3))
-        for k, value in enumerate(values):
-            pin.forwardKinematics(model, data, kin.full_q(q_arm, value))
-            for row, (shape, mount) in enumerate(zip(self.shapes, self.mount_joint)):
-                relative = data.oMi[int(mount)].actInv(data.oMi[collision.shapes[shape].joint])
-                out[row, k] = collision.shapes[shape].corners @ relative.rotation.T + relative.translation
+        for k, per_value in enumerate(placements):
+            for row, (shape, relative) in enumerate(zip(self.shapes, per_value)):
+                out[row, k] = shapes[shape].corners @ relative.rotation.T + relative.translation
         return out
 
     def index_pairs(self) -> None:
@@ -92,11 +86,10 @@ class GripperSweep:
         if low < self.low - 1e-9 or high > self.high + 1e-9:  # beyond the table: no bound
             return np.full(len(pairs), -np.inf)
         collision._place_frames()
-        spacing = (self.high - self.low) / max(self.samples - 1, 1)
+        spacing, top = self.spacing, self.samples - 1
         # the tabulated values that bracket the range (scalar arithmetic: this runs thousands of times a second)
-        top = self.samples - 1
-        first = min(max(math.floor((low - self.low) / spacing + 1e-9), 0), top) if spacing else 0
-        last = min(max(math.ceil((high - self.low) / spacing - 1e-9), 0), top) if spacing else 0
+        first = min(max(math.floor((low - self.low) / spacing + 1e-9), 0), top)
+        last = min(max(math.ceil((high - self.low) / spacing - 1e-9), 0), top)
         rows = self.pair_row[pairs]
         out = np.empty(len(pairs))
         capsule_kernel.swept_box_gaps(collision._frames, self.mount_joint, self.corners, first, last, rows,

@@ -159,7 +159,7 @@ class Kinematics:
             if target_rotation is None:
                 if error < tolerance:
                     return IkResult(q_arm, True, error)
-                rows, residual = jacobian[:3], position_error
+                step = _damped_step(jacobian[:3], position_error, damping)
             else:
                 rotation_error = pin.log3(target_rotation @ placement.rotation.T)
                 turn = float(np.linalg.norm(rotation_error))
@@ -169,15 +169,11 @@ class Kinematics:
                     return IkResult(q_arm, True, error)
                 last_turn = turn
                 if len(q_arm) < 6:
-                    # fewer than six joints cannot hold every orientation: the position comes first and the
-                    # orientation gets only what the joints can do without moving the point
-                    step = self._prioritised_step(jacobian, position_error, rotation_weight * rotation_error,
-                                                  damping)
-                    q_arm = np.clip(q_arm + np.clip(step, -0.3, 0.3), self.arm_lower, self.arm_upper)
-                    continue
-                rows = np.vstack([jacobian[:3], rotation_weight * jacobian[3:]])
-                residual = np.concatenate([position_error, rotation_weight * rotation_error])
-            step = rows.T @ np.linalg.solve(rows @ rows.T + damping**2 * np.eye(rows.shape[0]), residual)
+                    # the position comes first; the orientation gets what the joints can do without moving the point
+                    step = self._prioritised_step(jacobian, position_error, rotation_weight * rotation_error, damping)
+                else:
+                    step = _damped_step(np.vstack([jacobian[:3], rotation_weight * jacobian[3:]]),
+                                        np.concatenate([position_error, rotation_weight * rotation_error]), damping)
             q_arm = np.clip(q_arm + np.clip(step, -0.3, 0.3), self.arm_lower, self.arm_upper)
         return IkResult(q_arm, error < tolerance, error)
 
@@ -187,10 +183,13 @@ class Kinematics:
         """A joint step that closes the position error, plus the orientation step projected onto the joint
         motions that leave the point where it is (damped least squares for both)."""
         position_rows, rotation_rows = jacobian[:3], jacobian[3:]
-        damped = np.eye(3) * damping**2
-        inverse = position_rows.T @ np.linalg.inv(position_rows @ position_rows.T + damped)
+        inverse = position_rows.T @ np.linalg.inv(position_rows @ position_rows.T + damping**2 * np.eye(3))
         first = inverse @ position_error
         null = np.eye(jacobian.shape[1]) - inverse @ position_rows
-        projected = rotation_rows @ null
-        second = projected.T @ np.linalg.solve(projected @ projected.T + damped, rotation_error - rotation_rows @ first)
+        second = _damped_step(rotation_rows @ null, rotation_error - rotation_rows @ first, damping)
         return first + null @ second
+
+
+def _damped_step(rows: np.ndarray, residual: np.ndarray, damping: float) -> np.ndarray:
+    """The damped least-squares joint step that best closes `residual` through the Jacobian `rows`."""
+    return rows.T @ np.linalg.solve(rows @ rows.T + damping**2 * np.eye(rows.shape[0]), residual)
