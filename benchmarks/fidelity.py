@@ -4,7 +4,7 @@
 
 Per ID and policy (random actions, the scripted expert): paired steps (each cycle
 simulated in full and played fast from one saved state; see
-envfactory/backends/pybullet/fidelity_probe.py), then whole random trajectories
+tests/fidelity_probe.py), then whole random trajectories
 fed the same actions in a fast and a full env, then the expert's success per
 seed in both. Prints median, 99th percentile and maximum of the EE, arm joint,
 gripper and object gaps, and how the fast player played the cycles.
@@ -13,13 +13,18 @@ gripper and object gaps, and how the fast player played the cycles.
 from __future__ import annotations
 
 import argparse
+import sys
 from collections import Counter
+from pathlib import Path
 
 import numpy as np
 import yaml
 
-import envfactory
-from envfactory.backends.pybullet.fidelity_probe import Gaps, expert_success, paired_episode, trajectory_gaps
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the paired probe is a test helper
+
+from fidelity_probe import Gaps, expert_success, paired_episode, trajectory_gaps
+
+import envfactory  # noqa: E402
 
 
 def spread(values, scale: float) -> str:

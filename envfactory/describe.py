@@ -7,7 +7,11 @@ from rich.console import Console
 from rich.table import Table
 
 from envfactory.compiler import Blueprint
-from envfactory.managers import ObservationManager, RewardManager
+from envfactory.envs.managers import ObservationManager, RewardManager
+from envfactory.geometry.frames import TaskFrame
+from envfactory.geometry.object_press import ObjectPressGuard
+from envfactory.geometry.robot_model import robot_geometry
+from envfactory.geometry.safety import SafetyCheck
 
 
 def _table(title: str, *columns: str) -> Table:
@@ -131,10 +135,7 @@ def kwarg_lines(compiled: Blueprint) -> list[str]:
 
 def safety_table(compiled: Blueprint) -> Table:
     """The geometry the safety check keeps clear: each link's collision shapes and what they are checked against."""
-    from envfactory.collision_pairs import collision_model_of
-    from envfactory.safety import SafetyCheck
-
-    collision = collision_model_of(compiled)
+    collision = robot_geometry(compiled.spec, compiled.asset_root).collision
     settings = compiled.spec.env.safety
     margin = settings.surface_margin
     table = _table(f"Safety: every shape ≥ {margin:g} m (+{SafetyCheck.SHAPE_TOLERANCE * 1000:g} mm per robot shape in a "
@@ -156,9 +157,6 @@ def safety_table(compiled: Blueprint) -> Table:
                      f"gripper mechanism or always touching")
     objects = compiled.spec.task.objects
     if objects:
-        from envfactory.frames import TaskFrame
-        from envfactory.object_press import ObjectPressGuard
-
         guard = ObjectPressGuard(collision, objects, TaskFrame.of(compiled.spec.robot))
         links = list(dict.fromkeys(collision.shapes[i].link for i in guard.guarded))
         table.caption += (f". No motion may end with {', '.join(links)} inside the {', '.join(objects)} while it rests "

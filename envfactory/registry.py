@@ -9,25 +9,25 @@ IDs are registered first, always.
 
 from __future__ import annotations
 
-import functools
 import logging
 import os
 from dataclasses import dataclass
-from importlib.resources import files
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Callable
 
 import gymnasium as gym
 from gymnasium.envs.registration import ENV_ID_RE
 from pydantic import ValidationError
 
 from envfactory import user_config, verdicts
-from envfactory.spec.compose import FamilyFile, load_env_spec, validation_problems
-from envfactory.spec.errors import Problem, SpecError, suggest
-from envfactory.spec.schema import Registration
-from envfactory.spec.sources import SourceMap, load_plain
+from envfactory.schema.compose import FamilyFile
+from envfactory.schema.errors import Problem, SpecError, suggest
+from envfactory.schema.folders import builtin_root, family_files, folder_of, search_roots
+from envfactory.schema.models import Registration
+from envfactory.schema.sources import SourceMap, load_plain
+from envfactory.schema.validation import validation_problems
 
-ENTRY_POINT = "envfactory.registry:make_env"
+ENTRY_POINT = "envfactory.factory:make_env"  # gymnasium imports it at the first make
 SPEC_PATH_VARIABLE = "ENVFACTORY_SPEC_PATH"
 # Bounded work: a family file is read whole at import, and validating one compiles each
 # distinct ID, so both are capped (and stated in the README).
@@ -55,27 +55,7 @@ class IdRecord:
 
 
 _records: dict[str, IdRecord] = {}
-
-
-def builtin_root() -> Path:
-    """The folder holding robots/, tasks/ and specs/, installed or editable."""
-    return Path(str(files("envfactory.specs"))).parent
-
-
-def family_files(folder: Path) -> list[Path]:
-    specs = folder / "specs" if (folder / "specs").is_dir() else folder
-    return sorted(p for p in specs.glob("*.yaml") if not p.name.startswith("_") and p.is_file())
-
-
-def search_roots(folder: Path) -> tuple[Path, ...]:
-    """Where a folder's families look up robots/ and tasks/: itself, then the built-ins."""
-    builtin = builtin_root()
-    return (builtin,) if folder.resolve() == builtin.resolve() else (folder, builtin)
-
-
-def folder_of(family_path: Path) -> Path:
-    """The spec folder a family file belongs to (the parent of a specs/ subfolder)."""
-    return FamilyFile(family_path, ()).folder
+FamilyCheck = Callable[[list[IdRecord], bool], None]  # (a family's fresh records, whether they are all of it)
 
 
 # ------------------------------------------------------------------ scanning
@@ -152,46 +132,6 @@ def _location(path: Path, env_id: str) -> tuple[str, int | None]:
     return problem.file or str(path), problem.line
 
 
-def check_family(records: list[IdRecord], whole: bool = True) -> None:
-    """Compose and compile each distinct ID, so nothing invalid is registered. IDs that differ
-    only in name compile alike, so each (backend, goal_env, kwargs) is compiled once. The verdict
-    is remembered for later imports (`whole`: the records are all the family declares)."""
-    from envfactory.compiler import compile_blueprint
-
-    seen = set()
-    try:
-        for record in records:
-            key = (record.backend, record.goal_env, repr(record.kwargs))
-            if key in seen:
-                continue
-            seen.add(key)
-            loaded = load_env_spec(record.family, (), dict(record.kwargs), env_id=record.env_id)
-            compile_blueprint(loaded, record.env_id, record.backend, record.goal_env)
-    except SpecError as exc:
-        if records:
-            _remember_failure(records[0], exc)
-        raise
-    if records and whole:
-        verdicts.remember(records[0].family.path, True)
-
-
-# Problems a command fixes without editing the family: its IDs must stay registered for that
-# command (`envfactory collision-pairs ROBOT` finds the robot through them).
-_FIXED_BY_COMMAND = {"robot.safety.collision_pairs"}
-
-
-def _remember_failure(record: IdRecord, error: SpecError) -> None:
-    if record.source == BUILTIN_SOURCE or not error.problems:
-        return
-    if all(problem.path in _FIXED_BY_COMMAND for problem in error.problems):
-        return
-    # the family's own line first: that is where the user looks
-    own = [p for p in error.problems if p.file and Path(p.file).resolve() == record.family.path.resolve()]
-    first = (own or error.problems)[0]
-    verdicts.remember(record.family.path, False, {"path": first.path, "message": first.message,
-                                                  "file": first.file, "line": first.line})
-
-
 def _remembered_problem(path: Path, known: dict, stats) -> SpecError | None:
     """The problem an earlier check found in this family, if the family has not changed since."""
     remembered = verdicts.recall(path, known, stats)
@@ -222,12 +162,13 @@ def _register_family(records: list[IdRecord]) -> None:
                         path.stem) from None
 
 
-def register_specs(folder: str | Path, validate: bool = True, source: str = CALL_SOURCE
-                   ) -> tuple[list[str], list[SpecError]]:
+def register_folder(folder: str | Path, check: FamilyCheck | None = None, source: str = CALL_SOURCE
+                    ) -> tuple[list[str], list[SpecError]]:
     """Register every valid family in `folder`; return the new IDs and the problems of the rest.
 
-    A family is registered whole or not at all. With `validate`, each ID is composed and
-    compiled first (as `make` would); without it only the registration block is read."""
+    A family is registered whole or not at all. With a `check` (the factory's: compose and compile
+    each ID as `make` would), each family passes it first; without one only the registration block
+    is read, and a family an earlier check found broken stays out."""
     folder = Path(folder).expanduser()
     if not folder.is_dir():
         return [], [SpecError([Problem("", "no such spec folder", str(folder))])]
@@ -239,7 +180,7 @@ def register_specs(folder: str | Path, validate: bool = True, source: str = CALL
         return [], [SpecError([Problem("", f"{len(paths)} family files; a spec folder may hold at most "
                                            f"{MAX_FAMILY_FILES}", str(folder))])]
     # a user family that an earlier check found broken stays out whole (import composes nothing)
-    remembered = verdicts.read() if not validate and source != BUILTIN_SOURCE else None
+    remembered = verdicts.read() if check is None and source != BUILTIN_SOURCE else None
     stats = verdicts.folder_stats(folder_of(paths[0])) if remembered and paths else None
     for path in paths:
         try:
@@ -248,8 +189,8 @@ def register_specs(folder: str | Path, validate: bool = True, source: str = CALL
             if clashes:
                 raise SpecError(clashes, path.stem)
             fresh = [r for r in records if r.env_id not in _records]
-            if validate and fresh:
-                check_family(fresh, whole=len(fresh) == len(records))
+            if check is not None and fresh:
+                check(fresh, len(fresh) == len(records))
             elif remembered:
                 broken = _remembered_problem(path, remembered, stats)
                 if broken is not None:
@@ -270,7 +211,6 @@ def unregister_folder(folder: str | Path) -> list[str]:
     for env_id in gone:
         _records.pop(env_id)
         gym.registry.pop(env_id, None)
-    _blueprint_cached.cache_clear()
     return gone
 
 
@@ -301,12 +241,12 @@ def one_line(error: SpecError) -> str:
 
 def register_on_import() -> None:
     """Built-ins first, always; then every user folder, lazily, each bad file skipped with one warning."""
-    _, problems = register_specs(builtin_root(), validate=False, source=BUILTIN_SOURCE)
+    _, problems = register_folder(builtin_root(), source=BUILTIN_SOURCE)
     for problem in problems:  # a broken installation: say so, never fail the import
         log.warning("envfactory: built-in spec skipped: %s", one_line(problem))
     for folder, source in user_folders():
         try:
-            _, problems = register_specs(folder, validate=False, source=source)
+            _, problems = register_folder(folder, source=source)
         except Exception as exc:  # never let a user folder break the import
             problems = [SpecError([Problem("", f"unreadable: {exc}", str(folder))])]
         for problem in problems:
@@ -327,43 +267,3 @@ def record(env_id: str) -> IdRecord:
         raise KeyError(f"unknown env ID {env_id!r}{suggest(env_id, _records)}") from None
 
 
-def _freeze(value: Any) -> Any:
-    if isinstance(value, dict):
-        return tuple(sorted((k, _freeze(v)) for k, v in value.items()))
-    if isinstance(value, (list, tuple)):
-        return tuple(_freeze(v) for v in value)
-    return value
-
-
-@functools.lru_cache(maxsize=128)
-def _blueprint_cached(env_id: str, overrides: tuple[str, ...], frozen_kwargs: tuple, kwargs_items: tuple):
-    from envfactory.compiler import compile_blueprint
-
-    entry = record(env_id)
-    try:
-        loaded = load_env_spec(entry.family, overrides, dict(entry.kwargs), dict(kwargs_items), env_id=env_id)
-        return compile_blueprint(loaded, env_id, entry.backend, entry.goal_env)
-    except SpecError as exc:
-        if not overrides and not kwargs_items:  # the ID as registered: the family itself is broken
-            _remember_failure(entry, exc)
-        raise
-
-
-def blueprint(env_id: str, overrides: Iterable[str] = (), **kwargs):
-    """The compiled blueprint of an ID, cached per (ID, overrides, kwargs)."""
-    items = tuple(sorted(kwargs.items()))
-    try:
-        return _blueprint_cached(env_id, tuple(overrides), _freeze(kwargs), items)
-    except TypeError:  # unhashable kwarg values: compile without the cache
-        return _blueprint_cached.__wrapped__(env_id, tuple(overrides), (), items)
-
-
-def make_env(env_id: str, overrides: Iterable[str] = (), render_mode: str | None = None, **kwargs):
-    """The gym entry point of every registered ID."""
-    from envfactory.envs import GoalRobotEnv, RobotEnv
-
-    if isinstance(overrides, str):
-        overrides = [overrides]
-    compiled = blueprint(env_id, overrides, **kwargs)
-    env_class = GoalRobotEnv if compiled.goal_env else RobotEnv
-    return env_class(compiled, render_mode=render_mode)

@@ -7,14 +7,16 @@ from pathlib import Path
 import numpy as np
 import pybullet as p
 
-from envfactory.collision_pairs import collision_model_of
+from envfactory.backends.pybullet.backend import PyBulletBackend
+from envfactory.geometry.frames import TaskFrame
+from envfactory.geometry.robot_model import robot_geometry
 
 NEAR, CLOSE, CLEAR = (0.9, 0.1, 0.1, 1.0), (0.95, 0.75, 0.1, 1.0), (0.2, 0.75, 0.3, 1.0)
 
 
 def link_clearances(compiled, q_arm, gripper: float) -> dict[str, float]:
     """The lowest clearance of each link's shapes, from the scene and the arm's other links."""
-    collision = collision_model_of(compiled)
+    collision = robot_geometry(compiled.spec, compiled.asset_root).collision.measuring_copy()
     collision.pose(np.asarray(q_arm, float), gripper)
     clearance = collision.all_exact()
     lowest: dict[str, float] = {}
@@ -30,20 +32,15 @@ def render_clearance(compiled, out: Path, q_arm=None, width: int = 800, height: 
     margins, green beyond; return the lowest clearance."""
     import imageio
 
-    from envfactory.backends.pybullet.backend import PyBulletBackend
-    from envfactory.urdf_assembly import assemble
-
     spec = compiled.spec
     robot = spec.robot
     q_arm = np.asarray(robot.home if q_arm is None else q_arm, float)
     if q_arm.shape != (len(robot.arm_joints),):
         raise ValueError(f"give {len(robot.arm_joints)} joint values, got {q_arm.size}")
-    gripper = spec.gripper_at_reset if spec.gripper_at_reset is not None else \
-        (robot.gripper.open if robot.gripper is not None else 0.0)
+    gripper = spec.gripper_assumed_at_reset
     margin = spec.env.safety.surface_margin
     lowest = link_clearances(compiled, q_arm, gripper)
-    backend = PyBulletBackend(spec, assemble(robot.model, compiled.asset_root, robot.name),
-                              TaskFrame.of(robot))
+    backend = PyBulletBackend(spec, robot_geometry(spec, compiled.asset_root).urdf, TaskFrame.of(robot))
     try:
         backend.reset(q_arm, gripper, {})
         client, body = backend.client, backend.body

@@ -20,6 +20,8 @@ import os
 from pathlib import Path
 
 from envfactory import user_config
+from envfactory.schema.folders import builtin_root, folder_of
+from envfactory.version import __version__
 
 FILE_NAME = "verdicts.json"
 # A folder with more files than this gets no signature: walking it at import would cost too
@@ -50,9 +52,6 @@ def _stats(folder: Path, budget: int) -> list[tuple[str, int, int]] | None:
 
 @functools.lru_cache(maxsize=1)
 def _builtin_signature() -> str:
-    from envfactory import __version__
-    from envfactory.registry import builtin_root
-
     root = builtin_root()
     stats = [(part, _stats(root / part, MAX_SIGNED_FILES)) for part in ("robots", "tasks", "specs")]
     return hashlib.sha1(json.dumps([__version__, stats]).encode()).hexdigest()
@@ -66,8 +65,6 @@ def folder_stats(folder: Path) -> list | None:
 def signature(family_path: Path, stats: list | None = None) -> str | None:
     """A digest of everything the family's validity could depend on; None if too costly to take.
     `stats`: the folder's, when the caller took them once for several families."""
-    from envfactory.registry import folder_of
-
     stats = stats if stats is not None else folder_stats(folder_of(family_path))
     if stats is None:
         return None
@@ -98,8 +95,6 @@ def recall(family_path: Path, known: dict | None = None, stats: list | None = No
 def remember(family_path: Path, valid: bool, problem: dict | None = None) -> None:
     """Record a verdict; a config folder that cannot be written only loses the memory. The built-in
     families need none: import never consults it for them."""
-    from envfactory.registry import builtin_root, folder_of
-
     if folder_of(family_path).resolve() == builtin_root().resolve():
         return
     current = signature(family_path)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pybullet as p
 
-from envfactory.obstacles import scene_obstacles
+from envfactory.geometry.obstacles import scene_obstacles
 
 
 class BulletJudge:

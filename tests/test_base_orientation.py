@@ -12,11 +12,11 @@ import numpy as np
 import pinocchio as pin
 import pybullet as p
 import pytest
+from bullet_oracle import BulletJudge, judge_steps
 
 import envfactory
-from bullet_oracle import BulletJudge, judge_steps
 from envfactory.envs import RobotEnv
-from envfactory.spec.errors import SpecError
+from envfactory.schema.errors import SpecError
 
 # (ID, overrides): a yawed VX300S whose task frame is its base (goals and objects turn with it),
 # and a UR5e tilted on all three axes, its task frame the world

@@ -98,12 +98,12 @@ def test_video_path_is_checked_before_any_episode(tmp_path):
 
 
 def test_unexpected_error_is_one_line_and_debug_shows_the_traceback(monkeypatch):
-    import envfactory
+    from envfactory import factory
 
     def broken(*args, **kwargs):
         raise RuntimeError("boom")
 
-    monkeypatch.setattr(envfactory, "blueprint", broken)
+    monkeypatch.setattr(factory, "blueprint", broken)
     result = runner.invoke(app, ["describe", "UR5eReacherSim-v0"])
     assert result.exit_code == 1 and "RuntimeError: boom (run with --debug" in result.output
     debug = runner.invoke(app, ["--debug", "describe", "UR5eReacherSim-v0"])

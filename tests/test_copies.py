@@ -6,7 +6,7 @@ import pickle
 import numpy as np
 import pytest
 
-from envfactory.registry import blueprint
+from envfactory.factory import blueprint
 
 COPIES = {"pickle": lambda env: pickle.loads(pickle.dumps(env)), "deepcopy": copy.deepcopy}
 

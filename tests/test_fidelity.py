@@ -12,10 +12,9 @@ import gymnasium as gym
 import numpy as np
 import pybullet as p
 import pytest
+from fidelity_probe import PairedSteps, expert_success, paired_episode, read_scene, trajectory_gaps
 
 import envfactory
-from envfactory.backends.pybullet.fidelity_probe import (PairedSteps, expert_success, paired_episode, read_scene,
-                                                         trajectory_gaps)
 
 SIM_IDS = sorted(i for i, r in envfactory.records().items() if r.backend == "pybullet" and "Goal" not in i)
 EE_TOLERANCE = 1e-3

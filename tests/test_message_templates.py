@@ -11,11 +11,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from real_helpers import FAST, wait_for
 
 from envfactory.backends.rosbridge import messages
-from envfactory.registry import register_specs, unregister_folder
-from envfactory.spec.schema import ArmCommand, GripperCommand
-from real_helpers import FAST, wait_for
+from envfactory.factory import register_specs, unregister_folder
+from envfactory.schema.models import ArmCommand, GripperCommand
 
 ROOT = Path(__file__).parents[1]
 JOINTS = ["j0", "j1", "j2"]
@@ -170,8 +170,8 @@ def test_a_stop_is_told_from_a_command_and_a_malformed_command_is_named():
 
 
 def test_a_broken_shipped_library_names_its_file_line_and_path(tmp_path, monkeypatch):
-    from envfactory.spec import messages as templates
-    from envfactory.spec.errors import SpecError
+    from envfactory.schema import messages as templates
+    from envfactory.schema.errors import SpecError
 
     library = tmp_path / "_messages.yaml"
     library.write_text("good:\n  message: {data: $value}\nbad:\n  type: std_msgs/Float64\n"

@@ -10,11 +10,11 @@ import numpy as np
 import pinocchio as pin
 import pybullet as p
 import pytest
+from bullet_oracle import judge_steps
 
 import envfactory
 from envfactory.envs import RobotEnv
-from envfactory.object_press import ObjectPressGuard
-from bullet_oracle import judge_steps
+from envfactory.geometry.object_press import ObjectPressGuard
 
 # a band around the guard's threshold where PyBullet and coal may disagree by their shape padding
 ENGINE_BAND = 0.002

@@ -11,7 +11,7 @@ from pathlib import Path
 import gymnasium as gym
 import pytest
 
-from envfactory.registry import register_specs, unregister_folder
+from envfactory.factory import register_specs, unregister_folder
 
 ROOT = Path(__file__).parents[1]
 # A binary STL with one triangle: the smallest mesh PyBullet and Pinocchio both load.

@@ -11,7 +11,7 @@ from envfactory.backends.rosbridge.follow import FollowWatch
 from envfactory.backends.rosbridge.link import same_type
 from envfactory.backends.rosbridge.messages import MalformedMessage
 from envfactory.backends.rosbridge.transforms import FrameGraph
-from envfactory.spec.schema import ArmCommand, GripperCommand, StaticTransform
+from envfactory.schema.models import ArmCommand, GripperCommand, StaticTransform
 
 NAMES = ["elbow", "shoulder", "waist"]
 

@@ -8,11 +8,11 @@ the check's Pinocchio/coal model.
 
 import numpy as np
 import pytest
+from bullet_oracle import ADVERSARIAL, POLICIES, BulletJudge, judge_steps
 
 import envfactory
-from bullet_oracle import ADVERSARIAL, POLICIES, BulletJudge, judge_steps
-from envfactory.collision_pairs import StalePairs, read_pairs, write_pairs
 from envfactory.envs import RobotEnv
+from envfactory.geometry.collision_pairs import StalePairs, checksum, fingerprint, read_pairs, write_pairs
 
 SIM_IDS = ["UR5eReacherSim-v0", "UR5ePushSim-v0", "UR5ePnPSim-v0",
            "VX300SReacherSim-v0", "VX300SPushSim-v0", "VX300SPnPSim-v0",
@@ -194,10 +194,8 @@ def test_a_stale_pair_list_is_refused(env, tmp_path):
     write_pairs(path, "robot", {"fingerprint": "0" * 16, "margin": margin, "samples": 1, "seed": 0, "skipped": []})
     with pytest.raises(StalePairs, match="stale"):
         read_pairs(path, collision, margin)
-    from envfactory.collision_pairs import fingerprint
-
-    write_pairs(path, "robot", {"fingerprint": fingerprint(collision, 0.05), "margin": 0.05, "samples": 1,
-                                "seed": 0, "skipped": []})
+    wide = {"fingerprint": fingerprint(collision, 0.05), "margin": 0.05, "samples": 1, "seed": 0, "skipped": []}
+    write_pairs(path, "robot", {**wide, "checksum": checksum(wide)})
     with pytest.raises(StalePairs, match="above the spec"):
         read_pairs(path, collision, margin)
 

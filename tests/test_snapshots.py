@@ -6,11 +6,11 @@ Update after an intended change with:  pytest tests/test_snapshots.py --snapshot
 import json
 
 import pytest
+from conftest import ALL_IDS
 from syrupy.extensions.json import JSONSnapshotExtension
 
 import envfactory
-from conftest import ALL_IDS
-from envfactory.managers import ObservationManager
+from envfactory.envs.managers import ObservationManager
 
 
 @pytest.fixture

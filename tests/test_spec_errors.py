@@ -5,7 +5,7 @@ from pathlib import Path
 import pytest
 
 import envfactory
-from envfactory.registry import register_specs
+from envfactory.factory import register_specs
 
 BROKEN = Path(__file__).parent / "broken_specs"
 CASES = sorted(BROKEN.glob("*.yaml"))

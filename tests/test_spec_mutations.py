@@ -10,9 +10,9 @@ import pytest
 
 import envfactory
 from envfactory.compiler import compile_blueprint
-from envfactory.spec.compose import composed_config, validate_config
-from envfactory.spec.errors import SpecError
-from envfactory.spec.tree import leaves
+from envfactory.schema.compose import composed_config, validate_config
+from envfactory.schema.errors import SpecError
+from envfactory.schema.tree import leaves
 
 # (family, what to mutate): both robots through their pick-and-place families; the reach family for its
 # task, scene and settings (its robot is the UR5e already covered)

@@ -9,7 +9,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from envfactory.registry import register_specs, unregister_folder
+from envfactory.factory import register_specs, unregister_folder
 
 MODULE = '''
 """The EE height above the table, and a reward for matching the goal's height."""

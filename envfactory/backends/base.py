@@ -10,7 +10,7 @@ from typing import Protocol
 
 import numpy as np
 
-from envfactory.spec.schema import CameraSpec
+from envfactory.schema.models import CameraSpec
 
 
 @dataclass(frozen=True)
@@ -70,6 +70,10 @@ class Backend(Protocol):
     # True when reset sets the joints directly (a simulator); False when the arm drives
     # home, so the env proves that path clear first
     teleports_on_reset: bool
+
+    def attach_geometry(self, collision) -> None:
+        """The env's collision model (its own measuring copy), given once after construction: a simulator
+        may play motions the safety check proved clear without dynamics; others ignore it."""
 
     def reset(self, q_arm: np.ndarray, gripper: float | None, objects: dict[str, tuple[np.ndarray, np.ndarray]]) -> None:
         ...

@@ -21,6 +21,8 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
+from envfactory.episodes import iter_episodes
+from envfactory.experts import make_policy
 from envfactory.learn import extra
 
 
@@ -81,10 +83,6 @@ def collect(env_id: str, episodes: int, dataset_id: str | None = None, seed: int
         os.environ["MINARI_DATASETS_PATH"] = str(Path(data_path).resolve())
     import minari
     from minari.data_collector import EpisodeBuffer
-
-    from envfactory.episodes import iter_episodes
-    from envfactory.experts import make_policy
-
     from minari.storage.datasets_root_dir import get_dataset_path
 
     dataset_id = dataset_id or default_dataset_id(env_id)

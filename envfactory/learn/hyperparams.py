@@ -21,6 +21,10 @@ from pathlib import Path
 
 import yaml
 
+from envfactory import registry
+from envfactory.registry import BUILTIN_SOURCE
+from envfactory.schema.folders import builtin_root
+
 ALGORITHMS = ("sac", "td3", "tqc")
 TRAINER_KEYS = ("n_timesteps", "env_kwargs", "her", "normalize", "eval_every", "eval_episodes")
 
@@ -43,8 +47,6 @@ class Hyperparameters:
 
 
 def builtin_folder() -> Path:
-    from envfactory.registry import builtin_root
-
     return builtin_root() / "specs" / "train"
 
 
@@ -101,17 +103,13 @@ def parse_overrides(items: list[str]) -> dict:
 
 
 def load(algo: str, env_id: str, overrides: list[str] | tuple[str, ...] = ()) -> Hyperparameters:
-    import envfactory
-
     algo = algo.lower()
     if algo not in ALGORITHMS:
         raise HyperparameterError(f"algorithm {algo!r}: use one of {', '.join(ALGORITHMS)}")
-    record = envfactory.records()[env_id]
+    record = registry.record(env_id)
     family_path = Path(record.family.path)
     values: dict = {}
     sources: list[str] = []
-    from envfactory.registry import BUILTIN_SOURCE
-
     for folder in _folders(family_path, record.source == BUILTIN_SOURCE):
         path = folder / f"{algo}.yaml"
         if not path.is_file():

@@ -18,9 +18,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+from envfactory.episodes import run_episodes
 from envfactory.learn import extra
 from envfactory.learn.curve import CurveWriter, Evaluation, plot
-from envfactory.learn.hyperparams import Hyperparameters, HyperparameterError, load
+from envfactory.learn.hyperparams import HyperparameterError, Hyperparameters, load
 
 ALGORITHM_CLASSES = {"sac": ("stable_baselines3", "SAC"), "td3": ("stable_baselines3", "TD3"),
                      "tqc": ("sb3_contrib", "TQC")}
@@ -54,7 +55,6 @@ class ModelPolicy:
 
 def evaluate(env, policy, episodes: int) -> tuple[float, float, float]:
     """Success rate, mean return and mean length of `episodes` episodes on the fixed evaluation seeds."""
-    from envfactory.episodes import run_episodes
 
     results = run_episodes(env, policy, episodes, seed=EVAL_SEED)
     n = len(results)

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from pydantic import Field
 
-from envfactory.spec.schema import GripperSpec
+from envfactory.schema.models import GripperSpec
 from envfactory.terms.library import Description, TermParams, constant_bounds, fixed, observation_term, reward_term
 from envfactory.terms.objects import bind_object
 

@@ -33,7 +33,7 @@ class Layout:
     action_size: int
     action_low: np.ndarray
     action_high: np.ndarray
-    boxes: Any = None  # envfactory.reach.PointBoxes: where the EE and each object can be
+    boxes: Any = None  # envfactory.geometry.point_boxes.PointBoxes: where the EE and each object can be
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from pydantic import ConfigDict, Field
 
-from envfactory.reach import Box
+from envfactory.geometry.point_boxes import Box
 from envfactory.terms.library import (
     Description,
     TermParams,

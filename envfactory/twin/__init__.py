@@ -15,8 +15,12 @@ import time
 
 import numpy as np
 
+from envfactory.backends.pybullet import PyBulletBackend
 from envfactory.backends.rosbridge import messages
-from envfactory.frames import TaskFrame
+from envfactory.factory import blueprint
+from envfactory.geometry.frames import TaskFrame
+from envfactory.geometry.urdf_assembly import assemble
+from envfactory.registry import records
 from envfactory.twin import msgtypes
 from envfactory.twin.server import Faults, Node, Received, RosbridgeServer
 
@@ -30,12 +34,10 @@ XS_SDK_PROFILE_S = 2.0
 
 
 def _sim_id(robot: str, task: str) -> str:
-    import envfactory
-
-    candidates = [env_id for env_id, record in sorted(envfactory.records().items())
+    candidates = [env_id for env_id, record in sorted(records().items())
                   if record.backend == "pybullet" and not record.goal_env]
     for env_id in candidates:
-        spec = envfactory.blueprint(env_id).spec
+        spec = blueprint(env_id).spec
         if spec.robot.name == robot and spec.task.name == task:
             return env_id
     raise ValueError(f"no Sim ID pairs robot {robot!r} with task {task!r}")
@@ -49,17 +51,13 @@ class Twin:
     def __init__(self, robot: str, task: str = "push", host: str = "127.0.0.1", port: int = 0,
                  overrides: tuple[str, ...] = (), topic_types: dict[str, str] | None = None,
                  group_move_s: float = XS_SDK_PROFILE_S):
-        import envfactory
-        from envfactory.backends.pybullet import PyBulletBackend
-        from envfactory.urdf_assembly import assemble
-
-        blueprint = envfactory.blueprint(_sim_id(robot, task), ["env.timing.realtime=true", *overrides])
-        spec = blueprint.spec
+        compiled = blueprint(_sim_id(robot, task), ["env.timing.realtime=true", *overrides])
+        spec = compiled.spec
         self.spec = spec
         self.ros = spec.robot.ros
         if self.ros is None:
             raise ValueError(f"robot {robot!r} declares no 'ros:' topic map")
-        self.sim = PyBulletBackend(spec, assemble(spec.robot.model, blueprint.asset_root, spec.robot.name),
+        self.sim = PyBulletBackend(spec, assemble(spec.robot.model, compiled.asset_root, spec.robot.name),
                                    TaskFrame.of(spec.robot))
         spawn = {name: (np.asarray(obj.spawn.position, float), np.array([0.0, 0.0, 0.0, 1.0]))
                  for name, obj in spec.task.objects.items()}

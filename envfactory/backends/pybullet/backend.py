@@ -12,11 +12,16 @@ import pybullet as p
 
 from envfactory.backends.base import BackendError, CameraFrame, JointReading, ObjectReading
 from envfactory.backends.pybullet import scene
-from envfactory.backends.pybullet.fast_physics import (FastCycles, GripperResponse, ObjectClearance, Rig,
-                                                       record_gripper_response)
-from envfactory.frames import TaskFrame, base_rotation
-from envfactory.obstacles import scene_obstacles
-from envfactory.spec.schema import CameraSpec, EnvSpec
+from envfactory.backends.pybullet.fast_physics import (
+    FastCycles,
+    GripperResponse,
+    ObjectClearance,
+    Rig,
+    record_gripper_response,
+)
+from envfactory.geometry.frames import TaskFrame, base_rotation
+from envfactory.geometry.obstacles import scene_obstacles
+from envfactory.schema.models import CameraSpec, EnvSpec
 
 # Followers of a mimic joint track their driver through gear constraints;
 # PyBullet ignores URDF <mimic> tags.

@@ -10,7 +10,7 @@ therefore played one of three ways:
   recorded response takes it in one cycle, without a substep. Only when every
   movable object is at rest and the whole commanded motion of the arm's moving
   shapes and the gripper is proven to stay NEAR_CONTACT away from each object's
-  bounding sphere (the lever bound of envfactory/safety.py: no point of a shape
+  bounding sphere (the lever bound of envfactory/geometry/safety.py: no point of a shape
   moves farther than its lever arms times the joint changes). An object not yet
   seen at rest (fresh from a reset) gets one substep first to show it rests;
 - at rest: nothing is commanded to change and nothing moved when the last
@@ -28,7 +28,7 @@ from typing import Callable
 import numpy as np
 import pybullet as p
 
-from envfactory.collision import CollisionModel, capsule_sphere_gaps
+from envfactory.geometry.collision import CollisionModel, capsule_sphere_gaps
 
 # Closer than this to a movable object, a motion gets full dynamics. Bullet builds contact points
 # within its 2 cm breaking threshold but pushes only on a gap closed within one substep (a few mm

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pybullet as p
 
-from envfactory.obstacles import Obstacle
-from envfactory.spec.schema import ObjectSpec
+from envfactory.geometry.obstacles import Obstacle
+from envfactory.schema.models import ObjectSpec
 
 MARKER_RGBA = (0.1, 0.8, 0.2, 0.6)
 

@@ -23,14 +23,21 @@ from pathlib import Path
 
 import numpy as np
 
-from envfactory.backends.base import (BackendError, ConnectionLost, JointReading, MalformedFeed, MotionRefused,
-                                      ObjectReading, StaleFeed)
+from envfactory.backends.base import (
+    BackendError,
+    ConnectionLost,
+    JointReading,
+    MalformedFeed,
+    MotionRefused,
+    ObjectReading,
+    StaleFeed,
+)
 from envfactory.backends.rosbridge import messages
 from envfactory.backends.rosbridge.feeds import Feed, duration
 from envfactory.backends.rosbridge.follow import FollowWatch
 from envfactory.backends.rosbridge.link import Link
 from envfactory.backends.rosbridge.transforms import FrameGraph
-from envfactory.spec.schema import EnvSpec
+from envfactory.schema.models import EnvSpec
 
 log = logging.getLogger("envfactory.rosbridge")
 
@@ -118,6 +125,9 @@ class RosbridgeBackend:
     @property
     def url(self) -> str:
         return self.link.url
+
+    def attach_geometry(self, collision) -> None:
+        """The real arm's motions are its own: nothing to play without dynamics."""
 
     @property
     def _feeds(self) -> list[Feed]:

@@ -16,7 +16,7 @@ import time
 from typing import Callable
 
 from envfactory.backends.base import CommandRefused, ConnectionLost
-from envfactory.spec.schema import RealSettings, RosSpec, RosTopic
+from envfactory.schema.models import RealSettings, RosSpec, RosTopic
 
 log = logging.getLogger("envfactory.rosbridge")
 

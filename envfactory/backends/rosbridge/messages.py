@@ -16,8 +16,8 @@ import time
 import numpy as np
 
 from envfactory.backends.rosbridge.templates import TemplateMismatch, fill, read
-from envfactory.spec.messages import MessageTemplate, placeholder_paths, resolve
-from envfactory.spec.schema import ArmCommand, GripperCommand
+from envfactory.schema.messages import MessageTemplate, placeholder_paths, resolve
+from envfactory.schema.models import ArmCommand, GripperCommand
 
 
 class MalformedMessage(ValueError):

@@ -13,7 +13,7 @@ from __future__ import annotations
 import copy
 from typing import Any
 
-from envfactory.spec.messages import is_placeholder
+from envfactory.schema.messages import is_placeholder
 
 
 class TemplateMismatch(ValueError):

@@ -8,8 +8,8 @@ import threading
 import numpy as np
 import pinocchio as pin
 
-from envfactory.kinematics import quaternion_to_matrix
-from envfactory.spec.schema import StaticTransform
+from envfactory.geometry.kinematics import quaternion_to_matrix
+from envfactory.schema.models import StaticTransform
 
 
 class FrameGraph:

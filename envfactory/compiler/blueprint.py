@@ -1,0 +1,207 @@
+"""The Blueprint: a compiled env, every term resolved, every slice and bound known.
+
+The blueprint is immutable and needs no physics, so `describe`, the spec
+snapshots and the spaces all come from it before any backend exists.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from pydantic import BaseModel
+
+from envfactory.geometry.point_boxes import PointBoxes
+from envfactory.scaling import ActionScale
+from envfactory.schema.models import EnvSpec
+from envfactory.terms.library import Description, ImageTerm, ObservationTerm, RewardTerm, TerminationTerm
+
+
+@dataclass(frozen=True)
+class ObservationSlot:
+    name: str
+    term: ObservationTerm
+    params: BaseModel
+    bound: Any  # what the term function receives
+    start: int
+    size: int
+    low: np.ndarray
+    high: np.ndarray
+    description: Description
+
+    @property
+    def stop(self) -> int:
+        return self.start + self.size
+
+    @property
+    def goal_dependent(self) -> bool:
+        return self.term.goal_dependent
+
+
+@dataclass(frozen=True)
+class ImageSlot:
+    name: str
+    term: ImageTerm
+    shape: tuple[int, ...]
+    low: float
+    high: float
+
+
+@dataclass(frozen=True)
+class WeightedTerm:
+    name: str
+    term: RewardTerm
+    weight: float
+    params: BaseModel
+    bound: Any
+
+
+@dataclass(frozen=True)
+class TerminationSlot:
+    name: str
+    term: TerminationTerm
+    params: BaseModel
+    bound: Any
+    active: bool  # whether this reward type ends episodes on it (`when:` in the task)
+
+
+@dataclass(frozen=True)
+class ActionRow:
+    label: str
+    low: float
+    high: float
+    joint: str
+    unit: str
+
+
+@dataclass(frozen=True)
+class ActionLayout:
+    ee: bool
+    delta: bool
+    delta_coeff: float
+    rows: tuple[ActionRow, ...]
+    gripper_in_action: bool
+    normalize: bool = False  # the policy acts in [-1, 1], mapped onto the rows by `scale`
+
+    @property
+    def size(self) -> int:
+        return len(self.rows)
+
+    @property
+    def scale(self) -> ActionScale:
+        arm_rows = self.size - (1 if self.gripper_in_action else 0)
+        return ActionScale(self.low, self.high, [self.delta and index < arm_rows for index in range(self.size)])
+
+    @property
+    def policy_low(self) -> np.ndarray:
+        """The action space the policy sees: [-1, 1] when normalised, else the seed's rows."""
+        return -np.ones(self.size) if self.normalize else self.low
+
+    @property
+    def policy_high(self) -> np.ndarray:
+        return np.ones(self.size) if self.normalize else self.high
+
+    @property
+    def low(self) -> np.ndarray:
+        return np.array([row.low for row in self.rows])
+
+    @property
+    def high(self) -> np.ndarray:
+        return np.array([row.high for row in self.rows])
+
+
+@dataclass(frozen=True)
+class Blueprint:
+    env_id: str
+    family: str
+    backend: str
+    goal_env: bool
+    max_episode_steps: int
+    spec: EnvSpec
+    asset_root: Path
+    observation: tuple[ObservationSlot, ...]  # the full layout, as the standard env sees it
+    action: ActionLayout
+    rewards: tuple[WeightedTerm, ...]  # the set the reward type selects
+    terminations: tuple[TerminationSlot, ...]
+    achieved_from: str  # "ee" or an object name
+    info_keys: tuple[str, ...] = field(default=())
+    images: tuple[ImageSlot, ...] = field(default=())  # use_kinect: camera terms, Dict keys beside the vector
+    boxes: PointBoxes | None = None  # where the EE and each object can be: the goal env's achieved-goal bounds
+
+    @property
+    def policy_observation(self) -> tuple[ObservationSlot, ...]:
+        """The `observation` entry: goal envs drop every goal-dependent column."""
+        if not self.goal_env:
+            return self.observation
+        return _reindex(slot for slot in self.observation if not slot.goal_dependent)
+
+    @property
+    def observation_size(self) -> int:
+        return sum(slot.size for slot in self.policy_observation)
+
+    def to_json(self) -> str:
+        """A stable text form of everything a layout or a default change would alter."""
+        spec = self.spec
+        data: dict[str, Any] = {
+            "id": self.env_id,
+            "family": self.family,
+            "backend": self.backend,
+            "goal_env": self.goal_env,
+            "max_episode_steps": self.max_episode_steps,
+            "observation": [_slot_json(slot) for slot in self.policy_observation],
+            "images": [{"key": image.name, "shape": list(image.shape), "dtype": image.term.dtype.__name__,
+                        "low": image.low, "high": image.high} for image in self.images],
+            "action": {
+                "ee": self.action.ee,
+                "delta": self.action.delta,
+                "delta_coeff": self.action.delta_coeff,
+                "normalize": self.action.normalize,
+                "rows": [vars(row) for row in self.action.rows],
+            },
+            "reward_type": spec.env.reward_type,
+            "rewards": [{"name": t.name, "term": t.term.name, "weight": t.weight,
+                         "params": t.params.model_dump(by_alias=True)} for t in self.rewards],
+            "terminations": [{"name": t.name, "term": t.term.name, "active": t.active} for t in self.terminations],
+            "goal": spec.task.goal.model_dump(),
+            "objects": {name: obj.model_dump() for name, obj in spec.task.objects.items()},
+            "gripper": {"in_action": spec.task.gripper.in_action, "at_reset": spec.gripper_at_reset},
+            "env": spec.env.model_dump(),
+            "workspace": spec.workspace.model_dump(),
+            "robot": {"name": spec.robot.name, "mount": list(spec.robot.mount), "home": spec.robot.home,
+                      "ee_frame": spec.robot.ee_frame, "task_frame": spec.robot.task_frame},
+        }
+        return json.dumps(data, indent=2, sort_keys=True, default=_json_default)
+
+
+def _json_default(value):
+    if isinstance(value, np.ndarray):
+        return [round(float(v), 6) for v in value]
+    if isinstance(value, (tuple, set)):
+        return list(value)
+    raise TypeError(type(value))
+
+
+def _slot_json(slot: ObservationSlot) -> dict:
+    return {
+        "idx": [slot.start, slot.stop - 1],
+        "dim": slot.size,
+        "term": slot.name,
+        "params": slot.params.model_dump(by_alias=True),
+        "component": slot.description.component,
+        "source": slot.description.source,
+        "unit": slot.description.unit,
+        "low": slot.low,
+        "high": slot.high,
+    }
+
+
+def _reindex(slots) -> tuple[ObservationSlot, ...]:
+    out, start = [], 0
+    for slot in slots:
+        out.append(ObservationSlot(slot.name, slot.term, slot.params, slot.bound, start, slot.size, slot.low,
+                                   slot.high, slot.description))
+        start += slot.size
+    return tuple(out)

@@ -1,0 +1,196 @@
+"""What `make` would find out, found without physics: the URDF assembles and loads,
+every joint, frame and link the spec names exists, the home pose clears the table,
+and the goal and spawn points are within the arm's reach.
+
+The checks run on the shared geometry the env will use (`geometry.robot_model`),
+so what is checked here is what runs there.
+"""
+
+from __future__ import annotations
+
+import itertools
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from envfactory.geometry.collision_pairs import StalePairs, pairs_file
+from envfactory.geometry.robot_model import RobotGeometry, robot_geometry
+from envfactory.geometry.urdf_assembly import AssemblyError, assemble
+from envfactory.schema.errors import Problem, suggest
+from envfactory.schema.models import EnvSpec
+
+# Slack on the URDF's joint limits: YAML limits rounded to two decimals (1.26 for 1.2566).
+LIMIT_SLACK = 0.005
+# The goal box is probed at its centre and its 8 corners, and every probe must be reachable:
+# goals are drawn uniformly from the whole box, so an unreachable corner is a share of
+# episodes whose goal the arm cannot reach (the design's "goal and spawn boxes reachable").
+
+_found: dict[str, tuple[tuple[str, str], ...]] = {}  # what the checks found, per robot, task, scene and settings
+
+
+def check(spec: EnvSpec, asset_root: Path, report) -> list[Problem]:
+    """Every problem `make` or `reset` would hit in the robot model and the reach of the task."""
+    key = "\0".join((spec.robot.model_dump_json(), spec.task.model_dump_json(), spec.scene.model_dump_json(),
+                     spec.env.safety.model_dump_json(), spec.workspace.model_dump_json(), str(asset_root),
+                     _pairs_text(spec, asset_root)))
+    if key not in _found:
+        _found[key] = tuple(_problems(spec, asset_root))
+    return [report(path, message) for path, message in _found[key]]
+
+
+def _pairs_text(spec: EnvSpec, asset_root: Path) -> str:
+    pairs = pairs_file(spec, asset_root)
+    return pairs.read_text() if pairs is not None and pairs.is_file() else ""
+
+
+def _problems(spec: EnvSpec, asset_root: Path) -> list[tuple[str, str]]:
+    try:
+        urdf = assemble(spec.robot.model, asset_root, spec.robot.name)
+    except AssemblyError as exc:
+        return [(exc.path, str(exc))]
+    try:
+        # the bare model, not the shared chain: the chain needs the names checked here to exist
+        model = pin.buildModelFromUrdf(str(urdf))
+    except Exception as exc:  # Pinocchio raises plain RuntimeError/ValueError with its own text
+        return [("robot.model", f"Pinocchio cannot load the assembled URDF: {exc}")]
+    problems = _name_problems(spec, model)
+    if problems:
+        return problems
+    problems = _padding_problems(spec, model)
+    pairs = pairs_file(spec, asset_root)
+    if pairs is not None and not pairs.is_file():
+        problems.append(("robot.safety.collision_pairs", f"no file {pairs}: run `envfactory collision-pairs "
+                                                         f"{spec.robot.name}`"))
+    if problems:
+        return problems
+    try:
+        geometry = robot_geometry(spec, asset_root)
+    except StalePairs as exc:
+        return [("robot.safety.collision_pairs", str(exc))]
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError, RuntimeError) as exc:
+        # a model whose numbers break the kinematics or the collision geometry
+        return [("robot.model", f"the kinematics or collision geometry fail on this robot model: {exc}")]
+    links = geometry.collision.links
+    bare = [(f"robot.safety.padding.{name}", f"link {name!r} has no collision geometry: its padding would change "
+                                             f"nothing (links with geometry: {', '.join(links)})")
+            for name in spec.robot.safety.padding if name not in links]
+    if bare:
+        return bare
+    try:
+        return _pose_problems(spec, geometry) + _reach_problems(spec, geometry)
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        return [("robot.model", f"the kinematics fail on this robot model: {exc}")]
+
+
+def _name_problems(spec: EnvSpec, model) -> list[tuple[str, str]]:
+    robot = spec.robot
+    joints = {model.names[i]: i for i in range(1, model.njoints)}
+    frames = {frame.name for frame in model.frames}
+    problems = []
+
+    def joint(path: str, name: str, need_limits: tuple[float, float] | None = None) -> None:
+        if name not in joints:
+            problems.append((path, f"the URDF has no joint {name!r}{suggest(name, joints)}"))
+            return
+        j = model.joints[joints[name]]
+        if j.nq != 1:
+            problems.append((path, f"joint {name!r} must have one degree of freedom (a revolute or prismatic "
+                                   f"joint; continuous joints are not supported)"))
+            return
+        if need_limits is not None:
+            low, high = model.lowerPositionLimit[j.idx_q], model.upperPositionLimit[j.idx_q]
+            if need_limits[0] < low - LIMIT_SLACK or need_limits[1] > high + LIMIT_SLACK:
+                problems.append((path.rsplit(".", 1)[0], f"limits [{need_limits[0]:g}, {need_limits[1]:g}] of "
+                                                         f"{name!r} exceed the URDF's [{low:.4g}, {high:.4g}]"))
+
+    for index, arm_joint in enumerate(robot.arm_joints):
+        joint(f"robot.arm_joints.{index}.name", arm_joint.name, (arm_joint.lower, arm_joint.upper))
+    for index, entry in enumerate(robot.joint_states):
+        joint(f"robot.joint_states.{index}.{'urdf' if entry.urdf else 'name'}", entry.urdf_joint)
+    if robot.gripper is not None:
+        gripper = robot.gripper
+        joint("robot.gripper.joint", gripper.joint, (gripper.low, gripper.high))
+        for name, gain in gripper.mimic.items():
+            follows = sorted((gain * gripper.low, gain * gripper.high))
+            joint(f"robot.gripper.mimic.{name}.gain", name, (follows[0], follows[1]))
+        for index, link in enumerate(robot.gripper.pads.links):
+            if link not in frames:
+                problems.append((f"robot.gripper.pads.links.{index}", f"the URDF has no link {link!r}"
+                                                                      f"{suggest(link, frames)}"))
+    if robot.ee_frame not in frames:
+        problems.append(("robot.ee_frame", f"the URDF has no frame {robot.ee_frame!r}{suggest(robot.ee_frame, frames)}"))
+    return problems
+
+
+def _padding_problems(spec: EnvSpec, model) -> list[tuple[str, str]]:
+    """A padded link the URDF lacks would silently keep no extra clearance."""
+    links = {frame.name for frame in model.frames}
+    return [(f"robot.safety.padding.{name}", f"the URDF has no link {name!r}{suggest(name, links)}")
+            for name in spec.robot.safety.padding if name not in links]
+
+
+def _pose_problems(spec: EnvSpec, geometry: RobotGeometry) -> list[tuple[str, str]]:
+    home = np.asarray(spec.robot.home, float)
+    gripper = spec.gripper_assumed_at_reset
+    verdict = geometry.safety_check(spec.env.safety).check(home, home, gripper)  # a motion of length zero: the home pose itself
+    if not verdict.accepted:
+        return [("robot.home", f"the home pose is unsafe ({verdict.reason}; the margin is "
+                               f"{spec.env.safety.surface_margin:g} m): every reset would start there")]
+    return []
+
+
+def _probes(low: np.ndarray, high: np.ndarray) -> list[np.ndarray]:
+    corners = [np.array(c) for c in itertools.product(*zip(low, high))]
+    return [(low + high) / 2, *corners]
+
+
+def _point(point) -> str:
+    return "[" + ", ".join(f"{float(v):g}" for v in np.round(point, 3)) + "]"
+
+
+def _reach_problems(spec: EnvSpec, geometry: RobotGeometry) -> list[tuple[str, str]]:
+    safety = geometry.safety_check(spec.env.safety)
+    kinematics = safety.kinematics
+    home = np.asarray(spec.robot.home, float)
+    goal = spec.task.goal
+    problems = []
+    ee_goal = goal.achieved.partition(".")[0] == "ee"
+
+    def solve(point):
+        return kinematics.solve_ik(home, point)
+
+    low, high = (np.asarray(b, float) for b in goal.box)
+    probes = [np.asarray(goal.static_goal, float)] if not goal.random else _probes(low, high)
+    misses = []
+    for point in probes:
+        solution = solve(point)
+        # an EE goal is sampled only where the arm can stand clear of the table; an object
+        # goal is reached by the object, the EE only needs to get there
+        if not solution.success:
+            misses.append((point, f"IK misses by {solution.position_error:.3f} m"))
+        elif ee_goal and not safety.pose_is_clear(solution.q_arm):
+            misses.append((point, "the pose there comes too near the table or the arm itself"))
+    if misses:
+        where = "task.goal.static" if not goal.random and goal.static is not None else "task.goal.box"
+        listed = "; ".join(f"{_point(point)} ({why})" for point, why in misses[:4])
+        more = f"; and {len(misses) - 4} more" if len(misses) > 4 else ""
+        what = (f"{len(misses)} of the {len(probes)} probe points of the goal box (centre and corners)"
+                if goal.random else "the static goal")
+        problems.append((where, f"the arm cannot reach {what}: {listed}{more}; valid: a goal "
+                                f"{'box whose every point is ' if goal.random else ''}within reach of robot "
+                                f"{spec.robot.name!r}"))
+    for name, obj in spec.task.objects.items():
+        position = np.asarray(obj.spawn.position, float)
+        # a random spawn is drawn from position ± offset in x and y: its corners are probed too
+        offset = np.array([*obj.spawn.offset, 0.0]) if obj.spawn.random else np.zeros(3)
+        spots = [position] + ([position + offset * [sx, sy, 0.0] for sx in (-1, 1) for sy in (-1, 1)]
+                              if np.any(offset) else [])
+        missed = [(spot, solution.position_error) for spot in spots if not (solution := solve(spot)).success]
+        if missed:
+            spot, error = missed[0]
+            what = "its spawn point" if spot is position else "a corner of its spawn box (position ± offset)"
+            problems.append((f"task.objects.{name}.spawn.position",
+                             f"the arm cannot reach {name} at {what} {_point(spot)} (IK misses by {error:.3f} m"
+                             f"{f'; {len(missed)} of {len(spots)} spawn probes missed' if len(missed) > 1 else ''})"))
+    return problems

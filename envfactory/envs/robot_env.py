@@ -1,0 +1,342 @@
+"""RobotEnv (Box observation) and GoalRobotEnv (Dict observation for HER).
+
+The env is generic: everything robot- or task-specific arrives compiled in
+the blueprint, and the physics or hardware sits behind a Backend.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import gymnasium as gym
+import numpy as np
+import pinocchio as pin
+from gymnasium import spaces
+
+from envfactory.backends import backend_factory
+from envfactory.backends.base import BackendError, EpisodeAbort
+from envfactory.compiler import Blueprint
+from envfactory.envs.actions import ActionAdapter
+from envfactory.envs.goals import GoalSampler, LiftCurriculum
+from envfactory.envs.managers import ImageManager, ObservationManager, RewardManager
+from envfactory.envs.objects import ObjectSpawner, ObjectTracker
+from envfactory.geometry.frames import TaskFrame
+from envfactory.geometry.object_press import ObjectPressGuard
+from envfactory.geometry.robot_model import robot_geometry
+from envfactory.scaling import AffineScale
+from envfactory.state import EnvState
+from envfactory.terms.rewards import STAGE_KEYS, STEP_FLAGS
+
+log = logging.getLogger("envfactory")
+
+
+class RobotEnv(gym.Env):
+    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 2}
+
+    def __init__(self, blueprint: Blueprint, render_mode: str | None = None, **backend_options):
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode {render_mode!r} is not one of {self.metadata['render_modes']}")
+        self.blueprint = blueprint
+        self.render_mode = render_mode
+        self._backend_options = backend_options
+        spec = blueprint.spec
+        robot = spec.robot
+        self.metadata = {**self.metadata, "render_fps": 1.0 / spec.env.timing.action_cycle_time}
+        self.task_frame = TaskFrame.of(robot)
+        geometry = robot_geometry(spec, blueprint.asset_root)  # shared with every env of this robot
+        self.safety = geometry.safety_check(spec.env.safety)  # this env's own: it measures and remembers
+        self.kinematics = self.safety.kinematics
+        self.actions = ActionAdapter(blueprint.action, self.kinematics, spec.workspace, spec.env.safety.max_joint_delta)
+        self.object_guard = ObjectPressGuard(self.safety.collision, spec.task.objects, self.task_frame) \
+            if spec.task.objects else None
+        self.home = np.asarray(robot.home, float)
+        self.goals = GoalSampler(spec.task.goal, self.kinematics, self.safety, self.home,
+                                 check_reach=blueprint.achieved_from == "ee", gripper=spec.gripper_assumed_at_reset)
+        self.rewards = RewardManager(blueprint.rewards, blueprint.terminations, spec.task.goal.tolerance,
+                                     blueprint.info_keys)
+        self.observations = ObservationManager(blueprint.policy_observation)
+        self._vector_scale = self._goal_scale = None
+        if spec.env.observation.normalize:  # normalize_observations
+            self._vector_scale = AffineScale(self.observations.low, self.observations.high)
+            self._goal_scale = AffineScale(*spec.task.goal.box)
+        self.images = ImageManager(blueprint.images, spec.scene.camera)
+        self.action_space = spaces.Box(blueprint.action.policy_low.astype(np.float32),
+                                       blueprint.action.policy_high.astype(np.float32), dtype=np.float32)
+        self.observation_space = self._observation_space()
+
+        self._arm_in_states = np.array(robot.arm_state_indices)
+        self._gripper_in_states = robot.gripper_state_index
+        self._gripper_reset = spec.gripper_at_reset
+        self.spawner = ObjectSpawner(spec.task.objects, spec.scene.table, self.task_frame)
+        self._trackers = {name: ObjectTracker() for name in spec.task.objects}
+        lift = spec.task.goal.lift
+        self.curriculum = (LiftCurriculum(lift.enabled, lift.height, spec.task.goal.tolerance)
+                           if lift is not None else None)
+        self._timing = spec.env.timing
+        self._verbose = spec.env.log_internal_state
+        self._seed_pending = spec.env.seed
+        self._goal = np.zeros(3)
+        self._goal_failed = False
+        self._state: EnvState | None = None
+        self._clipped: list[str] = []  # observation columns the last observation had to clip
+
+        self.backend = backend_factory(blueprint.backend)(spec, geometry.urdf, self.task_frame, render_mode,
+                                                          **backend_options)
+        self.backend.attach_geometry(self.safety.collision)
+
+    # ------------------------------------------------------------ spaces
+
+    def _vector_space(self) -> spaces.Box:
+        if self._vector_scale is not None:
+            return self._vector_scale.box(self.observations.low, self.observations.high)
+        return spaces.Box(self.observations.low, self.observations.high, dtype=np.float32)
+
+    def _observation_space(self) -> spaces.Space:
+        if not self.images:
+            return self._vector_space()
+        return spaces.Dict({"observation": self._vector_space(), **self.images.spaces()})
+
+    # ------------------------------------------------------------ state
+
+    def _read_state(self, previous_action: np.ndarray) -> EnvState:
+        reading = self.backend.read_joints()
+        q_arm = reading.position[self._arm_in_states]
+        gripper = float(reading.position[self._gripper_in_states]) if self._gripper_in_states is not None else 0.0
+        ee_position, ee_rotation = self.kinematics.ee_pose(q_arm, gripper)
+        objects = {name: tracker.update(self.backend.read_object(name)) for name, tracker in self._trackers.items()}
+        return EnvState(
+            joint_positions=reading.position,
+            joint_velocities=reading.velocity,
+            q_arm=q_arm,
+            gripper=gripper,
+            ee_position=ee_position,
+            ee_rotation=ee_rotation,
+            ee_rpy=pin.rpy.matrixToRpy(ee_rotation),
+            desired_goal=self._goal,
+            current_goal=self._goal,
+            previous_action=previous_action,
+            objects=objects,
+        )
+
+    def _advance_curriculum(self, state: EnvState, achieved: np.ndarray) -> None:
+        if self.curriculum is not None:
+            self.curriculum.update(achieved)
+            state.current_goal = self.curriculum.current(self._goal)
+
+    def achieved_goal(self, state: EnvState) -> np.ndarray:
+        return state.position_of(self.blueprint.achieved_from)
+
+    def _vector(self, state: EnvState) -> np.ndarray:
+        vector, self._clipped = self.observations.compute(state)
+        if self._clipped:
+            log.warning("%s: observation outside its declared bounds, clipped and flagged in "
+                        "info['observation_clipped']: %s", self.blueprint.env_id, ", ".join(self._clipped))
+        return vector if self._vector_scale is None else self._vector_scale.to_unit(vector).astype(np.float32)
+
+    def _observe(self, state: EnvState):
+        vector = self._vector(state)
+        if not self.images:
+            return vector
+        return {"observation": vector, **self.images.capture(self.backend)}
+
+    # ------------------------------------------------------------ gym API
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        if seed is None and self._seed_pending is not None:
+            seed = self._seed_pending
+        self._seed_pending = None
+        super().reset(seed=seed)
+        spawn = self.spawner.sample(self.np_random)
+        self.backend.recover()  # a fault of the last episode never reaches this one
+        if not self.backend.teleports_on_reset:
+            # a real arm drives home: the whole way there must clear the table and floor
+            reading = self.backend.read_joints().position
+            gripper = float(reading[self._gripper_in_states]) if self._gripper_in_states is not None else 0.0
+            # the gripper moves to its reset value on the way: the proof covers its whole range
+            verdict = self.safety.path_is_clear(reading[self._arm_in_states], self.home, gripper,
+                                                gripper if self._gripper_reset is None else self._gripper_reset)
+            if not verdict.accepted:
+                raise BackendError(f"the move home is unsafe ({verdict.reason}); bring the arm clear by hand")
+        self.backend.reset(self.home, self._gripper_reset, spawn)
+        self.safety.forget()
+        for tracker in self._trackers.values():
+            tracker.reset()
+        self._goal, self._goal_failed = self.goals.sample(self.np_random)
+        if options and "goal" in options:
+            self._goal = np.asarray(options["goal"], float).reshape(3)
+            self._goal_failed = False
+        self.backend.mark_goal(self._goal)
+        self._state = self._read_state(np.zeros(self.action_space.shape, dtype=np.float32))
+        self._state.previous_action = self.actions.hold_action(self._state)
+        achieved = self.achieved_goal(self._state)
+        if self.curriculum is not None:
+            self.curriculum.reset(spawn[self.blueprint.achieved_from][0])
+        self._advance_curriculum(self._state, achieved)
+        observation = self._observe(self._state)
+        return observation, self._info(self._state, achieved, out_of_bounds=False, rejection="")
+
+    def step(self, action):
+        if self._state is None:
+            raise RuntimeError("call reset() before step()")
+        state = self._state
+        action = self._checked_action(action)
+        command = self.actions.translate(action, state)
+        rejection = command.rejection
+        if not rejection:
+            verdict = self.safety.check(state.q_arm, command.q_arm, state.gripper, command.gripper)
+            rejection = verdict.reason
+        if not rejection and self.object_guard is not None:
+            gripper_to = state.gripper if command.gripper is None else command.gripper
+            rejection = self.object_guard.check(state.q_arm, command.q_arm, state.gripper, gripper_to,
+                                                state.objects).reason
+        if rejection and self._verbose:
+            log.info("%s: action rejected: %s", self.blueprint.env_id, rejection)
+        if np.all(np.isfinite(action)):
+            previous = np.clip(np.asarray(action, dtype=np.float32), self.action_space.low, self.action_space.high)
+        else:
+            previous = self.actions.hold_action(state)
+        try:
+            if not rejection:
+                self.backend.command_joints(command.q_arm, self._timing.action_speed)
+                if command.gripper is not None:
+                    self.backend.command_gripper(command.gripper)
+            self.backend.advance(self._timing.action_cycle_time)
+            self._state = self._read_state(previous)
+        except EpisodeAbort as exc:
+            # stale or malformed readings, an arm that does not follow: the backend stopped it; the episode ends
+            log.warning("%s: episode aborted: %s", self.blueprint.env_id, exc)
+            return self._finish(state, command.out_of_bounds, rejection, truncated=True, abort=str(exc))
+        except BaseException:
+            self._stop_backend()  # any failure mid-step stops a real arm before it propagates
+            raise
+        return self._finish(self._state, command.out_of_bounds, rejection)
+
+    def _checked_action(self, action) -> np.ndarray:
+        """The action as an array of the action space's shape; anything else is refused before it moves the arm."""
+        array = np.asarray(action)
+        if array.shape != self.action_space.shape or not (np.issubdtype(array.dtype, np.floating)
+                                                           or np.issubdtype(array.dtype, np.integer)):
+            raise ValueError(f"{self.blueprint.env_id}: the action has shape {array.shape} and dtype {array.dtype}; "
+                             f"the action space is {self.action_space}: nothing was sent to the arm")
+        return array
+
+    def _stop_backend(self) -> None:
+        try:
+            self.backend.stop()
+        except Exception as exc:  # the original failure matters more; say this one too
+            log.error("%s: could not send the stop: %s", self.blueprint.env_id, exc)
+
+    def _finish(self, state: EnvState, out_of_bounds: bool, rejection: str, truncated: bool = False,
+                abort: str = ""):
+        achieved = self.achieved_goal(state)
+        self._advance_curriculum(state, achieved)
+        observation = self._observe(state)
+        info = self._info(state, achieved, out_of_bounds, rejection)
+        if abort:
+            info["abort_reason"] = abort
+        reward = float(self.rewards.reward(achieved, self._goal, info))
+        terminated = bool(self.rewards.terminated(achieved, self._goal, info))
+        return observation, reward, terminated, truncated, info
+
+    def _info(self, state: EnvState, achieved: np.ndarray, out_of_bounds: bool, rejection: str) -> dict:
+        distance = float(np.linalg.norm(achieved - self._goal))
+        flags = (out_of_bounds, bool(rejection), self._goal_failed)
+        info = {key: float(value) for key, value in zip(STEP_FLAGS, flags, strict=True)}
+        info.update(rejection_reason=rejection, observation_clipped=list(self._clipped), distance=distance,
+                    is_success=distance < self.blueprint.spec.task.goal.tolerance)
+        if self.curriculum is not None:
+            info.update(self.curriculum.info())
+        else:
+            info.update(zip(STAGE_KEYS, (0.0, self._goal.copy()), strict=True))  # no lift stage: never active
+        info.update(self.rewards.measure(state))
+        return info
+
+    def render(self):
+        if self.render_mode == "rgb_array":
+            return self.backend.render(480, 360)
+        return None
+
+    def close(self):
+        backend = getattr(self, "backend", None)
+        if backend is not None:
+            backend.close()
+        super().close()
+
+    # ------------------------------------------------------------ copies
+
+    def __getstate__(self) -> dict:
+        """A copy (pickle or deepcopy) is a fresh env of the same blueprint, not a snapshot of the physics:
+        it opens its own backend (a new PyBullet client), starts un-reset, and carries over the random
+        generator's state, so its next reset() samples what this env's next reset() would."""
+        return {
+            "blueprint": self.blueprint,
+            "render_mode": self.render_mode,
+            "backend_options": self._backend_options,
+            "np_random_state": self._np_random.bit_generator.state if self._np_random is not None else None,
+            "np_random_seed": self._np_random_seed,
+            "seed_pending": self._seed_pending,
+            "spec": self.spec,
+        }
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["blueprint"], render_mode=state["render_mode"], **state["backend_options"])
+        if state["np_random_state"] is not None:
+            self._np_random = np.random.Generator(np.random.PCG64())
+            self._np_random.bit_generator.state = state["np_random_state"]
+            self._np_random_seed = state["np_random_seed"]
+        self._seed_pending = state["seed_pending"]
+        self.spec = state["spec"]
+
+    # ------------------------------------------------------------ introspection
+
+    @property
+    def goal(self) -> np.ndarray:
+        return self._goal.copy()
+
+    @property
+    def state(self) -> EnvState | None:
+        return self._state
+
+
+class GoalRobotEnv(RobotEnv):
+    """Dict observation for goal-conditioned learning; rewards pure in the goals."""
+
+    def _observation_space(self) -> spaces.Space:
+        spec = self.blueprint.spec
+        goal_low, goal_high = (np.asarray(b, np.float32) for b in spec.task.goal.box)
+        achieved = self.blueprint.boxes.of(self.blueprint.achieved_from)
+        achieved_low, achieved_high = achieved.low.astype(np.float32), achieved.high.astype(np.float32)
+        box = self._goal_scale.box if self._goal_scale is not None else \
+            (lambda low, high: spaces.Box(low, high, dtype=np.float32))
+        return spaces.Dict({
+            "observation": self._vector_space(),
+            "achieved_goal": box(achieved_low, achieved_high),
+            "desired_goal": box(goal_low, goal_high),
+            **self.images.spaces(),
+        })
+
+    def _observe(self, state: EnvState):
+        achieved, desired = self.achieved_goal(state), self._goal
+        if self._goal_scale is not None:
+            achieved, desired = self._goal_scale.to_unit(achieved), self._goal_scale.to_unit(desired)
+        return {
+            "observation": self._vector(state),
+            "achieved_goal": achieved.astype(np.float32),
+            "desired_goal": desired.astype(np.float32),
+            **self.images.capture(self.backend),
+        }
+
+    def _in_metres(self, achieved_goal, desired_goal):
+        if self._goal_scale is None:
+            return achieved_goal, desired_goal
+        return self._goal_scale.from_unit(achieved_goal), self._goal_scale.from_unit(desired_goal)
+
+    def compute_reward(self, achieved_goal, desired_goal, info):
+        return self.rewards.reward(*self._in_metres(achieved_goal, desired_goal), info)
+
+    def compute_terminated(self, achieved_goal, desired_goal, info):
+        return self.rewards.terminated(*self._in_metres(achieved_goal, desired_goal), info)
+
+    def compute_truncated(self, achieved_goal, desired_goal, info):
+        # truncation is the registered time limit's job
+        return np.zeros(np.asarray(achieved_goal).shape[:-1], dtype=bool)

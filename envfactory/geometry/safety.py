@@ -1,0 +1,379 @@
+"""Decides whether a joint target may be sent to the arm.
+
+One check serves sim and real: finite values, joint bounds, the largest joint
+change allowed in one action, and the clearance of every link's collision
+shapes from the scene's obstacles and from the arm's other links, proven over
+the whole commanded motion (the gripper's included), not sampled: two safe
+end poses can sweep a link through the table between any two samples.
+
+The proof rests on one bound. A joint change Δq moves no point of a shape
+farther than lever · |Δq| (its per-coordinate lever arms), so clearances
+known at two poses of a straight joint-space motion bound the clearance
+everywhere between them: at least (c_a + c_b - travel) / 2. Pieces whose
+bound falls short are halved until they are proven, found unsafe, or too
+small to split: then the motion is refused. A doubt stops the arm.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from envfactory.geometry.collision import CollisionModel
+from envfactory.schema.models import SafetySettings
+
+
+@dataclass(frozen=True)
+class Verdict:
+    accepted: bool
+    reason: str = ""
+
+
+ACCEPTED = Verdict(True)
+
+
+@dataclass
+class Anchor:
+    """One arm pose of a motion, with a lower bound on each pair's clearance there over the whole
+    range the gripper sweeps in the motion. Bounds tighten in levels: capsules (0), coal at the
+    gripper's middle value less the gripper's half-travel (1), coal across the gripper's range (2)."""
+
+    fraction: float
+    q_arm: np.ndarray
+    bound: np.ndarray
+    level: np.ndarray  # per pair
+
+
+@dataclass(frozen=True)
+class Motion:
+    """A straight joint-space motion of the arm, and the gripper's range during it."""
+
+    q_from: np.ndarray
+    q_to: np.ndarray
+    gripper_from: float
+    gripper_to: float
+    travel: np.ndarray  # per pair: how far the arm's motion can close it, end to end
+    reserve: np.ndarray  # per pair: how far the gripper's motion can close it from its middle value
+    threshold: np.ndarray  # per pair: the clearance it must keep
+    gripper_moves: bool = False
+
+    @property
+    def gripper_middle(self) -> float:
+        return (self.gripper_from + self.gripper_to) / 2
+
+    def arm_at(self, fraction: float) -> np.ndarray:
+        return self.q_from + fraction * (self.q_to - self.q_from)
+
+
+class SafetyCheck:
+    # Bisection stops at pieces this small. Deep pieces are needed only where a pair starts
+    # inside the margin and must prove it does not get closer.
+    FINEST_PIECE = 1.0 / 512
+    # A pair that starts inside the margin may dip this much below where it started on its
+    # way out: the bisection cannot prove an exact non-decrease.
+    INSIDE_TOLERANCE = 0.002
+    # A remembered end pose stands in for the next start if the arm ended this close to it.
+    REUSE_WITHIN = 0.003
+    # Kept in hand beyond the margin, per robot shape in a pair: engines disagree on the same URDF
+    # (PyBullet pads each shape with a collision margin that coal does not): measured 1.0 mm for a
+    # link against an obstacle, 2.0 mm for two meshed links.
+    SHAPE_TOLERANCE = 0.001
+    ROUNDING = 0.0002
+    # Pieces left with at most this many unproven pairs measure them with coal alone.
+    FEW_PAIRS = 12
+    # Gripper values sampled first across the gripper's range, before finer sweeps where needed.
+    COARSE_SWEEP = 5
+    # Gripper values are sampled this finely (in clearance lost between samples) when its motion matters.
+    SWEEP_RESOLUTION = 0.001
+
+    def __init__(self, collision: CollisionModel, settings: SafetySettings):
+        self.collision = collision
+        self.kinematics = collision.kinematics
+        self.settings = settings
+        scene, own = len(collision.scene_shape), len(collision.self_a)
+        self.margin = settings.surface_margin + self.ROUNDING + self.SHAPE_TOLERANCE * np.repeat([1.0, 2.0], [scene, own])
+        # the last accepted motion's end pose and the gripper range it was judged over
+        self._last_end: tuple[Anchor, tuple[float, float]] | None = None
+
+    # ------------------------------------------------------------ single poses
+
+    def clearances(self, q_arm: np.ndarray, gripper: float = 0.0) -> np.ndarray:
+        """Exact clearance of every measured pair at one pose."""
+        self.collision.pose(np.asarray(q_arm, float), gripper)
+        return self.collision.all_exact()
+
+    def pose_is_clear(self, q_arm: np.ndarray, gripper: float = 0.0) -> bool:
+        return self._pose_verdict(np.asarray(q_arm, float), gripper).accepted
+
+    def _pose_verdict(self, q_arm: np.ndarray, gripper: float, where: str = "") -> Verdict:
+        count = self.collision.pair_count
+        still = Motion(q_arm, q_arm, gripper, gripper, np.zeros(count), np.zeros(count), self.margin.copy())
+        return self._settle(self._anchor(1.0, still), still, where)
+
+    # ------------------------------------------------------------ motions
+
+    def check(self, q_arm_now: np.ndarray, q_arm_target: np.ndarray, gripper_now: float = 0.0,
+              gripper_target: float | None = None) -> Verdict:
+        """Whether the arm may move from now to the target (and the gripper to its target, if given)."""
+        q_arm_target = np.asarray(q_arm_target, float)
+        if not np.all(np.isfinite(q_arm_target)):
+            return Verdict(False, "non-finite joint target")
+        kin = self.kinematics
+        if ((q_arm_target < kin.arm_lower) | (q_arm_target > kin.arm_upper)).any():
+            return Verdict(False, "joint target outside the joint bounds")
+        delta = q_arm_target - q_arm_now
+        largest = float(np.max(np.abs(delta)))
+        if largest > self.settings.max_joint_delta + 1e-12:
+            return Verdict(False, f"joint change {largest:.3f} rad exceeds max_joint_delta {self.settings.max_joint_delta}")
+        if gripper_target is not None and not np.isfinite(gripper_target):
+            return Verdict(False, "non-finite gripper target")
+        return self._motion_verdict(np.asarray(q_arm_now, float), q_arm_target, gripper_now,
+                                    gripper_now if gripper_target is None else float(gripper_target),
+                                    self.FINEST_PIECE, remember=True)
+
+    def path_is_clear(self, q_from: np.ndarray, q_to: np.ndarray, gripper_from: float = 0.0,
+                      gripper_to: float | None = None) -> Verdict:
+        """Clearance along a long joint-space move (a real arm driving home), with no joint-change limit."""
+        gripper_to = gripper_from if gripper_to is None else gripper_to
+        return self._motion_verdict(np.asarray(q_from, float), np.asarray(q_to, float), gripper_from, gripper_to,
+                                    self.FINEST_PIECE / 8, remember=False)
+
+    def forget(self) -> None:
+        """The arm moved without a check (a reset): the remembered end pose no longer applies."""
+        self._last_end = None
+
+    def _motion_verdict(self, q_from, q_to, gripper_from, gripper_to, finest, remember) -> Verdict:
+        collision = self.collision
+        lever = collision.pair_lever
+        arm = len(q_from)
+        has_gripper = collision.coordinates > arm
+        # The gripper moves on its own clock: any of its values between start and target may meet
+        # any arm pose, so each pose is judged over the gripper's whole range.
+        reserve = lever[:, arm] * abs(gripper_to - gripper_from) / 2 if has_gripper else np.zeros(collision.pair_count)
+        motion = Motion(q_from, q_to, gripper_from, gripper_to, lever[:, :arm] @ np.abs(q_to - q_from), reserve,
+                        self.margin.copy(), bool(reserve.any()))
+
+        start = self._start_anchor(motion)
+        # a pair already inside the margin now (contact, tracking error) may only move out
+        candidates = np.flatnonzero(start.bound < self.margin)
+        now = np.zeros(0)
+        if candidates.size:
+            collision.pose(q_from, gripper_from)
+            now = collision.exact(candidates)
+        close = now < self.margin[candidates]
+        inside, now = candidates[close], now[close]
+        motion.threshold[inside] = np.minimum(now - self.INSIDE_TOLERANCE, self.margin[inside])
+        end = self._anchor(1.0, motion)
+        verdict = self._settle(end, motion, " at the end of the motion")
+        if verdict.accepted and inside.size:
+            self._refine(end, inside, motion, level=2)
+            stuck = inside[end.bound[inside] <= now]
+            if stuck.size:
+                verdict = Verdict(False, self._describe(stuck[0], end.bound[stuck[0]],
+                                                        " and the motion does not move it away"))
+        if not verdict.accepted:
+            return verdict
+        # A piece carries only the pairs its parent could not prove: a pair proven over a piece is
+        # proven over every part of it, so deep pieces measure a handful of pairs, not all of them.
+        pieces = [(start, end, None)]
+        while pieces:
+            a, b, pairs = pieces.pop()
+            length = b.fraction - a.fraction
+            short = self._weak(a, b, motion, length, pairs)
+            for level in (1, 2) if motion.gripper_moves else (1,):
+                if short.size == 0:
+                    break
+                self._refine(a, short, motion, level)
+                self._refine(b, short, motion, level)
+                short = self._weak(a, b, motion, length, short)
+            if short.size == 0:
+                continue
+            if short.size <= self.FEW_PAIRS:
+                for pair in short:
+                    verdict = self._prove_pair(int(pair), a.fraction, a.bound[pair], b.fraction, b.bound[pair],
+                                               motion, finest)
+                    if not verdict.accepted:
+                        return verdict
+                continue
+            if length <= finest:
+                return self._unproven(short[0], a.fraction)
+            middle = self._anchor((a.fraction + b.fraction) / 2, motion, short)
+            verdict = self._settle(middle, motion, f" at {middle.fraction:.0%} of the motion", short)
+            if not verdict.accepted:
+                return verdict
+            pieces += [(a, middle, short), (middle, b, short)]
+        if remember:
+            self._last_end = (end, tuple(sorted((gripper_from, gripper_to))))
+        return ACCEPTED
+
+    def _prove_pair(self, pair: int, start: float, start_clearance: float, end: float, end_clearance: float,
+                    motion: Motion, finest: float, tabulated: bool = True) -> Verdict:
+        """The bisection for one pair between two measured poses, on plain floats: the deep pieces
+        near a pair that sits close to its threshold are many, and each costs one coal query."""
+        travel, threshold = float(motion.travel[pair]), float(motion.threshold[pair])
+        single = np.array([pair])
+        pieces = [(start, start_clearance, end, end_clearance)]
+        while pieces:
+            a, clearance_a, b, clearance_b = pieces.pop()
+            if clearance_a + clearance_b - travel * (b - a) >= 2 * threshold:
+                continue
+            if b - a <= finest:
+                if tabulated and motion.gripper_moves and self.collision.gripper_sweep.sweepable(single)[0]:
+                    # the fingers' table is looser than coal by a few millimetres: before a motion is
+                    # refused as unprovable, this pair is measured again with coal alone
+                    at_start, at_end = (self._pair_clearance(single, motion.arm_at(f), motion, tabulated=False)
+                                        for f in (start, end))
+                    return self._prove_pair(pair, start, at_start, end, at_end, motion, finest, tabulated=False)
+                return self._unproven(pair, a)
+            middle = (a + b) / 2
+            clearance = self._pair_clearance(single, motion.arm_at(middle), motion, tabulated)
+            if clearance < threshold:
+                return Verdict(False, self._describe(pair, clearance, f" at {middle:.0%} of the motion"))
+            pieces += [(a, clearance_a, middle, clearance), (middle, clearance, b, clearance_b)]
+        return ACCEPTED
+
+    def _pair_clearance(self, single: np.ndarray, q_arm: np.ndarray, motion: Motion, tabulated: bool = True) -> float:
+        """A lower bound on one pair's clearance at an arm pose, over the gripper's range (the fingers'
+        table first, unless told to measure with coal alone)."""
+        if not motion.gripper_moves or motion.reserve[single[0]] == 0.0:  # the gripper cannot change it
+            self.collision.pose(q_arm, motion.gripper_middle)
+            return float(self.collision.exact(single)[0])
+        sweep = self.collision.gripper_sweep
+        if tabulated and sweep.sweepable(single)[0]:
+            self.collision.pose(q_arm, motion.gripper_middle)
+            clearance = float(sweep.clearances(single, motion.gripper_from, motion.gripper_to)[0])
+            if clearance >= motion.threshold[single[0]]:
+                return clearance
+        anchor = Anchor(0.0, q_arm, np.full(self.collision.pair_count, -np.inf),
+                        np.zeros(self.collision.pair_count, dtype=np.int8))
+        self._refine(anchor, single, motion, 2, tabulated)
+        return float(anchor.bound[single[0]])
+
+    def _unproven(self, pair: int, fraction: float) -> Verdict:
+        names = " and ".join(self.collision.pair_names(pair))
+        return Verdict(False, f"cannot prove {names} stay clear near {fraction:.0%} of the motion")
+
+    # ------------------------------------------------------------ anchors
+
+    def _anchor(self, fraction: float, motion: Motion, pairs: np.ndarray | None = None) -> Anchor:
+        """A pose of the motion with bounds for the given pairs (all by default); the rest unknown."""
+        q_arm = motion.arm_at(fraction)
+        level = np.zeros(self.collision.pair_count, dtype=np.int8)
+        if pairs is not None and pairs.size <= self.FEW_PAIRS:
+            # coal alone beats the capsule pass for a handful of pairs
+            bound = np.full(self.collision.pair_count, -np.inf)
+            anchor = Anchor(fraction, q_arm, bound, level)
+            self._refine(anchor, pairs, motion, 1)
+            return anchor
+        self.collision.pose(q_arm, motion.gripper_middle)
+        return Anchor(fraction, q_arm, self.collision.bounds() - motion.reserve, level)
+
+    def _start_anchor(self, motion: Motion) -> Anchor:
+        """The start pose's bounds: the last accepted end pose's, less how far the arm and gripper
+        are from where it was judged."""
+        if self._last_end is not None:
+            last, (old_low, old_high) = self._last_end
+            lever = self.collision.pair_lever
+            arm = len(motion.q_from)
+            moved = lever[:, :arm] @ np.abs(motion.q_from - last.q_arm)
+            if lever.shape[1] > arm:
+                low, high = sorted((motion.gripper_from, motion.gripper_to))
+                # the old bound covers its own gripper range; beyond it, the gripper lever applies
+                moved = moved + lever[:, arm] * max(old_low - low, high - old_high, 0.0)
+            if moved.max() <= self.REUSE_WITHIN:
+                return Anchor(0.0, motion.q_from, last.bound - moved, np.zeros(moved.size, dtype=np.int8))
+        return self._anchor(0.0, motion)
+
+    def _refine(self, anchor: Anchor, pairs: np.ndarray, motion: Motion, level: int, tabulated: bool = True) -> None:
+        """Tighten the bounds of these pairs to the given level at the anchor's pose (the fingers' table
+        first, unless told to measure with coal alone)."""
+        collision = self.collision
+        if motion.gripper_moves and tabulated:
+            pairs = self._sweep_fingers(anchor, pairs, motion)
+        todo = pairs[anchor.level[pairs] < min(level, 1)]
+        if todo.size:
+            collision.pose(anchor.q_arm, motion.gripper_middle)
+            anchor.bound[todo] = collision.exact(todo) - motion.reserve[todo]
+            anchor.level[todo] = 1
+        if level < 2 or not motion.gripper_moves:
+            return
+        sweep = pairs[(anchor.level[pairs] < 2) & (motion.reserve[pairs] > 0)]
+        if sweep.size == 0:
+            return
+        # Coal at a few gripper values along its range, then halving only the intervals where a pair is in
+        # doubt: over an interval a clearance dips below the mean of its ends by at most the gripper's
+        # lever times half the interval's travel (its reserve times the interval's share of the range).
+        reserve, threshold = motion.reserve[sweep], motion.threshold[sweep]
+        fractions = np.linspace(0.0, 1.0, self.COARSE_SWEEP)
+        ends = [self._gripper_clearance(anchor.q_arm, motion, fraction, sweep) for fraction in fractions]
+        bound = np.full(sweep.size, np.inf)
+        every = np.arange(sweep.size)
+        intervals = [(fractions[k], ends[k], fractions[k + 1], ends[k + 1], every) for k in range(len(fractions) - 1)]
+        while intervals:
+            a, clearance_a, b, clearance_b, rows = intervals.pop()
+            within = (clearance_a + clearance_b) / 2 - reserve[rows] * (b - a)
+            done = (within >= threshold[rows]) | (reserve[rows] * (b - a) <= self.SWEEP_RESOLUTION)
+            bound[rows[done]] = np.minimum(bound[rows[done]], within[done])
+            if done.all():
+                continue
+            rows, clearance_a, clearance_b = rows[~done], clearance_a[~done], clearance_b[~done]
+            middle = (a + b) / 2
+            clearance = self._gripper_clearance(anchor.q_arm, motion, middle, sweep[rows])
+            intervals += [(a, clearance_a, middle, clearance, rows), (middle, clearance, b, clearance_b, rows)]
+        anchor.bound[sweep] = bound
+        anchor.level[sweep] = 2
+
+    def _sweep_fingers(self, anchor: Anchor, pairs: np.ndarray, motion: Motion) -> np.ndarray:
+        """Prove the finger pairs the tabulated sweep clears over the gripper's whole range (level 2 at
+        once, no coal); the pairs left to measure."""
+        sweep = self.collision.gripper_sweep
+        fingers = sweep.sweepable(pairs) & (anchor.level[pairs] < 2)
+        if not fingers.any():
+            return pairs
+        self.collision.pose(anchor.q_arm, motion.gripper_middle)
+        measured = pairs[fingers]
+        clearance = sweep.clearances(measured, motion.gripper_from, motion.gripper_to)
+        proven = clearance >= motion.threshold[measured]
+        if not proven.any():
+            return pairs
+        anchor.bound[measured[proven]] = clearance[proven]
+        anchor.level[measured[proven]] = 2
+        fingers[fingers] = proven
+        return pairs[~fingers]
+
+    def _gripper_clearance(self, q_arm: np.ndarray, motion: Motion, fraction: float, pairs: np.ndarray) -> np.ndarray:
+        """Exact clearances of these pairs with the arm at q_arm and the gripper this far along its motion."""
+        self.collision.pose(q_arm, motion.gripper_from + fraction * (motion.gripper_to - motion.gripper_from))
+        return self.collision.exact(pairs)
+
+    def _settle(self, anchor: Anchor, motion: Motion, where: str, pairs: np.ndarray | None = None) -> Verdict:
+        """Tighten every pair (of these) the capsules cannot clear, and refuse if one is truly too close."""
+        for level in (1, 2) if motion.gripper_moves else (1,):
+            if pairs is None:
+                weak = np.flatnonzero(anchor.bound < motion.threshold)
+            else:
+                weak = pairs[anchor.bound[pairs] < motion.threshold[pairs]]
+            if weak.size == 0:
+                return ACCEPTED
+            self._refine(anchor, weak, motion, level)
+        return self._violation(anchor, motion.threshold, where)
+
+    @staticmethod
+    def _weak(a: Anchor, b: Anchor, motion: Motion, length: float, pairs: np.ndarray | None) -> np.ndarray:
+        """The pairs (of these, or of all) whose clearance between two anchors is not proven above their threshold."""
+        if pairs is None:
+            return np.flatnonzero(a.bound + b.bound - motion.travel * length < 2 * motion.threshold)
+        proven = a.bound[pairs] + b.bound[pairs] - motion.travel[pairs] * length >= 2 * motion.threshold[pairs]
+        return pairs[~proven]
+
+    def _violation(self, anchor: Anchor, threshold: np.ndarray, where: str) -> Verdict:
+        below = np.flatnonzero((anchor.level > 0) & (anchor.bound < threshold))
+        if below.size == 0:
+            return ACCEPTED
+        worst = below[np.argmin(anchor.bound[below] - threshold[below])]
+        return Verdict(False, self._describe(worst, anchor.bound[worst], where))
+
+    def _describe(self, pair: int, clearance: float, where: str) -> str:
+        first, second = self.collision.pair_names(pair)
+        return f"{first} would come within {clearance:.3f} m of {second}{where}"

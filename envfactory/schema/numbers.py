@@ -1,0 +1,47 @@
+"""Number types for specs: finite, and never a bool or a string in disguise.
+
+YAML reads `yes` as true and pydantic would turn that into 1.0; `.nan` and
+`.inf` parse as floats that every later comparison quietly mishandles.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from typing import Annotated, Any, Iterator
+
+from pydantic import AfterValidator, BeforeValidator, Field
+
+from envfactory.schema.tree import leaves
+
+
+def _plain_number(value: Any) -> Any:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError("Input should be a valid number, not a bool or a string")
+    return float(value)
+
+
+def _finite(value: float) -> float:
+    if not math.isfinite(value):
+        raise ValueError("Input should be a finite number")
+    return value
+
+
+Real = Annotated[float, BeforeValidator(_plain_number), AfterValidator(_finite)]
+Positive = Annotated[Real, Field(gt=0)]
+NonNegative = Annotated[Real, Field(ge=0)]
+
+# A tabletop arm's scene fits in a 10 m cube around the world origin: a position or a size
+# beyond it is a typo (a misplaced decimal point), never a scene.
+SCENE_EXTENT = 10.0
+Coordinate = Annotated[Real, Field(ge=-SCENE_EXTENT, le=SCENE_EXTENT)]
+Length = Annotated[Real, Field(gt=0, le=SCENE_EXTENT)]
+# Angles in radians: more than a full turn either way is never meant.
+Angle = Annotated[Real, Field(ge=-6.2832, le=6.2832)]
+# Friction coefficients of real materials stay well below this.
+Friction = Annotated[Real, Field(ge=0, le=10.0)]
+
+
+def non_finite_paths(node: Any) -> Iterator[tuple[str, float]]:
+    """Every NaN or infinity anywhere in a plain config tree, with its dotted path."""
+    return ((path, value) for path, value in leaves(node) if isinstance(value, float) and not math.isfinite(value))

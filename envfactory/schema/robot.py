@@ -1,0 +1,270 @@
+"""The robot: its URDF parts, arm joints, gripper, joint-state message and limits."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import Field, model_validator
+
+from envfactory.schema.base import Model, Position, Rgba, Rpy, in_unit_range, located, ordered
+from envfactory.schema.errors import suggest
+from envfactory.schema.numbers import Friction, Length, NonNegative, Positive, Real
+from envfactory.schema.ros import RosSpec
+
+# The joint-delta action box of an arm joint that declares none: symmetric, ±π per
+# unit action before delta_coeff scales it (the seeds' UR5e convention).
+DEFAULT_JOINT_DELTA = 3.14
+# Motor limits no arm on a table exceeds: above them a value is a typo.
+MAX_EFFORT = 10_000.0  # N·m or N
+MAX_JOINT_VELOCITY = 20.0  # rad/s or m/s
+Effort = Annotated[Positive, Field(le=MAX_EFFORT)]
+# Observation bounds of one joint reading (rad, m, or per second): beyond ±100 they bound nothing.
+StateBound = Annotated[Real, Field(ge=-100.0, le=100.0)]
+Velocity = Annotated[Positive, Field(le=MAX_JOINT_VELOCITY)]
+# One unit of action in a delta row times delta_coeff (at most 1) is the step: past a full turn it is a typo.
+DeltaBound = Annotated[Real, Field(ge=-6.2832, le=6.2832)]
+
+
+class UrdfPart(Model):
+    airo_models: str | None = None
+    urdf: str | None = None
+    prefix: str = ""
+    parent: str | None = None
+    xyz: Position = (0.0, 0.0, 0.0)
+    rpy: Rpy = (0.0, 0.0, 0.0)
+
+    @model_validator(mode="after")
+    def _one_source(self) -> "UrdfPart":
+        if (self.airo_models is None) == (self.urdf is None):
+            raise ValueError("give exactly one of 'airo_models' or 'urdf'")
+        return self
+
+
+class FrameSpec(Model):
+    parent: str
+    xyz: Position = (0.0, 0.0, 0.0)
+    rpy: Rpy = (0.0, 0.0, 0.0)
+
+
+class ModelSpec(Model):
+    parts: list[UrdfPart] = Field(min_length=1)
+    frames: dict[str, FrameSpec] = {}
+    # package:// mesh paths: package name -> folder, relative to the robot YAML's folder
+    packages: dict[str, str] = {}
+
+    @model_validator(mode="after")
+    def _attached_parts_name_parent(self) -> "ModelSpec":
+        base = self.parts[0]
+        if base.parent is not None or any(base.xyz) or any(base.rpy):
+            raise located("parts.0", "parts[0] is the base: it takes no parent, xyz or rpy (place the robot with "
+                                     "'mount' and turn it with 'mount_rpy')")
+        for index, part in enumerate(self.parts[1:], start=1):
+            if part.parent is None:
+                raise ValueError(f"parts[{index}] needs 'parent': the link it is mounted on")
+        return self
+
+
+class ArmJoint(Model):
+    name: str
+    lower: Real
+    upper: Real
+    label: str = ""
+    # The joint-delta action row: ± one number, or [min, max] around zero. Independent of
+    # the position limits, which bound the target, not the step.
+    delta: Annotated[Positive, Field(le=6.2832)] | tuple[DeltaBound, DeltaBound] = DEFAULT_JOINT_DELTA
+    effort: Effort | None = None  # N·m (N for a prismatic joint); the robot's arm_force if unset
+    velocity: Velocity | None = None  # rad/s (m/s); the robot's arm_max_velocity if unset
+
+    @model_validator(mode="after")
+    def _ordered(self) -> "ArmJoint":
+        if self.lower >= self.upper:
+            raise located("upper", f"lower ({self.lower}) must be below upper ({self.upper})")
+        if isinstance(self.delta, tuple) and not self.delta[0] < 0 < self.delta[1]:
+            raise located("delta", f"delta {list(self.delta)} must contain 0 strictly inside (zero is 'hold still')")
+        return self
+
+    @property
+    def delta_box(self) -> tuple[float, float]:
+        return (-self.delta, self.delta) if isinstance(self.delta, float) else self.delta
+
+
+class JointStateEntry(Model):
+    """One entry of the robot's /joint_states message, in message order."""
+
+    name: str
+    urdf: str | None = None  # the URDF joint in simulation, when its name differs
+    position: tuple[StateBound, StateBound]
+    velocity: tuple[StateBound, StateBound]
+    unit: Literal["rad", "m"] = "rad"
+
+    @model_validator(mode="after")
+    def _ordered(self) -> "JointStateEntry":
+        ordered(self.position[0], self.position[1], "position")
+        ordered(self.velocity[0], self.velocity[1], "velocity")
+        return self
+
+    @property
+    def urdf_joint(self) -> str:
+        return self.urdf or self.name
+
+
+class ContactSpec(Model):
+    """Contact parameters of the links that touch a grasped object."""
+
+    links: list[str] = []
+    lateral_friction: Friction = 1.0
+    spinning_friction: Friction = 0.0
+    rolling_friction: Friction = 0.0
+    friction_anchor: bool = True  # pins static friction in place: without it a held object creeps out
+
+
+class GripperSpec(Model):
+    joint: str  # the driven URDF joint
+    open: Real
+    closed: Real
+    mimic: dict[str, Real] = {}  # URDF joint -> multiplier of the driven joint
+    force: Effort = 100.0
+    max_velocity: Velocity = 1.0  # of the driven joint, per second
+    grasp_threshold: Real | None = None  # closed at least this far when holding something
+    closing_axis: Literal["x", "y", "z"] = "y"  # the EE frame axis along which the fingers close
+    pads: ContactSpec = ContactSpec()
+    label: str = "gripper command (absolute)"
+
+    @model_validator(mode="after")
+    def _distinct(self) -> "GripperSpec":
+        if self.open == self.closed:
+            raise located("closed", "open and closed must differ")
+        if self.grasp_threshold is not None and not self.low <= self.grasp_threshold <= self.high:
+            raise located("grasp_threshold", f"grasp_threshold {self.grasp_threshold} lies outside "
+                                             f"[{self.low}, {self.high}]")
+        for name, gain in self.mimic.items():
+            if gain == 0:
+                raise located(f"mimic.{name}", "a mimic multiplier of 0 would never move its joint")
+        return self
+
+    def closure(self, value):
+        """0 when open, 1 when closed, whichever way the joint runs."""
+        return (value - self.open) / (self.closed - self.open)
+
+    @property
+    def low(self) -> float:
+        return min(self.open, self.closed)
+
+    @property
+    def high(self) -> float:
+        return max(self.open, self.closed)
+
+
+class RobotSafety(Model):
+    """What the safety check needs beyond the URDF's collision geometry."""
+
+    # The generated list of link pairs that need no self-collision check (adjacent, always
+    # touching or never near), relative to the robot YAML; `envfactory collision-pairs` writes it.
+    collision_pairs: str | None = None
+    # Extra clearance (m) a link keeps from everything, beyond the margin: cables, tools, doubt.
+    padding: dict[str, Annotated[NonNegative, Field(le=1.0)]] = {}
+
+
+class PedestalSpec(Model):
+    """A stand under the robot base: a top plate on four legs."""
+
+    size: tuple[Length, Length]
+    rgba: Rgba = (0.3, 0.3, 0.32, 1.0)
+
+    @model_validator(mode="after")
+    def _colour(self) -> "PedestalSpec":
+        in_unit_range(self.rgba)
+        return self
+
+
+class RobotSpec(Model):
+    name: str
+    label: str
+    model: ModelSpec
+    mount: Position  # world position of the robot base
+    mount_rpy: Rpy = (0.0, 0.0, 0.0)  # world orientation of the robot base (roll, pitch, yaw; URDF convention)
+    pedestal: PedestalSpec | None = None
+    task_frame: Literal["world", "base"]
+    arm_joints: list[ArmJoint] = Field(min_length=1)
+    home: list[Real]
+    ee_frame: str
+    ee_bounds: tuple[Position, Position]  # EE position bounds in the task frame (obs and absolute EE actions)
+    top_down_rpy: Rpy | None = None  # task-frame EE orientation that points the gripper straight down
+    joint_states: list[JointStateEntry] = Field(min_length=1)
+    joint_states_topic: str
+    gripper: GripperSpec | None = None
+    arm_force: Effort = 150.0  # N·m per arm joint, unless the joint declares its own effort
+    arm_max_velocity: Velocity = 3.15  # rad/s per arm joint, unless the joint declares its own velocity
+    safety: RobotSafety = RobotSafety()
+    ros: RosSpec | None = None
+
+    @property
+    def task_origin_world(self) -> tuple[float, float, float]:
+        """Where the task frame sits in the world: the robot base, or the world origin."""
+        return self.mount if self.task_frame == "base" else (0.0, 0.0, 0.0)
+
+    @property
+    def state_names(self) -> list[str]:
+        """The /joint_states names, in message order."""
+        return [entry.name for entry in self.joint_states]
+
+    @property
+    def arm_state_indices(self) -> list[int]:
+        """Where each arm joint (action order) sits in /joint_states."""
+        urdf_names = [entry.urdf_joint for entry in self.joint_states]
+        return [urdf_names.index(joint.name) for joint in self.arm_joints]
+
+    @property
+    def gripper_state_index(self) -> int | None:
+        """Where the driven gripper joint sits in /joint_states, if there is a gripper."""
+        if self.gripper is None:
+            return None
+        return [entry.urdf_joint for entry in self.joint_states].index(self.gripper.joint)
+
+    @property
+    def arm_state_names(self) -> list[str]:
+        """The arm joints' /joint_states names, in action order: what arm commands carry."""
+        return [self.joint_states[i].name for i in self.arm_state_indices]
+
+    @property
+    def arm_efforts(self) -> list[float]:
+        return [joint.effort or self.arm_force for joint in self.arm_joints]
+
+    @property
+    def arm_velocities(self) -> list[float]:
+        return [joint.velocity or self.arm_max_velocity for joint in self.arm_joints]
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "RobotSpec":
+        tilted = bool(self.mount_rpy[0] or self.mount_rpy[1])
+        if tilted and self.task_frame == "base":
+            raise located("mount_rpy", f"a base tilted by roll/pitch {list(self.mount_rpy[:2])} needs 'task_frame: "
+                                       f"world': a base task frame may only turn about z (yaw), so that its z stays "
+                                       f"up and goals, spawns and the table stay level in it")
+        if tilted and self.pedestal is not None:
+            raise located("mount_rpy", f"a base tilted by roll/pitch {list(self.mount_rpy[:2])} cannot stand on a "
+                                       f"pedestal (its top is level): drop 'pedestal' or the tilt")
+        try:
+            ordered(self.ee_bounds[0], self.ee_bounds[1], "ee_bounds")
+        except ValueError as exc:
+            raise located("ee_bounds", str(exc)) from None
+        if len(self.home) != len(self.arm_joints):
+            raise located("home", f"home has {len(self.home)} values for {len(self.arm_joints)} arm_joints")
+        for index, (joint, value) in enumerate(zip(self.arm_joints, self.home)):
+            if not joint.lower <= value <= joint.upper:
+                raise located(f"home.{index}", f"home value {value} of {joint.name} is outside "
+                                               f"[{joint.lower}, {joint.upper}]")
+        names = [joint.name for joint in self.arm_joints]
+        if len(set(names)) != len(names):
+            raise located("arm_joints", f"arm_joints repeat a joint: {names}")
+        urdf_names = [entry.urdf_joint for entry in self.joint_states]
+        if len(set(urdf_names)) != len(urdf_names):
+            raise located("joint_states", f"joint_states repeat a URDF joint: {urdf_names}")
+        for index, joint in enumerate(self.arm_joints):
+            if joint.name not in urdf_names:
+                raise located(f"arm_joints.{index}.name", f"arm joint {joint.name!r} is missing from joint_states"
+                                                          f"{suggest(joint.name, urdf_names)}")
+        if self.gripper is not None and self.gripper.joint not in urdf_names:
+            raise located("gripper.joint", f"gripper joint {self.gripper.joint!r} is missing from joint_states"
+                                           f"{suggest(self.gripper.joint, urdf_names)}")
+        return self

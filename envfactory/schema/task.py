@@ -1,0 +1,140 @@
+"""The task: objects, goal, observation layout, rewards, terminations and expert."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import Field, field_validator, model_validator
+
+from envfactory.schema.base import Model, Position, Rgba, in_unit_range, located
+from envfactory.schema.numbers import Friction, NonNegative, Positive, Real
+
+
+class TermRef(Model):
+    """A reward term by name, its params and its weight."""
+
+    term: str
+    weight: Real = 1.0
+    params: dict[str, Any] = {}
+
+
+class SpawnSpec(Model):
+    position: Position  # the object's centre at rest, task frame
+    random: bool = True  # random_cube_spawn
+    offset: tuple[Annotated[NonNegative, Field(le=1.0)], Annotated[NonNegative, Field(le=1.0)]] = (0.05, 0.05)  # random_offset: ± metres in x and y
+
+
+class ObjectSpec(Model):
+    shape: Literal["box"] = "box"
+    size: Annotated[Positive, Field(le=1.0)]  # edge length, m: something a gripper handles
+    rgba: Rgba = (1.0, 0.0, 0.0, 1.0)
+    mass: Annotated[Positive, Field(le=100.0)]  # kg
+    friction: Friction = 1.0
+    spinning_friction: Friction = 0.0
+    rolling_friction: Friction = 0.0
+    spawn: SpawnSpec
+
+    @model_validator(mode="after")
+    def _colour(self) -> "ObjectSpec":
+        in_unit_range(self.rgba)
+        return self
+
+
+class GripperUse(Model):
+    in_action: bool = False
+    at_reset: Literal["open", "closed", "unchanged"] | Real = "unchanged"  # or a joint value
+
+
+class LiftStage(Model):
+    """The multi_goal curriculum: lift the object above its spawn point, then go for the goal."""
+
+    enabled: bool = True  # multi_goal
+    height: Annotated[Positive, Field(le=2.0)] = 0.15  # lift_height, m
+
+
+class GoalSpec(Model):
+    achieved: str  # "ee.position" or "<object>.position"
+    tolerance: Positive
+    box: tuple[Position, Position]
+    random: bool = True  # random_goal; otherwise the static goal below
+    static: Position | None = None  # the goal when random is false; the box centre if unset
+    sampling_tries: int = Field(default=20, ge=1, le=1000)
+    lift: LiftStage | None = None
+
+    @field_validator("box")
+    @classmethod
+    def _ordered_box(cls, box):
+        # a flat box (low == high on an axis) is a goal at a fixed height or line
+        low, high = box
+        if any(lo > hi for lo, hi in zip(low, high)):
+            raise ValueError(f"box low {list(low)} exceeds high {list(high)}")
+        return box
+
+    @model_validator(mode="after")
+    def _static_in_box(self) -> "GoalSpec":
+        low, high = self.box
+        if self.static is not None and not all(lo <= v <= hi for v, lo, hi in zip(self.static, low, high)):
+            raise located("static", f"static goal {list(self.static)} lies outside the goal box")
+        return self
+
+    @property
+    def static_goal(self) -> tuple[float, float, float]:
+        if self.static is not None:
+            return self.static
+        low, high = self.box
+        return tuple((lo + hi) / 2 for lo, hi in zip(low, high))
+
+
+class RewardSets(Model):
+    sparse: dict[str, TermRef]
+    dense: dict[str, TermRef]
+
+
+class TerminationRef(Model):
+    """A termination term by name, its params, and the reward type it applies on."""
+
+    term: str
+    params: dict[str, Any] = {}
+    when: Literal["always", "sparse", "dense"] = "always"
+
+
+class ExpertRef(Model):
+    """The scripted policy that solves the task, and its robot-specific params."""
+
+    policy: str
+    params: dict[str, Any] = {}
+
+    @model_validator(mode="before")
+    @classmethod
+    def _bare_name(cls, value):
+        return {"policy": value} if isinstance(value, str) else value
+
+
+class TaskSpec(Model):
+    name: str
+    label: str
+    gripper: GripperUse = GripperUse()
+    objects: dict[str, ObjectSpec] = {}
+    goal: GoalSpec
+    observation: list[dict[str, dict[str, Any]]] = Field(min_length=1)
+    reward: RewardSets
+    termination: dict[str, TerminationRef] = {}
+    expert: ExpertRef | None = None
+    kwargs: dict[str, str] = {}
+
+    @field_validator("observation", mode="before")
+    @classmethod
+    def _normalise_observation(cls, entries):
+        # YAML lets a term be a bare name or a one-key mapping to its params.
+        if not isinstance(entries, (list, tuple)):
+            raise ValueError("must be a list of term names or one-key mappings of name to params")
+        normalised = []
+        for index, entry in enumerate(entries):
+            if isinstance(entry, str):
+                normalised.append({entry: {}})
+            elif isinstance(entry, dict) and len(entry) == 1 and isinstance(next(iter(entry.values())), (dict, type(None))):
+                (name, params), = entry.items()
+                normalised.append({name: dict(params or {})})
+            else:
+                raise ValueError(f"entry {index} must be a term name or a one-key mapping of name to params")
+        return normalised

@@ -1,0 +1,3 @@
+"""The package version, in one place (the verdict cache keys on it)."""
+
+__version__ = "0.1.0"

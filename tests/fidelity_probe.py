@@ -1,0 +1,182 @@
+"""Measures `sim.fidelity: fast` against full dynamics, the reference.
+
+Two measures, both on ordinary episodes of an env made with the fast fidelity:
+
+- paired steps: before every cycle the PyBullet state is saved, the cycle is
+  simulated in full (every substep), the scene read, the state restored, and
+  the same cycle played fast. Both start from the identical state, so the gap
+  is the fast player's own error in one step, free of the divergence of two
+  trajectories (a closed-loop expert amplifies any gap into different actions).
+  The episode goes on from the fast outcome, as a fast env would.
+- trajectories: a fast and a full env from the same seed, fed the same actions;
+  the gap at the end of every step, accumulated over the episode.
+
+Used by tests/test_fidelity.py and benchmarks/fidelity.py.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import gymnasium as gym
+import numpy as np
+import pybullet as p
+
+from envfactory.experts import make_policy
+from envfactory.geometry.kinematics import quaternion_to_matrix
+
+
+@dataclass
+class SceneReading:
+    q_arm: np.ndarray
+    gripper: float
+    ee: np.ndarray
+    objects: dict[str, tuple[np.ndarray, np.ndarray]]  # name -> (position, rotation matrix)
+
+
+@dataclass
+class Gaps:
+    """Per step: EE (m), largest arm joint (rad), gripper (its unit), object position (m) and angle (rad);
+    and how the fast player played each paired cycle."""
+
+    ee: list[float] = field(default_factory=list)
+    joint: list[float] = field(default_factory=list)
+    gripper: list[float] = field(default_factory=list)
+    object_position: list[float] = field(default_factory=list)
+    object_angle: list[float] = field(default_factory=list)
+    kinds: list[str] = field(default_factory=list)
+
+    def add(self, fast: SceneReading, full: SceneReading) -> None:
+        self.ee.append(float(np.linalg.norm(fast.ee - full.ee)))
+        self.joint.append(float(np.abs(fast.q_arm - full.q_arm).max()))
+        self.gripper.append(abs(fast.gripper - full.gripper))
+        for name, (position, rotation) in fast.objects.items():
+            other_position, other_rotation = full.objects[name]
+            self.object_position.append(float(np.linalg.norm(position - other_position)))
+            self.object_angle.append(rotation_angle(rotation, other_rotation))
+
+    def extend(self, other: "Gaps") -> None:
+        for name in ("ee", "joint", "gripper", "object_position", "object_angle", "kinds"):
+            getattr(self, name).extend(getattr(other, name))
+
+
+def rotation_angle(a: np.ndarray, b: np.ndarray) -> float:
+    """The angle of the rotation taking a to b."""
+    cosine = (np.trace(a.T @ b) - 1.0) / 2.0
+    return float(np.arccos(np.clip(cosine, -1.0, 1.0)))
+
+
+def read_scene(env) -> SceneReading:
+    """The scene as the backend holds it now, through the env's own readers."""
+    u = env.unwrapped
+    reading = u.backend.read_joints()
+    q_arm = reading.position[u._arm_in_states]
+    gripper = float(reading.position[u._gripper_in_states]) if u._gripper_in_states is not None else 0.0
+    ee, _ = u.kinematics.ee_pose(q_arm, gripper)
+    objects = {}
+    for name in u.blueprint.spec.task.objects:
+        if name in u.backend.objects:
+            obj = u.backend.read_object(name)
+            objects[name] = (obj.position.copy(), quaternion_to_matrix(obj.quaternion))
+    return SceneReading(q_arm.copy(), gripper, ee.copy(), objects)
+
+
+class PairedSteps:
+    """Wraps a fast env's backend so that every cycle is also simulated in full from the same state."""
+
+    def __init__(self, env):
+        self.env = env
+        self.backend = env.unwrapped.backend
+        if getattr(self.backend, "_fast", None) is None:
+            raise ValueError("PairedSteps needs an env made with sim.fidelity fast on the PyBullet backend")
+        self.gaps = Gaps()
+        self._advance = self.backend.advance
+        self.backend.advance = self._paired_advance
+
+    def _paired_advance(self, seconds: float) -> None:
+        backend, client = self.backend, self.backend.client
+        counts = backend._fast.counts
+        before = (counts.kinematic, counts.at_rest, counts.dynamic)
+        saved = p.saveState(physicsClientId=client)
+        fast, backend._fast = backend._fast, None
+        try:
+            self._advance(seconds)  # the reference: every substep
+            full = read_scene(self.env)
+        finally:
+            backend._fast = fast
+        p.restoreState(saved, physicsClientId=client)
+        p.removeState(saved, physicsClientId=client)
+        backend._sim_time -= round(seconds / backend.dt) * backend.dt
+        self._advance(seconds)
+        self.gaps.add(read_scene(self.env), full)
+        after = (counts.kinematic, counts.at_rest, counts.dynamic)
+        self.gaps.kinds.append(("kinematic", "at_rest", "dynamic")[int(np.argmax(np.subtract(after, before)))])
+
+    def close(self) -> None:
+        self.backend.advance = self._advance
+
+
+def policy_for(env, kind: str, seed: int):
+    policy = make_policy(kind, env, seed=seed)
+    return policy
+
+
+def paired_episode(env_id: str, policy: str, seed: int, steps: int | None = None, **kwargs) -> tuple[Gaps, bool]:
+    """One episode of a fast env with every cycle paired against full dynamics; and the expert's success."""
+    env = gym.make(env_id, physics_fidelity="fast", **kwargs)
+    try:
+        pairs = PairedSteps(env)
+        observation, _ = env.reset(seed=seed)
+        actor = policy_for(env, policy, seed)
+        success = False
+        for _ in range(steps or env.spec.max_episode_steps):
+            observation, _, terminated, truncated, info = env.step(actor(observation))
+            success = success or bool(info["is_success"])  # the whole episode is measured, success or not
+            if terminated or truncated:
+                break
+        pairs.close()
+        return pairs.gaps, success
+    finally:
+        env.close()
+
+
+def trajectory_gaps(env_id: str, seed: int, steps: int, **kwargs) -> Gaps:
+    """A fast and a full env from one seed, fed the same random actions."""
+    envs = [gym.make(env_id, physics_fidelity=fidelity, **kwargs) for fidelity in ("fast", "full")]
+    try:
+        for env in envs:
+            env.reset(seed=seed)
+        envs[0].action_space.seed(seed)
+        gaps = Gaps()
+        for _ in range(steps):
+            action = envs[0].action_space.sample()
+            ends = [env.step(action)[2:4] for env in envs]
+            gaps.add(read_scene(envs[0]), read_scene(envs[1]))
+            if any(terminated or truncated for terminated, truncated in ends):
+                break
+        return gaps
+    finally:
+        for env in envs:
+            env.close()
+
+
+def expert_success(env_id: str, fidelity: str, seeds, **kwargs) -> list[bool]:
+    """The scripted expert's success per seed, with the given fidelity: the goal reached at some step."""
+    env = gym.make(env_id, physics_fidelity=fidelity, **kwargs)
+    try:
+        out = []
+        for seed in seeds:
+            observation, _ = env.reset(seed=seed)
+            actor = policy_for(env, "scripted", seed)
+            success = False
+            for _ in range(env.spec.max_episode_steps):
+                observation, _, terminated, truncated, info = env.step(actor(observation))
+                success = bool(info["is_success"])
+                # success is the goal reached, as the episode runner counts it: what a PnP expert does
+                # after placing the cube (open, leave) is not its task
+                if success or terminated or truncated:
+                    break
+            out.append(success)
+        return out
+    finally:
+        env.close()

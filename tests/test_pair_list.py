@@ -1,0 +1,53 @@
+"""The generated self-collision pair list cannot be edited to weaken the safety check without a word: its
+checksum covers its entries, and a list whose entries do not match is refused with its file and line and the
+command that writes it again."""
+
+from __future__ import annotations
+
+import shutil
+
+import pytest
+import yaml
+
+from envfactory.factory import blueprint
+from envfactory.schema.errors import SpecError
+from envfactory.schema.folders import builtin_root
+
+SHIPPED = builtin_root() / "robots" / "assets" / "ur5e.collision.yaml"
+ID = "UR5eReacherSim-v0"
+
+
+def _override(path) -> list[str]:
+    return [f"robot.safety.collision_pairs={path}"]
+
+
+def test_an_unedited_copy_is_accepted(tmp_path):
+    copy = tmp_path / "ur5e.collision.yaml"
+    shutil.copy(SHIPPED, copy)
+    assert blueprint(ID, _override(copy)).spec.robot.safety.collision_pairs == str(copy)
+
+
+def test_a_pair_added_to_skipped_is_refused_with_file_line_and_command(tmp_path):
+    copy = tmp_path / "ur5e.collision.yaml"
+    text = SHIPPED.read_text()
+    # the base and the upper arm can touch (a folded shoulder): a "never in collision" line would stop
+    # the check from ever measuring them
+    edited = text.replace("skipped:\n", "skipped:\n- [base_link_inertia_0, upper_arm_link_0, never in collision]\n", 1)
+    assert edited != text
+    copy.write_text(edited)
+    with pytest.raises(SpecError) as caught:
+        blueprint(ID, _override(copy))
+    message = str(caught.value)
+    line = next(n for n, row in enumerate(edited.splitlines(), 1) if row.startswith("checksum:"))
+    assert f"{copy}:{line}" in message
+    assert "envfactory collision-pairs ur5e" in message
+    assert "robot.safety.collision_pairs" in message
+
+
+def test_a_list_without_a_checksum_is_refused(tmp_path):
+    copy = tmp_path / "ur5e.collision.yaml"
+    data = yaml.safe_load(SHIPPED.read_text())
+    data.pop("checksum")
+    copy.write_text(yaml.safe_dump(data, sort_keys=False))
+    with pytest.raises(SpecError, match="or it has none"):
+        blueprint(ID, _override(copy))
