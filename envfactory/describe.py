@@ -1,4 +1,4 @@
-"""Print a blueprint the way the seed pages lay out an env: index tables first."""
+"""Print a blueprint the way the reference pages lay out an env: index tables first."""
 
 from __future__ import annotations
 
@@ -42,7 +42,7 @@ def action_table(compiled: Blueprint) -> Table:
     mode = "EE" if layout.ee else "Joint"
     detail = f"delta × {layout.delta_coeff:g}" if layout.delta else "absolute"
     if layout.normalize:
-        # the seed's rows stay the Min/Max; the policy's [-1, 1] maps onto them row by row
+        # the declared rows stay the Min/Max; the policy's [-1, 1] maps onto them row by row
         table = _table(f"Action: Box(-1, 1, ({layout.size},)) normalised (normalize_actions) — {mode} mode, "
                        f"{detail}", "Num", "Action", "Min", "Max", "Policy [-1, 1] →", "Joint", "Unit")
         scale = layout.scale

@@ -24,7 +24,7 @@ from envfactory.schema.compose import FamilyFile
 from envfactory.schema.errors import Problem, SpecError, suggest
 from envfactory.schema.folders import builtin_root, family_files, folder_of, search_roots
 from envfactory.schema.models import Registration
-from envfactory.schema.sources import SourceMap, load_plain
+from envfactory.schema.sources import Findings, SourceMap, load_plain
 from envfactory.schema.validation import validation_problems
 
 ENTRY_POINT = "envfactory.factory:make_env"  # gymnasium imports it at the first make
@@ -87,24 +87,24 @@ def scan_family(path: Path, search_roots: tuple[Path, ...], source: str = CALL_S
     if raw is None:
         raise SpecError([Problem("registration", "missing: a family must declare the IDs it registers",
                                  str(path), 1)], path.stem)
+    found = Findings(sources)
     ids = raw.get("ids") if isinstance(raw, dict) else None
     if isinstance(ids, dict) and len(ids) > MAX_IDS_PER_FAMILY:
-        raise SpecError([sources.problem("registration.ids", f"{len(ids)} IDs; a family may declare at most "
-                                                             f"{MAX_IDS_PER_FAMILY} (split it into several files)")],
-                        path.stem)
+        found.add("registration.ids", f"{len(ids)} IDs; a family may declare at most {MAX_IDS_PER_FAMILY} (split "
+                                      f"it into several files)")
+        found.raise_if_any(path.stem)
     try:
         registration = Registration.model_validate(raw)
     except ValidationError as exc:
-        problems = validation_problems(exc, sources, Registration)
-        located = [sources.problem(f"registration.{p.path}" if p.path else "registration", p.message)
-                   for p in problems]
-        raise SpecError(located, path.stem) from None
-    bad = [env_id for env_id in registration.ids if not isinstance(env_id, str) or not ENV_ID_RE.fullmatch(env_id)]
-    if bad:
-        raise SpecError([sources.problem(f"registration.ids.{env_id}", f"{env_id!r} is not a valid gymnasium ID: use letters, "
-                                                        f"digits, '_', '-', '.', ':' and an optional 'ns/' prefix "
-                                                        f"and '-v<N>' suffix, e.g. 'MyReach-v0'") for env_id in bad],
-                        path.stem)
+        for problem in validation_problems(exc, sources, Registration):
+            found.add(f"registration.{problem.path}" if problem.path else "registration", problem.message)
+        found.raise_if_any(path.stem)
+    for env_id in registration.ids:
+        if not isinstance(env_id, str) or not ENV_ID_RE.fullmatch(env_id):
+            found.add(f"registration.ids.{env_id}", f"{env_id!r} is not a valid gymnasium ID: use letters, digits, "
+                                                    f"'_', '-', '.', ':' and an optional 'ns/' prefix and '-v<N>' "
+                                                    f"suffix, e.g. 'MyReach-v0'")
+    found.raise_if_any(path.stem)
     return [
         IdRecord(env_id, family, entry.backend, entry.goal_env, tuple(sorted(entry.kwargs.items())),
                  registration.max_episode_steps, source)

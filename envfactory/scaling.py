@@ -2,7 +2,7 @@
 
 Actions. Every row of the action box becomes [-1, 1]. A delta row keeps zero as
 "no motion": [-1, 0] maps onto [low, 0] and [0, 1] onto [0, high], so an
-asymmetric seed row (the VX300S shoulder, -1.85 … +1.26) is scaled by a
+asymmetric action row (the VX300S shoulder, -1.85 … +1.26) is scaled by a
 different factor on each side. An absolute row (a joint or EE target, the PnP
 gripper command) maps [-1, 1] affinely onto [low, high].
 
@@ -51,13 +51,13 @@ class ActionScale:
         self.affine = AffineScale(self.low, self.high)  # the absolute rows
 
     def to_seed(self, action: np.ndarray) -> np.ndarray:
-        """A policy action in [-1, 1] as the seed's units."""
+        """A policy action in [-1, 1] in the spec's units."""
         action = np.asarray(action, float)
         centred = np.where(action >= 0, action * self.high, -action * self.low)
         return np.where(self.centred, centred, self.affine.from_unit(action))
 
     def to_policy(self, action: np.ndarray) -> np.ndarray:
-        """An action in the seed's units (within its box) as the policy's [-1, 1]."""
+        """An action in the spec's units (within its box) as the policy's [-1, 1]."""
         action = np.asarray(action, float)
         side = np.where(action >= 0, self.high, -self.low)  # a centred row has low < 0 < high
         centred = np.divide(action, side, out=np.zeros_like(action), where=self.centred)

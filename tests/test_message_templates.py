@@ -16,6 +16,7 @@ from real_helpers import FAST, wait_for
 from envfactory.backends.rosbridge import messages
 from envfactory.factory import register_specs, unregister_folder
 from envfactory.schema.models import ArmCommand, GripperCommand
+from envfactory.twin import Twin
 
 ROOT = Path(__file__).parents[1]
 JOINTS = ["j0", "j1", "j2"]
@@ -125,6 +126,26 @@ def test_a_user_template_runs_end_to_end_against_the_twin(tmp_path, twin, make):
         stop = arm_messages()[-1]
         assert set(stop) == {"layout", "data"}
         np.testing.assert_allclose(stop["data"], twin_arm(), atol=0.02)
+    finally:
+        unregister_folder(folder)
+
+
+def test_the_twin_plays_a_command_without_a_duration_over_the_declared_profile_time(tmp_path, twin):
+    arm_topic = "topic: /arm_position_controller/command\n"
+    folder = _user_robot(tmp_path, USER_ROS.replace(arm_topic, arm_topic + "    profile_time_s: 0.3\n", 1))
+    try:
+        assert register_specs(folder)[1] == []
+        assert twin("templated", "pnp").group_move_s == 0.3
+    finally:
+        unregister_folder(folder)
+
+
+def test_a_twin_refuses_commands_without_a_duration_and_without_a_profile_time(tmp_path):
+    folder = _user_robot(tmp_path, USER_ROS)
+    try:
+        assert register_specs(folder)[1] == []
+        with pytest.raises(ValueError, match="carry no \\$duration; declare ros.arm_command.profile_time_s"):
+            Twin("templated", "pnp")
     finally:
         unregister_folder(folder)
 

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from envfactory.factory import register_specs, unregister_folder
+from envfactory.terms.library import REWARDS, reward_term
 
 MODULE = '''
 """The EE height above the table, and a reward for matching the goal's height."""
@@ -104,3 +105,18 @@ def test_a_module_that_cannot_be_imported_is_named_with_file_and_line(tmp_path):
     assert added == []
     message = str(problems[0])
     assert "mine.yaml:7: terms.0: cannot import term module 'no_such_terms_module'" in message, message
+
+
+def test_a_registered_term_reads_as_its_function():
+    name = f"t{uuid.uuid4().hex[:8]}_flag"
+
+    def flag(achieved, desired, info, params, tolerance):
+        """1 while the flag is up."""
+        return info["flag"]
+
+    try:
+        assert reward_term(name=name, description="the flag")(flag) is flag
+        term = REWARDS[name]
+        assert (term.__doc__, term.__name__, term.__wrapped__) == (flag.__doc__, "flag", flag)
+    finally:
+        REWARDS.pop(name, None)

@@ -10,6 +10,7 @@ from envfactory.backends.base import Backend, BackendError, JointReading, Object
 
 BUILTIN = {
     "pybullet": "envfactory.backends.pybullet:PyBulletBackend",
+    "mujoco": "envfactory.backends.mujoco:MujocoBackend",
     "rosbridge": "envfactory.backends.rosbridge:RosbridgeBackend",
 }
 

@@ -325,11 +325,13 @@ def _print_results(env_id: str, policy: str, results) -> None:
 
 @command()
 def twin(
-    robot: str = typer.Argument(..., help="Robot name: ur5e or vx300s"),
+    robot: str = typer.Argument(..., help="Robot name, e.g. ur5e (the Robot column of `envfactory list`)"),
     task: str = typer.Option("push", help="The task whose objects it simulates (push has the cube)"),
     port: int = typer.Option(9090, help="Port of the rosbridge websocket; 0 picks a free one"),
     host: str = typer.Option("127.0.0.1", help="Interface to listen on (loopback by default)"),
-    group_move: float = typer.Option(2.0, help="VX300S: seconds every group command takes (xs_sdk time profile)"),
+    group_move: Optional[float] = typer.Option(None, help="Seconds every command without a duration takes (the "
+                                                          "driver's time profile); default: the robot YAML's "
+                                                          "ros.arm_command.profile_time_s"),
     delay: float = typer.Option(0.0, help="Fault: latency added to every published message, s"),
     stop_joint_states_after: Optional[float] = typer.Option(None, help="Fault: stop publishing joint states after S s"),
     stop_object_poses_after: Optional[float] = typer.Option(None, help="Fault: stop publishing the cube pose after S s"),

@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 from pydantic import BaseModel
@@ -18,6 +18,7 @@ from envfactory.geometry.point_boxes import PointBoxes
 from envfactory.scaling import ActionScale
 from envfactory.schema.models import EnvSpec
 from envfactory.terms.library import Description, ImageTerm, ObservationTerm, RewardTerm, TerminationTerm
+from envfactory.terms.stages import NoStage, Stage
 
 
 @dataclass(frozen=True)
@@ -97,7 +98,7 @@ class ActionLayout:
 
     @property
     def policy_low(self) -> np.ndarray:
-        """The action space the policy sees: [-1, 1] when normalised, else the seed's rows."""
+        """The action space the policy sees: [-1, 1] when normalised, else the declared rows."""
         return -np.ones(self.size) if self.normalize else self.low
 
     @property
@@ -130,6 +131,7 @@ class Blueprint:
     info_keys: tuple[str, ...] = field(default=())
     images: tuple[ImageSlot, ...] = field(default=())  # use_kinect: camera terms, Dict keys beside the vector
     boxes: PointBoxes | None = None  # where the EE and each object can be: the goal env's achieved-goal bounds
+    stage: Callable[[], Stage] = NoStage  # builds each env's task stage (e.g. lift before place)
 
     @property
     def policy_observation(self) -> tuple[ObservationSlot, ...]:

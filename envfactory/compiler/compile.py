@@ -17,14 +17,17 @@ from envfactory.compiler.blueprint import (
     TerminationSlot,
     WeightedTerm,
 )
-from envfactory.compiler.scene_checks import scene_problems
+from envfactory.compiler.scene_checks import check_scene
 from envfactory.experts import EXPERTS
 from envfactory.geometry.point_boxes import derived_boxes
-from envfactory.schema.compose import LoadedSpec, validation_problems
-from envfactory.schema.errors import Problem, SpecError, suggest
+from envfactory.schema.compose import LoadedSpec
+from envfactory.schema.sources import Findings
+from envfactory.schema.validation import validation_problems
+from envfactory.schema.errors import suggest
 from envfactory.schema.models import EnvSpec
 from envfactory.terms import IMAGES, OBSERVATIONS, REWARDS, TERMINATIONS, Layout, plugins
 from envfactory.terms.rewards import step_info_keys
+from envfactory.terms.stages import stage_factory
 
 
 def _action_layout(spec: EnvSpec) -> ActionLayout:
@@ -35,7 +38,7 @@ def _action_layout(spec: EnvSpec) -> ActionLayout:
         low, high = robot.ee_bounds
         for axis, lo, hi in zip("xyz", low, high):
             if settings.delta:
-                # The seeds' EE box (e.g. z in [0, 1.5]) bounds absolute positions;
+                # The reference pages' EE box (e.g. z in [0, 1.5]) bounds absolute positions;
                 # as a delta box it would forbid ever moving down, so deltas get
                 # the symmetric box of the same reach.
                 reach = max(abs(lo), abs(hi))
@@ -54,42 +57,42 @@ def _action_layout(spec: EnvSpec) -> ActionLayout:
                         settings.normalize)
 
 
-def _params(model: type[BaseModel], raw: dict, path: str, loaded: LoadedSpec, problems: list[Problem]):
+def _params(model: type[BaseModel], raw: dict, path: str, found: Findings):
     try:
         return model.model_validate(raw)
     except ValidationError as exc:
-        for problem in validation_problems(exc, loaded.sources, model):
-            problems.append(loaded.problem(f"{path}.{problem.path}" if problem.path else path, problem.message))
+        for problem in validation_problems(exc, found.sources, model):
+            found.add(f"{path}.{problem.path}" if problem.path else path, problem.message)
         return None
 
 
-def _lookup(table: dict, name: str, path: str, kind: str, loaded: LoadedSpec, problems: list[Problem]):
+def _lookup(table: dict, name: str, path: str, kind: str, found: Findings):
     term = table.get(name)
     if term is None:
-        problems.append(loaded.problem(path, f"unknown {kind} term {name!r}{suggest(name, table)}"))
+        found.add(path, f"unknown {kind} term {name!r}{suggest(name, table)}")
     return term
 
 
-def _bind(term, layout: Layout, params, path: str, loaded: LoadedSpec, problems: list[Problem]):
+def _bind(term, layout: Layout, params, path: str, found: Findings):
     try:
         return term.bind(layout, params)
     except ValueError as exc:
-        problems.append(loaded.problem(path, str(exc)))
+        found.add(path, str(exc))
         return None
 
 
-def _observation(spec: EnvSpec, layout: Layout, loaded: LoadedSpec, problems: list[Problem]):
+def _observation(spec: EnvSpec, layout: Layout, found: Findings):
     slots, start = [], 0
     for index, entry in enumerate(spec.task.observation):
         (name, raw_params), = entry.items()
         path = f"task.observation.{index}"
-        term = _lookup(OBSERVATIONS, name, path, "observation", loaded, problems)
+        term = _lookup(OBSERVATIONS, name, path, "observation", found)
         if term is None:
             continue
-        params = _params(term.params, raw_params, f"{path}.{name}", loaded, problems)
+        params = _params(term.params, raw_params, f"{path}.{name}", found)
         if params is None:
             continue
-        bound = _bind(term, layout, params, f"{path}.{name}", loaded, problems)
+        bound = _bind(term, layout, params, f"{path}.{name}", found)
         if bound is None:
             continue
         size = term.size(layout, params)
@@ -100,158 +103,163 @@ def _observation(spec: EnvSpec, layout: Layout, loaded: LoadedSpec, problems: li
     return tuple(slots)
 
 
-def _resolved_terms(refs: dict, table: dict, path: str, kind: str, layout: Layout, loaded: LoadedSpec,
-                    problems: list[Problem]):
+def _resolved_terms(refs: dict, table: dict, path: str, kind: str, layout: Layout, found: Findings):
     """(name, ref, term, params, bound) of every ref whose term, params and binding check out."""
     for name, ref in refs.items():
-        term = _lookup(table, ref.term, f"{path}.{name}.term", kind, loaded, problems)
+        term = _lookup(table, ref.term, f"{path}.{name}.term", kind, found)
         if term is None:
             continue
-        params = _params(term.params, ref.params, f"{path}.{name}.params", loaded, problems)
+        params = _params(term.params, ref.params, f"{path}.{name}.params", found)
         if params is None:
             continue
-        bound = _bind(term, layout, params, f"{path}.{name}", loaded, problems)
+        bound = _bind(term, layout, params, f"{path}.{name}", found)
         if bound is not None:
             yield name, ref, term, params, bound
 
 
-def _rewards(refs: dict, path: str, layout: Layout, loaded: LoadedSpec, problems: list[Problem]):
+def _rewards(refs: dict, path: str, layout: Layout, found: Findings):
     return tuple(WeightedTerm(name, term, ref.weight, params, bound)
-                 for name, ref, term, params, bound in _resolved_terms(refs, REWARDS, path, "reward", layout, loaded,
-                                                                      problems))
+                 for name, ref, term, params, bound in _resolved_terms(refs, REWARDS, path, "reward", layout, found))
 
 
-def _terminations(spec: EnvSpec, layout: Layout, loaded: LoadedSpec, problems: list[Problem]):
+def _terminations(spec: EnvSpec, layout: Layout, found: Findings):
     reward_type = spec.env.reward_type.lower()
     return tuple(TerminationSlot(name, term, params, bound, ref.when in ("always", reward_type))
                  for name, ref, term, params, bound in _resolved_terms(spec.task.termination, TERMINATIONS,
                                                                       "task.termination", "termination", layout,
-                                                                      loaded, problems))
+                                                                      found))
 
 
-def _check_info_keys(spec: EnvSpec, rewards, terminations, loaded: LoadedSpec, problems: list[Problem]) -> None:
+def _check_info_keys(spec: EnvSpec, rewards, terminations, found: Findings) -> None:
     """Every step-info key a term reads must be one the step records."""
-    recorded = set(step_info_keys(spec)) | {t.term.info_keys[0] for t in rewards if t.term.measure}
+    recorded = set(step_info_keys()) | {t.term.info_keys[0] for t in rewards if t.term.measure}
     for path, slots in (("task.reward", rewards), ("task.termination", terminations)):
         for slot in slots:
             for key in slot.term.info_keys:
                 if key not in recorded:
-                    problems.append(loaded.problem(f"{path}", f"term {slot.term.name!r} ({slot.name}) reads "
-                                                              f"step info {key!r}, which no step records "
-                                                              f"(recorded: {', '.join(sorted(recorded))})"))
+                    found.add(f"{path}", f"term {slot.term.name!r} ({slot.name}) reads "
+                                         f"step info {key!r}, which no step records "
+                                         f"(recorded: {', '.join(sorted(recorded))})")
 
 
-def _achieved_from(spec: EnvSpec, loaded: LoadedSpec, problems: list[Problem]) -> str:
+def _achieved_from(spec: EnvSpec, found: Findings) -> str:
     source, _, quantity = spec.task.goal.achieved.partition(".")
     valid = ["ee.position", *(f"{name}.position" for name in spec.task.objects)]
     if quantity != "position" or (source != "ee" and source not in spec.task.objects):
-        problems.append(loaded.problem("task.goal.achieved",
-                                       f"unknown achieved goal {spec.task.goal.achieved!r}"
-                                       f"{suggest(spec.task.goal.achieved, valid)}"))
+        found.add("task.goal.achieved", f"unknown achieved goal {spec.task.goal.achieved!r}"
+                                        f"{suggest(spec.task.goal.achieved, valid)}")
     elif spec.task.goal.lift is not None and source == "ee":
-        problems.append(loaded.problem("task.goal.lift", "the lift stage raises an object: the achieved goal "
-                                                         "must be an object's position, not 'ee.position'"))
+        found.add("task.goal.lift", "the lift stage raises an object: the achieved goal "
+                                    "must be an object's position, not 'ee.position'")
     return source
 
 
-def _images(spec: EnvSpec, loaded: LoadedSpec, problems: list[Problem]) -> tuple[ImageSlot, ...]:
-    if not spec.env.use_kinect:
+def _images(spec: EnvSpec, found: Findings) -> tuple[ImageSlot, ...]:
+    if not spec.env.observation.camera_images:
         return ()
     camera = spec.scene.camera
     if camera is None:
-        problems.append(loaded.problem("env.use_kinect", "use_kinect needs a camera: declare scene.camera"))
+        found.add("env.observation.camera_images", "camera images (use_kinect) need a camera: declare scene.camera")
         return ()
     slots = []
     for index, name in enumerate(camera.terms):
-        term = _lookup(IMAGES, name, f"scene.camera.terms.{index}", "image", loaded, problems)
+        term = _lookup(IMAGES, name, f"scene.camera.terms.{index}", "image", found)
         if term is not None:
             low, high = term.bounds(camera)
             slots.append(ImageSlot(name, term, term.shape(camera), low, high))
     return tuple(slots)
 
 
-def _check_expert(spec: EnvSpec, loaded: LoadedSpec, problems: list[Problem]) -> None:
+def _check_expert(spec: EnvSpec, found: Findings) -> None:
     ref = spec.task.expert
     if ref is None:
         return
     expert = EXPERTS.get(ref.policy)
     if expert is None:
-        problems.append(loaded.problem("task.expert.policy",
-                                       f"unknown expert {ref.policy!r}{suggest(ref.policy, EXPERTS)}"))
+        found.add("task.expert.policy", f"unknown expert {ref.policy!r}{suggest(ref.policy, EXPERTS)}")
         return
-    params = _params(expert.Params, ref.params, "task.expert.params", loaded, problems)
+    params = _params(expert.Params, ref.params, "task.expert.params", found)
     if params is None:
         return
     if getattr(params, "object", None) not in (None, *spec.task.objects):
-        problems.append(loaded.problem("task.expert.params.object",
-                                       f"'object: {params.object}' names no object of the task "
-                                       f"(known: {list(spec.task.objects) or 'none'})"))
+        found.add("task.expert.params.object", f"'object: {params.object}' names no object of the task "
+                                               f"(known: {list(spec.task.objects) or 'none'})")
     for name, message in expert.check(params, spec):
-        problems.append(loaded.problem(f"task.expert.params.{name}", message))
+        found.add(f"task.expert.params.{name}", message)
 
 
-def _check_backend(spec: EnvSpec, env_id: str, backend: str, loaded: LoadedSpec, problems: list[Problem]) -> None:
+def _engine(spec: EnvSpec, env_id: str, backend: str, found: Findings) -> str:
+    """The backend that runs the ID: a simulated ID's physics engine is the spec's `sim.engine`."""
+    if backend == "pybullet":
+        return spec.sim.engine
+    if spec.sim.engine != "pybullet":
+        found.add("sim.engine", f"engine {spec.sim.engine!r} simulates; {env_id} runs on backend {backend!r}, "
+                                f"where no engine applies")
+    return backend
+
+
+def _check_backend(spec: EnvSpec, env_id: str, backend: str, found: Findings) -> None:
     path = f"registration.ids.{env_id}.backend"
     known = backends.available()
     if backend not in known:
-        problems.append(loaded.problem(path, f"unknown backend {backend!r}{suggest(backend, known)}"))
+        found.add(path, f"unknown backend {backend!r}{suggest(backend, known)}")
         return
     if backend != "rosbridge":
         return
     ros = spec.robot.ros
     if ros is None:
-        problems.append(loaded.problem(path, f"backend rosbridge needs the robot's topics: robot "
-                                             f"{spec.robot.name!r} declares no 'ros:' block"))
+        found.add(path, f"backend rosbridge needs the robot's topics: robot "
+                        f"{spec.robot.name!r} declares no 'ros:' block")
         return
     for name in spec.task.objects:
         if name not in ros.object_poses:
-            problems.append(loaded.problem("robot.ros.object_poses", f"backend rosbridge needs a pose topic for "
-                                                                     f"object {name!r}"))
+            found.add("robot.ros.object_poses", f"backend rosbridge needs a pose topic for "
+                                                f"object {name!r}")
     uses_gripper = spec.task.gripper.in_action or spec.gripper_at_reset is not None
     if uses_gripper and ros.gripper_command is None:
-        problems.append(loaded.problem("robot.ros.gripper_command", "backend rosbridge needs a gripper command "
-                                                                    "topic: the task drives the gripper"))
+        found.add("robot.ros.gripper_command", "backend rosbridge needs a gripper command "
+                                               "topic: the task drives the gripper")
 
 
-def _import_terms(loaded: LoadedSpec, problems: list[Problem]) -> None:
+def _import_terms(loaded: LoadedSpec, found: Findings) -> None:
     """The user's term modules, before any term is looked up."""
     plugins.load_entry_points()
     for index, name in enumerate(loaded.spec.terms):
         try:
             plugins.import_module(name, loaded.family.folder)
         except Exception as exc:  # the module's own error, whatever its type
-            problems.append(loaded.problem(f"terms.{index}", f"cannot import term module {name!r}: "
-                                                             f"{type(exc).__name__}: {exc}"))
+            found.add(f"terms.{index}", f"cannot import term module {name!r}: "
+                                        f"{type(exc).__name__}: {exc}")
 
 
 def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: bool) -> Blueprint:
     spec = loaded.spec
     # the scene's own contradictions (boxes off the table, objects not resting on it) come first: the
     # checks below would only restate them in terms of the robot
-    scene = scene_problems(spec, loaded.problem)
-    if scene:
-        raise SpecError(scene, loaded.family.name)
-    problems: list[Problem] = []
-    _import_terms(loaded, problems)
+    scene = loaded.findings()
+    check_scene(spec, scene)
+    scene.raise_if_any(loaded.family.name)
+    found = loaded.findings()
+    _import_terms(loaded, found)
     action = _action_layout(spec)
     layout = Layout(spec.robot, spec.task, action.size, action.policy_low, action.policy_high,
                     derived_boxes(spec, loaded.file_of("robot.model").parent))
-    observation = _observation(spec, layout, loaded, problems)
+    observation = _observation(spec, layout, found)
     reward_set = "sparse" if spec.env.reward_type == "Sparse" else "dense"
-    rewards = _rewards(getattr(spec.task.reward, reward_set), f"task.reward.{reward_set}", layout, loaded, problems)
+    rewards = _rewards(getattr(spec.task.reward, reward_set), f"task.reward.{reward_set}", layout, found)
     # the other set is compiled too, so a typo there is caught before anyone switches to it
     other = "dense" if reward_set == "sparse" else "sparse"
-    _rewards(getattr(spec.task.reward, other), f"task.reward.{other}", layout, loaded, problems)
-    terminations = _terminations(spec, layout, loaded, problems)
-    _check_info_keys(spec, rewards, terminations, loaded, problems)
-    achieved_from = _achieved_from(spec, loaded, problems)
-    _check_expert(spec, loaded, problems)
-    images = _images(spec, loaded, problems)
-    _check_backend(spec, env_id, backend, loaded, problems)
-    if not problems:
-        problems += robot_checks.check(spec, loaded.file_of("robot.model").parent, loaded.problem)
-    if problems:
-        raise SpecError(problems, env_id)
+    _rewards(getattr(spec.task.reward, other), f"task.reward.{other}", layout, found)
+    terminations = _terminations(spec, layout, found)
+    _check_info_keys(spec, rewards, terminations, found)
+    achieved_from = _achieved_from(spec, found)
+    _check_expert(spec, found)
+    images = _images(spec, found)
+    backend = _engine(spec, env_id, backend, found)
+    _check_backend(spec, env_id, backend, found)
+    if not found:
+        robot_checks.check(spec, loaded.file_of("robot.model").parent, found)
+    found.raise_if_any(env_id)
     info_keys = tuple(sorted({key for t in (*rewards, *terminations) for key in t.term.info_keys}))
     return Blueprint(
         env_id=env_id,
@@ -269,4 +277,5 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
         info_keys=info_keys,
         images=images,
         boxes=layout.boxes,
+        stage=stage_factory(spec.task.goal),
     )

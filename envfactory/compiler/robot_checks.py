@@ -17,8 +17,9 @@ import pinocchio as pin
 from envfactory.geometry.collision_pairs import StalePairs, pairs_file
 from envfactory.geometry.robot_model import RobotGeometry, robot_geometry
 from envfactory.geometry.urdf_assembly import AssemblyError, assemble
-from envfactory.schema.errors import Problem, suggest
+from envfactory.schema.errors import suggest
 from envfactory.schema.models import EnvSpec
+from envfactory.schema.sources import Findings
 
 # Slack on the URDF's joint limits: YAML limits rounded to two decimals (1.26 for 1.2566).
 LIMIT_SLACK = 0.005
@@ -29,14 +30,16 @@ LIMIT_SLACK = 0.005
 _found: dict[str, tuple[tuple[str, str], ...]] = {}  # what the checks found, per robot, task, scene and settings
 
 
-def check(spec: EnvSpec, asset_root: Path, report) -> list[Problem]:
-    """Every problem `make` or `reset` would hit in the robot model and the reach of the task."""
+def check(spec: EnvSpec, asset_root: Path, found: Findings) -> None:
+    """Every problem `make` or `reset` would hit in the robot model and the reach of the task. The checks
+    run once per robot, task, scene and settings: what they find is kept as (dotted path, message)."""
     key = "\0".join((spec.robot.model_dump_json(), spec.task.model_dump_json(), spec.scene.model_dump_json(),
                      spec.env.safety.model_dump_json(), spec.workspace.model_dump_json(), str(asset_root),
                      _pairs_text(spec, asset_root)))
     if key not in _found:
         _found[key] = tuple(_problems(spec, asset_root))
-    return [report(path, message) for path, message in _found[key]]
+    for path, message in _found[key]:
+        found.add(path, message)
 
 
 def _pairs_text(spec: EnvSpec, asset_root: Path) -> str:

@@ -23,6 +23,7 @@ class Command:
     gripper: float | None
     out_of_bounds: bool
     rejection: str = ""
+    recorded: np.ndarray | None = None  # the action as the next observation's previous_action reports it
 
 
 class ActionAdapter:
@@ -35,13 +36,11 @@ class ActionAdapter:
         self.workspace_min = np.asarray(workspace.min, float)
         self.workspace_max = np.asarray(workspace.max, float)
         self.arm_size = layout.size - (1 if layout.gripper_in_action else 0)
-
-    def clip(self, action: np.ndarray) -> tuple[np.ndarray, bool]:
-        clipped = np.clip(action, self.low, self.high)
-        return clipped, bool(np.any(clipped != action))
+        self.policy_low = layout.policy_low.astype(np.float32)
+        self.policy_high = layout.policy_high.astype(np.float32)
 
     def to_policy(self, action: np.ndarray) -> np.ndarray:
-        """An action in the seed's units as the policy's action space has it."""
+        """An action in the spec's units as the policy's action space has it."""
         action = np.clip(action, self.low, self.high)
         return (self.scale.to_policy(action) if self.scale is not None else action).astype(np.float32)
 
@@ -54,16 +53,20 @@ class ActionAdapter:
         return self.to_policy(np.append(arm, state.gripper) if self.layout.gripper_in_action else arm)
 
     def translate(self, action: np.ndarray, state: EnvState) -> Command:
-        action = np.asarray(action, dtype=float).reshape(-1)
-        if action.shape != (self.layout.size,):
-            raise ValueError(f"action has shape {action.shape}, expected ({self.layout.size},)")
+        """The command an action of the layout's size (the env checked its shape) asks for."""
         if not np.all(np.isfinite(action)):
-            return Command(None, None, False, "non-finite action")
-        if self.scale is not None:
-            normalised = np.clip(action, -1.0, 1.0)
-            action, out_of_bounds = self.scale.to_seed(normalised), bool(np.any(normalised != action))
-        else:
-            action, out_of_bounds = self.clip(action)
+            return Command(None, None, False, "non-finite action", self.hold_action(state))
+        command = self._translate_finite(np.asarray(action, dtype=float), state)
+        recorded = np.clip(np.asarray(action, dtype=np.float32), self.policy_low, self.policy_high)
+        return Command(command.q_arm, command.gripper, command.out_of_bounds, command.rejection, recorded)
+
+    def _translate_finite(self, action: np.ndarray, state: EnvState) -> Command:
+        # Flagged only outside the advertised float32 space: its bound may round past the declared row
+        # (3.14 is 3.1400001 in float32), and a policy saturated on it asks for nothing the row forbids.
+        inside = np.clip(action, self.policy_low, self.policy_high)
+        out_of_bounds = bool(np.any(inside != action))
+        action = self.scale.to_seed(inside) if self.scale is not None else inside
+        action = np.clip(action, self.low, self.high)  # that rounding, taken back
         gripper = float(action[-1]) if self.layout.gripper_in_action else None
         arm = action[: self.arm_size]
         if self.layout.ee:

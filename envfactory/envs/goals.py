@@ -1,4 +1,4 @@
-"""Goals: sampling in the goal box, and the lift-then-place curriculum."""
+"""Goals: sampling in the goal box, reachable where the achieved goal is the EE."""
 
 from __future__ import annotations
 
@@ -7,7 +7,6 @@ import numpy as np
 from envfactory.geometry.kinematics import Kinematics
 from envfactory.geometry.safety import SafetyCheck
 from envfactory.schema.models import GoalSpec
-from envfactory.terms.rewards import STAGE_KEYS
 
 
 class GoalSampler:
@@ -16,6 +15,8 @@ class GoalSampler:
 
     def __init__(self, goal: GoalSpec, kinematics: Kinematics, safety: SafetyCheck, home: np.ndarray,
                  check_reach: bool, gripper: float = 0.0):
+        self.tolerance = goal.tolerance
+        self.resample_achieved = not goal.allow_achieved_at_reset
         self.low = np.asarray(goal.box[0], float)
         self.high = np.asarray(goal.box[1], float)
         self.random = goal.random
@@ -31,38 +32,15 @@ class GoalSampler:
         solution = self.kinematics.solve_ik(self.home, goal, gripper=self.gripper)
         return solution.success and self.safety.pose_is_clear(solution.q_arm, self.gripper)
 
-    def sample(self, rng: np.random.Generator) -> tuple[np.ndarray, bool]:
-        """A goal and whether sampling failed (every try unreachable)."""
+    def sample(self, rng: np.random.Generator, start: np.ndarray) -> tuple[np.ndarray, bool]:
+        """A goal and whether sampling failed (every try unreachable, or already achieved from `start`, where
+        the achieved point is at reset)."""
         if not self.random:
             return self.static.copy(), self.check_reach and not self.reachable(self.static)
         for _ in range(self.tries):
             goal = rng.uniform(self.low, self.high)
+            if self.resample_achieved and np.linalg.norm(goal - start) < self.tolerance:
+                continue
             if not self.check_reach or self.reachable(goal):
                 return goal, False
         return goal, True
-
-
-class LiftCurriculum:
-    """multi_goal: the current goal is the spawn point raised by the lift height until the
-    object gets there within tolerance, then the desired goal."""
-
-    def __init__(self, enabled: bool, height: float, tolerance: float):
-        self.enabled = enabled
-        self.offset = np.array([0.0, 0.0, height])
-        self.tolerance = tolerance
-        self.goal = np.zeros(3)
-        self.active = False
-
-    def reset(self, spawn_position: np.ndarray) -> None:
-        self.goal = np.asarray(spawn_position, float) + self.offset
-        self.active = self.enabled
-
-    def update(self, achieved: np.ndarray) -> None:
-        if self.active and np.linalg.norm(achieved - self.goal) < self.tolerance:
-            self.active = False
-
-    def current(self, desired: np.ndarray) -> np.ndarray:
-        return self.goal if self.active else desired
-
-    def info(self) -> dict:
-        return dict(zip(STAGE_KEYS, (float(self.active), self.goal.copy()), strict=True))

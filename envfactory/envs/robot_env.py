@@ -17,7 +17,7 @@ from envfactory.backends import backend_factory
 from envfactory.backends.base import BackendError, EpisodeAbort
 from envfactory.compiler import Blueprint
 from envfactory.envs.actions import ActionAdapter
-from envfactory.envs.goals import GoalSampler, LiftCurriculum
+from envfactory.envs.goals import GoalSampler
 from envfactory.envs.managers import ImageManager, ObservationManager, RewardManager
 from envfactory.envs.objects import ObjectSpawner, ObjectTracker
 from envfactory.geometry.frames import TaskFrame
@@ -25,7 +25,7 @@ from envfactory.geometry.object_press import ObjectPressGuard
 from envfactory.geometry.robot_model import robot_geometry
 from envfactory.scaling import AffineScale
 from envfactory.state import EnvState
-from envfactory.terms.rewards import STAGE_KEYS, STEP_FLAGS
+from envfactory.terms.rewards import STEP_FLAGS
 
 log = logging.getLogger("envfactory")
 
@@ -50,6 +50,7 @@ class RobotEnv(gym.Env):
         self.object_guard = ObjectPressGuard(self.safety.collision, spec.task.objects, self.task_frame) \
             if spec.task.objects else None
         self.home = np.asarray(robot.home, float)
+        self._ee_home = self.kinematics.ee_pose(self.home, spec.gripper_assumed_at_reset)[0]
         self.goals = GoalSampler(spec.task.goal, self.kinematics, self.safety, self.home,
                                  check_reach=blueprint.achieved_from == "ee", gripper=spec.gripper_assumed_at_reset)
         self.rewards = RewardManager(blueprint.rewards, blueprint.terminations, spec.task.goal.tolerance,
@@ -69,9 +70,7 @@ class RobotEnv(gym.Env):
         self._gripper_reset = spec.gripper_at_reset
         self.spawner = ObjectSpawner(spec.task.objects, spec.scene.table, self.task_frame)
         self._trackers = {name: ObjectTracker() for name in spec.task.objects}
-        lift = spec.task.goal.lift
-        self.curriculum = (LiftCurriculum(lift.enabled, lift.height, spec.task.goal.tolerance)
-                           if lift is not None else None)
+        self.stage = blueprint.stage()  # the task's stage before the desired goal, if it declares one
         self._timing = spec.env.timing
         self._verbose = spec.env.log_internal_state
         self._seed_pending = spec.env.seed
@@ -118,10 +117,9 @@ class RobotEnv(gym.Env):
             objects=objects,
         )
 
-    def _advance_curriculum(self, state: EnvState, achieved: np.ndarray) -> None:
-        if self.curriculum is not None:
-            self.curriculum.update(achieved)
-            state.current_goal = self.curriculum.current(self._goal)
+    def _advance_stage(self, state: EnvState, achieved: np.ndarray) -> None:
+        self.stage.update(achieved)
+        state.current_goal = self.stage.current(self._goal)
 
     def achieved_goal(self, state: EnvState) -> np.ndarray:
         return state.position_of(self.blueprint.achieved_from)
@@ -161,7 +159,8 @@ class RobotEnv(gym.Env):
         self.safety.forget()
         for tracker in self._trackers.values():
             tracker.reset()
-        self._goal, self._goal_failed = self.goals.sample(self.np_random)
+        start = spawn[self.blueprint.achieved_from][0] if self.blueprint.achieved_from in spawn else self._ee_home
+        self._goal, self._goal_failed = self.goals.sample(self.np_random, start)
         if options and "goal" in options:
             self._goal = np.asarray(options["goal"], float).reshape(3)
             self._goal_failed = False
@@ -169,9 +168,8 @@ class RobotEnv(gym.Env):
         self._state = self._read_state(np.zeros(self.action_space.shape, dtype=np.float32))
         self._state.previous_action = self.actions.hold_action(self._state)
         achieved = self.achieved_goal(self._state)
-        if self.curriculum is not None:
-            self.curriculum.reset(spawn[self.blueprint.achieved_from][0])
-        self._advance_curriculum(self._state, achieved)
+        self.stage.reset(spawn)
+        self._advance_stage(self._state, achieved)
         observation = self._observe(self._state)
         return observation, self._info(self._state, achieved, out_of_bounds=False, rejection="")
 
@@ -191,10 +189,7 @@ class RobotEnv(gym.Env):
                                                 state.objects).reason
         if rejection and self._verbose:
             log.info("%s: action rejected: %s", self.blueprint.env_id, rejection)
-        if np.all(np.isfinite(action)):
-            previous = np.clip(np.asarray(action, dtype=np.float32), self.action_space.low, self.action_space.high)
-        else:
-            previous = self.actions.hold_action(state)
+        previous = command.recorded
         try:
             if not rejection:
                 self.backend.command_joints(command.q_arm, self._timing.action_speed)
@@ -229,7 +224,7 @@ class RobotEnv(gym.Env):
     def _finish(self, state: EnvState, out_of_bounds: bool, rejection: str, truncated: bool = False,
                 abort: str = ""):
         achieved = self.achieved_goal(state)
-        self._advance_curriculum(state, achieved)
+        self._advance_stage(state, achieved)
         observation = self._observe(state)
         info = self._info(state, achieved, out_of_bounds, rejection)
         if abort:
@@ -244,10 +239,7 @@ class RobotEnv(gym.Env):
         info = {key: float(value) for key, value in zip(STEP_FLAGS, flags, strict=True)}
         info.update(rejection_reason=rejection, observation_clipped=list(self._clipped), distance=distance,
                     is_success=distance < self.blueprint.spec.task.goal.tolerance)
-        if self.curriculum is not None:
-            info.update(self.curriculum.info())
-        else:
-            info.update(zip(STAGE_KEYS, (0.0, self._goal.copy()), strict=True))  # no lift stage: never active
+        info.update(self.stage.info(self._goal))
         info.update(self.rewards.measure(state))
         return info
 

@@ -94,9 +94,6 @@ class Kinematics:
                 drivers[self.model.getJointId(name)] = (gripper, gain)
         return drivers
 
-    def frame_names(self, ids: list[int]) -> list[str]:
-        return [self.model.frames[i].name for i in ids]
-
     # ----------------------------------------------------------- configuration
 
     def full_q(self, q_arm: np.ndarray, gripper: float = 0.0) -> np.ndarray:

@@ -1,8 +1,8 @@
 """Boxes that hold every point an observation reports, derived from the robot and the scene.
 
-The seeds declare an EE box (`robot.ee_bounds`) that the arm can leave: the UR5e's
+The reference pages declare an EE box (`robot.ee_bounds`) that the arm can leave: the UR5e's
 TCP reaches 2.0 m above the floor where the box ends at 1.5 m. The observation
-bounds therefore use the seed's box grown to the arm's reach, never shrunk:
+bounds therefore use that box grown to the arm's reach, never shrunk:
 
 - reach: no point of the EE frame lies farther from the first joint's origin than
   the sum of the offsets along the kinematic chain (each joint's offset from its

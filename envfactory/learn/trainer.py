@@ -67,10 +67,6 @@ class TrainResult:
     folder: Path
     evaluations: list[Evaluation]
 
-    @property
-    def model_path(self) -> Path:
-        return self.folder / MODEL_FILE
-
 
 def _algorithm_kwargs(cls, hyper: Hyperparameters, env) -> dict:
     kwargs = hyper.algorithm_kwargs()

@@ -22,7 +22,7 @@ from envfactory.schema.errors import Problem, SpecError, suggest
 from envfactory.schema.folders import folder_of
 from envfactory.schema.models import EnvSpec
 from envfactory.schema.numbers import non_finite_paths
-from envfactory.schema.sources import SourceMap, parse_yaml
+from envfactory.schema.sources import Findings, SourceMap, parse_yaml
 from envfactory.schema.tree import leaves
 from envfactory.schema.validation import validation_problems
 
@@ -247,8 +247,9 @@ class LoadedSpec:
     sources: SourceMap
     family: FamilyFile
 
-    def problem(self, path: str, message: str) -> Problem:
-        return self.sources.problem(path, message)
+    def findings(self) -> Findings:
+        """An empty report of this spec's problems, placing each where its value was written."""
+        return Findings(self.sources)
 
     def file_of(self, path: str) -> Path:
         shell = self.sources.locate(path)
@@ -292,21 +293,22 @@ def validate_config(config: dict, sources: SourceMap, family: FamilyFile) -> Loa
     missing = list(_missing_paths(config))
     for path in missing:
         _delete_path(config, path)
-    problems = [sources.problem(path, "missing value (???)") for path in missing]
+    found = Findings(sources)
+    for path in missing:
+        found.add(path, "missing value (???)")
     resolved = _resolve(config, sources)
     resolved.pop("defaults", None)
     # NaN and infinity anywhere (term and expert params included) fail every comparison quietly
     non_finite = dict(non_finite_paths(resolved))
-    problems += [sources.problem(path, f"Input should be a finite number (got {value})")
-                 for path, value in non_finite.items()]
+    for path, value in non_finite.items():
+        found.add(path, f"Input should be a finite number (got {value})")
     skip = {*missing, *non_finite}
     spec = None
     try:
         spec = EnvSpec.model_validate(resolved)
     except ValidationError as exc:
-        problems += [p for p in validation_problems(exc, sources, EnvSpec) if p.path not in skip]
-    if problems:
-        raise SpecError(problems, family.name)
+        found.problems += [p for p in validation_problems(exc, sources, EnvSpec) if p.path not in skip]
+    found.raise_if_any(family.name)
     return LoadedSpec(spec, sources, family)
 
 

@@ -12,7 +12,7 @@ from envfactory.schema.numbers import Friction, Length, NonNegative, Positive, R
 from envfactory.schema.ros import RosSpec
 
 # The joint-delta action box of an arm joint that declares none: symmetric, ±π per
-# unit action before delta_coeff scales it (the seeds' UR5e convention).
+# unit action before delta_coeff scales it (the reference pages' UR5e convention).
 DEFAULT_JOINT_DELTA = 3.14
 # Motor limits no arm on a table exceeds: above them a value is a typo.
 MAX_EFFORT = 10_000.0  # N·m or N
@@ -197,11 +197,6 @@ class RobotSpec(Model):
     arm_max_velocity: Velocity = 3.15  # rad/s per arm joint, unless the joint declares its own velocity
     safety: RobotSafety = RobotSafety()
     ros: RosSpec | None = None
-
-    @property
-    def task_origin_world(self) -> tuple[float, float, float]:
-        """Where the task frame sits in the world: the robot base, or the world origin."""
-        return self.mount if self.task_frame == "base" else (0.0, 0.0, 0.0)
 
     @property
     def state_names(self) -> list[str]:

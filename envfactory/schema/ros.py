@@ -7,12 +7,13 @@ names a shipped one or writes one in place.
 from __future__ import annotations
 
 import re
-from typing import Any, ClassVar
+from typing import Annotated, Any, ClassVar
 
-from pydantic import PrivateAttr, model_validator
+from pydantic import Field, PrivateAttr, model_validator
 
 from envfactory.schema.base import Model, Position, Rpy, located
 from envfactory.schema.messages import MessageTemplate, checked
+from envfactory.schema.numbers import Positive
 
 _MESSAGE_TYPE = re.compile(r"[A-Za-z]\w*/[A-Za-z]\w*")
 _FIELD_TYPE = re.compile(r"([a-z]\w*|[A-Za-z]\w*/[A-Za-z]\w*)(\[\d*\])?")
@@ -66,6 +67,11 @@ class ArmCommand(_Templated):
     # joint_group (interbotix_xs_msgs/JointGroupCommand, xs_sdk)
     ROLE: ClassVar[str] = "arm"
     group: str = "arm"  # $group
+    # How long the driver takes to carry out a command whose message holds no $duration: a
+    # driver in a time profile (xs_sdk's profile_velocity) spends that long on every command,
+    # whatever its length. The digital twin plays commands over it; None when every command
+    # carries its own duration.
+    profile_time_s: Annotated[Positive, Field(le=60.0)] | None = None  # s
 
 
 class GripperStates(Model):

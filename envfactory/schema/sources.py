@@ -88,6 +88,29 @@ class SourceMap:
         return Problem(path, message, file=shell.file, line=shell.line)
 
 
+class Findings:
+    """The problems found in one spec, each placed where its value was written (file, line) and named by
+    its dotted path: the one way the loader, the compiler, the scene and robot checks and the registry
+    report a problem, so every message reads alike and all of them are raised at once."""
+
+    def __init__(self, sources: SourceMap | None = None):
+        self.sources = sources if sources is not None else SourceMap()
+        self.problems: list[Problem] = []
+
+    def add(self, path: str, message: str) -> None:
+        self.problems.append(self.sources.problem(path, message))
+
+    def __bool__(self) -> bool:
+        return bool(self.problems)
+
+    def __iter__(self):
+        return iter(self.problems)
+
+    def raise_if_any(self, subject: str = "") -> None:
+        if self.problems:
+            raise SpecError(self.problems, subject)
+
+
 def read_text(path: Path) -> str:
     """The file as UTF-8 text, or a SpecError that says why not."""
     try:

@@ -59,6 +59,9 @@ class GoalSpec(Model):
     random: bool = True  # random_goal; otherwise the static goal below
     static: Position | None = None  # the goal when random is false; the box centre if unset
     sampling_tries: int = Field(default=20, ge=1, le=1000)
+    # a random goal within tolerance of where the achieved point starts is a success nobody earned: drawn again
+    # unless this says such goals are wanted
+    allow_achieved_at_reset: bool = False
     lift: LiftStage | None = None
 
     @field_validator("box")

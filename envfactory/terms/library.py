@@ -7,6 +7,7 @@ params model that rejects unknown or ill-typed params.
 
 from __future__ import annotations
 
+import functools
 import importlib
 from dataclasses import dataclass
 from typing import Any, Callable
@@ -53,6 +54,16 @@ class RegisteredTerm:
     blueprint must use the very term the registry holds."""
 
     kind = ""  # the table it is registered in
+
+    def __post_init__(self):
+        # The registered term stands for its function: whoever holds the term (help(),
+        # inspect.unwrap, a user browsing OBSERVATIONS) sees the function's name and docstring,
+        # not the term class's. Frozen dataclasses refuse setattr, hence object.__setattr__
+        # where functools.update_wrapper would use setattr.
+        for attribute in functools.WRAPPER_ASSIGNMENTS:
+            if hasattr(self.fn, attribute):
+                object.__setattr__(self, attribute, getattr(self.fn, attribute))
+        object.__setattr__(self, "__wrapped__", self.fn)
 
     def __reduce__(self):
         return registered_term, (self.kind, self.name, getattr(self.fn, "__module__", None))
@@ -103,7 +114,6 @@ class GoalTerm(RegisteredTerm):
 
 @dataclass(frozen=True)
 class RewardTerm(GoalTerm):
-    kind = "reward"
     """A reward: fn returns (N,) floats, weighted in the task.
 
     A term that depends on the env state rather than the goals has `measure`:
@@ -111,14 +121,15 @@ class RewardTerm(GoalTerm):
     `info_keys[0]`, so `fn` (reading info) stays exact when HER relabels goals.
     """
 
+    kind = "reward"
     measure: Callable[[Any, Any], float] | None = None
 
 
 @dataclass(frozen=True)
 class ImageTerm(RegisteredTerm):
-    kind = "image"
     """fn(camera frame) -> array of `shape(camera)`; one Dict observation key per term."""
 
+    kind = "image"
     name: str
     fn: Callable
     shape: Callable[[Any], tuple[int, ...]]
@@ -127,56 +138,54 @@ class ImageTerm(RegisteredTerm):
     description: str
 
 
-OBSERVATIONS: dict[str, ObservationTerm] = {}
-IMAGES: dict[str, ImageTerm] = {}
-REWARDS: dict[str, RewardTerm] = {}
-TERMINATIONS: dict[str, "TerminationTerm"] = {}
-_TABLES = {"observation": OBSERVATIONS, "image": IMAGES, "reward": REWARDS, "termination": TERMINATIONS}
-
-
-def _register(table: dict, term) -> None:
-    if term.name in table:
-        raise ValueError(f"term {term.name!r} is registered twice")
-    table[term.name] = term
-
-
-def observation_term(**spec) -> Callable:
-    def wrap(fn):
-        _register(OBSERVATIONS, ObservationTerm(name=spec.pop("name", fn.__name__), fn=fn, **spec))
-        return fn
-
-    return wrap
-
-
-def image_term(**spec) -> Callable:
-    def wrap(fn):
-        _register(IMAGES, ImageTerm(name=spec.pop("name", fn.__name__), fn=fn, **spec))
-        return fn
-
-    return wrap
-
-
-def reward_term(**spec) -> Callable:
-    def wrap(fn):
-        _register(REWARDS, RewardTerm(name=spec.pop("name", fn.__name__), fn=fn, **spec))
-        return fn
-
-    return wrap
-
-
 @dataclass(frozen=True)
 class TerminationTerm(GoalTerm):
-    kind = "termination"
     """Ends the episode: fn returns (N,) bools; a goal env's compute_terminated stays exact
     under relabelling."""
 
+    kind = "termination"
 
-def termination_term(**spec) -> Callable:
-    def wrap(fn):
-        _register(TERMINATIONS, TerminationTerm(name=spec.pop("name", fn.__name__), fn=fn, **spec))
+
+OBSERVATIONS: dict[str, ObservationTerm] = {}
+IMAGES: dict[str, ImageTerm] = {}
+REWARDS: dict[str, RewardTerm] = {}
+TERMINATIONS: dict[str, TerminationTerm] = {}
+_TABLES = {"observation": OBSERVATIONS, "image": IMAGES, "reward": REWARDS, "termination": TERMINATIONS}
+
+
+def term_decorator(term_class: type[RegisteredTerm], **spec) -> Callable:
+    """A decorator registering the function as a `term_class` term built from `spec`, named
+    `spec["name"]` or else after the function; the function itself comes back unchanged."""
+
+    def register(fn):
+        term = term_class(**{"name": fn.__name__, **spec}, fn=fn)
+        table = _TABLES[term_class.kind]
+        if term.name in table:
+            raise ValueError(f"term {term.name!r} is registered twice")
+        table[term.name] = term
         return fn
 
-    return wrap
+    return register
+
+
+def observation_term(**spec) -> Callable:
+    """Registers the decorated function as an ObservationTerm; `spec` holds its other fields."""
+    return term_decorator(ObservationTerm, **spec)
+
+
+def image_term(**spec) -> Callable:
+    """Registers the decorated function as an ImageTerm; `spec` holds its other fields."""
+    return term_decorator(ImageTerm, **spec)
+
+
+def reward_term(**spec) -> Callable:
+    """Registers the decorated function as a RewardTerm; `spec` holds its other fields."""
+    return term_decorator(RewardTerm, **spec)
+
+
+def termination_term(**spec) -> Callable:
+    """Registers the decorated function as a TerminationTerm; `spec` holds its other fields."""
+    return term_decorator(TerminationTerm, **spec)
 
 
 def fixed(size: int) -> Callable[[Layout, Any], int]:

@@ -53,7 +53,7 @@ def _point_label(name: str) -> str:
 
 
 def _goal_label(layout) -> str:
-    # with a lift stage the columns follow the stage's goal, as the seeds name it
+    # with a lift stage the columns follow the stage's goal, as the reference pages name it
     lift = layout.task.goal.lift
     return "current goal" if lift is not None and lift.enabled else "goal"
 

@@ -13,6 +13,7 @@ from typing import Literal
 import numpy as np
 
 from envfactory.terms.library import TermParams, reward_term, termination_term
+from envfactory.terms.stages import STAGE_KEYS
 
 # Step info the env records at every step, declared here once: the step writes these keys
 # and the terms below read them. A goal env's compute_reward(achieved, desired, info)
@@ -22,12 +23,10 @@ STEP_FLAGS = {
     "action_rejected": "1 if the safety check rejected the action",
     "goal_sampling_failed": "1 if no reachable goal was found at reset",
 }
-# recorded at every step, also without a lift stage (then never active)
-STAGE_KEYS = ("intermediate_active", "intermediate_goal")
 
 
-def step_info_keys(spec) -> tuple[str, ...]:
-    """The info keys every step of an env of this spec records for the reward terms."""
+def step_info_keys() -> tuple[str, ...]:
+    """The info keys every step of every env records for the reward terms."""
     return (*STEP_FLAGS, *STAGE_KEYS)
 
 

@@ -28,9 +28,6 @@ __all__ = ["Faults", "Received", "Twin"]
 
 JOINT_STATE_HZ = 50.0
 POSE_HZ = 30.0
-# xs_sdk's default mode config moves a joint group in a time profile: every command takes
-# profile_velocity = 2000 ms, whatever its length
-XS_SDK_PROFILE_S = 2.0
 
 
 def _sim_id(robot: str, task: str) -> str:
@@ -45,18 +42,23 @@ def _sim_id(robot: str, task: str) -> str:
 
 class Twin:
     """`overrides` change the twin's spec (e.g. its topics); `topic_types` make its driver
-    register topics with other types (a misconfigured driver); `group_move_s` is how long
-    the xs_sdk stand-in takes for every group command (its time profile)."""
+    register topics with other types (a misconfigured driver); `group_move_s` is how long the
+    driver takes for every arm command that carries no duration (its time profile), by default
+    the robot's `ros.arm_command.profile_time_s`."""
 
     def __init__(self, robot: str, task: str = "push", host: str = "127.0.0.1", port: int = 0,
                  overrides: tuple[str, ...] = (), topic_types: dict[str, str] | None = None,
-                 group_move_s: float = XS_SDK_PROFILE_S):
+                 group_move_s: float | None = None):
         compiled = blueprint(_sim_id(robot, task), ["env.timing.realtime=true", *overrides])
         spec = compiled.spec
         self.spec = spec
         self.ros = spec.robot.ros
         if self.ros is None:
             raise ValueError(f"robot {robot!r} declares no 'ros:' topic map")
+        self.group_move_s = self.ros.arm_command.profile_time_s if group_move_s is None else group_move_s
+        if self.group_move_s is None and "$duration" not in self.ros.arm_command.template.placeholders():
+            raise ValueError(f"robot {robot!r}: its arm commands carry no $duration; declare "
+                             "ros.arm_command.profile_time_s, how long its driver takes for each, or pass group_move_s")
         self.sim = PyBulletBackend(spec, assemble(spec.robot.model, compiled.asset_root, spec.robot.name),
                                    TaskFrame.of(spec.robot))
         spawn = {name: (np.asarray(obj.spawn.position, float), np.array([0.0, 0.0, 0.0, 1.0]))
@@ -65,7 +67,6 @@ class Twin:
         self.state_names = spec.robot.state_names
         self.arm_names = spec.robot.arm_state_names
         self._arm_in_states = spec.robot.arm_state_indices
-        self.group_move_s = group_move_s
         self.server = RosbridgeServer(host, port, msgtypes.with_driver_types(self.ros.message_types))
         self._add_nodes(robot, topic_types or {})
         self._loop = asyncio.new_event_loop()
@@ -132,13 +133,6 @@ class Twin:
             ros.joint_states.topic: typed(ros.joint_states.topic, ros.joint_states.type)}, subscribes=commands))
         self.server.add_node(Node("/cube_tracker", publishes={
             t.topic: typed(t.topic, t.type) for t in ros.object_poses.values()}))
-
-    def wait_for_subscribers(self, timeout: float = 5.0) -> None:
-        deadline = time.monotonic() + timeout
-        while not self.server.subscribed(self.ros.joint_states.topic):
-            if time.monotonic() > deadline:
-                raise TimeoutError("no client subscribed to the joint states")
-            time.sleep(0.02)
 
     # ------------------------------------------------------------------ what it publishes
 

@@ -1,5 +1,6 @@
-"""The ROS 1 message and service types the twin knows, and the checks a rosbridge
-server makes when it turns JSON into a typed message and back.
+"""The ROS 1 core message and service types the twin knows, and the checks a rosbridge
+server makes when it turns JSON into a typed message and back. A driver's own message
+types are robot knowledge: they come from the robot's `ros.message_types`.
 
 A rosbridge server fills a typed message from the JSON a client sends: a key the
 type lacks, or a value of the wrong kind (a string for a float, null for a
@@ -26,8 +27,6 @@ MESSAGES: dict[str, dict[str, str]] = {
                                              "time_from_start": "duration"},
     "trajectory_msgs/JointTrajectory": {"header": "std_msgs/Header", "joint_names": "string[]",
                                         "points": "trajectory_msgs/JointTrajectoryPoint[]"},
-    "interbotix_xs_msgs/JointGroupCommand": {"name": "string", "cmd": "float32[]"},
-    "interbotix_xs_msgs/JointSingleCommand": {"name": "string", "cmd": "float32"},
     "geometry_msgs/Point": {"x": "float64", "y": "float64", "z": "float64"},
     "geometry_msgs/Vector3": {"x": "float64", "y": "float64", "z": "float64"},
     "geometry_msgs/Quaternion": {"x": "float64", "y": "float64", "z": "float64", "w": "float64"},

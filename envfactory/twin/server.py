@@ -169,9 +169,6 @@ class RosbridgeServer:
     def client_count(self) -> int:
         return len(self._clients)
 
-    def subscribed(self, topic: str) -> bool:
-        return any(topic in client.subscribed for client in self._clients.values())
-
     async def drop_connections(self) -> None:
         for connection in list(self._clients):
             await connection.close(code=1011, reason="twin: connection dropped on purpose")

@@ -1,6 +1,6 @@
 """Physics only where it matters: the `sim.fidelity: fast` stepping of an action cycle.
 
-The seeds' step is a joint target the arm reaches within `action_speed`, the
+The reference pages' step is a joint target the arm reaches within `action_speed`, the
 observation read at the end of `action_cycle_time`. Out of contact the
 position motors land every joint on its target to within microradians, so
 simulating the cycle only reproduces what is known in advance. A cycle is

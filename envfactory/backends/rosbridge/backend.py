@@ -72,7 +72,7 @@ class RosbridgeBackend:
         if real.auto_launch_cube_tracker:
             raise BackendError("auto_launch_cube_tracker=True: envfactory does not launch trackers. Start the "
                                f"{real.cube_tracker_camera} cube tracker yourself, then make the env with it False.")
-        if spec.env.use_kinect:
+        if spec.env.observation.camera_images:
             raise BackendError("use_kinect renders a simulated camera; a real robot has none to render")
         if render_mode == "human":
             raise BackendError("render_mode='human' opens a simulator window; a real robot has none")

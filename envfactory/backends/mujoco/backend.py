@@ -1,0 +1,247 @@
+"""The embedded MuJoCo backend: headless, the same Backend protocol as PyBullet's, built from the same specs.
+
+An arm command is played as the real controllers play it (UR's trajectory controller, xs_sdk): every arm
+joint moves together along the straight joint-space line from where the arm is to the target, arriving at
+the same time, over `duration` or longer when a joint's velocity limit needs it. So the simulated arm stays
+on the path the safety check proved. The servos follow that profile substep by substep.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+from mujoco import rollout
+
+from envfactory.backends.base import BackendError, CameraFrame, JointReading, ObjectReading
+from envfactory.backends.mujoco.model import CAMERA, build
+from envfactory.geometry.frames import TaskFrame
+from envfactory.schema.models import CameraSpec, EnvSpec
+
+STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
+CONTROL = int(mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_QFRC_APPLIED)  # what each substep's row sets
+# A cycle is skipped when no joint or object moves faster than this (rad/s, m/s) and every arm joint is within
+# REST_GAP of its commanded target: over a 0.5 s cycle such a scene drifts less than 0.05 mm.
+REST_SPEED = 1e-4
+REST_GAP = 1e-6
+RENDER_HELP = ("MuJoCo renders through OpenGL: set MUJOCO_GL=egl (needs libEGL and a GPU driver) or "
+               "MUJOCO_GL=osmesa (needs libOSMesa, e.g. Debian's libosmesa6) before the first import of mujoco")
+
+
+# The timing law along the line: a quintic in the elapsed fraction, so velocity and acceleration start and end
+# at zero and the servos lag no step in either; its peak speed is this multiple of the mean.
+PEAK_OVER_MEAN_SPEED = 1.875
+
+
+class Profile:
+    """A joint-synchronous straight line from `start` to `end`, beginning at `t0` and lasting `length` s: every
+    joint covers the same fraction of its way at every instant, so the arm never leaves the line. `smooth`:
+    the quintic timing law (an arm's point-to-point move); else constant speed (a gripper's finger drive)."""
+
+    def __init__(self, start: np.ndarray, end: np.ndarray, t0: float, length: float, smooth: bool = True):
+        self.start, self.end, self.t0, self.length, self.smooth = start, end, t0, max(length, 1e-9), smooth
+
+    def at(self, time):
+        """(position, velocity, acceleration) at `time`, a float or an array of times (then one row each)."""
+        tau = np.clip((np.asarray(time, float) - self.t0) / self.length, 0.0, 1.0)[..., None]
+        if self.smooth:
+            fraction = tau ** 3 * (10.0 - 15.0 * tau + 6.0 * tau * tau)
+            rate = 30.0 * tau * tau * (1.0 - tau) ** 2 / self.length
+            change = 60.0 * tau * (1.0 - tau) * (1.0 - 2.0 * tau) / (self.length * self.length)
+        else:
+            fraction, rate, change = tau, np.where(tau < 1.0, 1.0 / self.length, 0.0), np.zeros_like(tau)
+        way = self.end - self.start
+        return self.start + fraction * way, rate * way, change * way
+
+
+def synchronous_length(start: np.ndarray, end: np.ndarray, duration: float, velocities: np.ndarray) -> float:
+    """How long a joint-synchronous move takes: the commanded duration, or longer when the joint that
+    travels furthest for its speed limit would pass that limit at the profile's peak."""
+    if not len(start):
+        return duration
+    return max(duration, PEAK_OVER_MEAN_SPEED * float(np.max(np.abs(end - start) / velocities)))
+
+
+class MujocoBackend:
+    teleports_on_reset = True  # reset sets the joints directly; no path is driven
+
+    def __init__(self, spec: EnvSpec, urdf_path, task_frame: TaskFrame, render_mode: str | None = None):
+        if spec.env.gui or render_mode == "human":
+            raise BackendError("the MuJoCo engine runs headless: a GUI (gui=True, render_mode='human') is "
+                               "PyBullet's (engine='pybullet')")
+        self.spec = spec
+        self.robot = spec.robot
+        self.task_frame = task_frame
+        self.model, self.handles = build(spec, urdf_path)
+        self.data = mujoco.MjData(self.model)
+        self.dt = self.model.opt.timestep
+        self._velocities = np.asarray(self.robot.arm_velocities, float)
+        # kv / kp of each servo (the position actuator keeps kp in gainprm[0] and -kv in biasprm[2])
+        gains = self.model.actuator_gainprm[:, 0]
+        damping = -self.model.actuator_biasprm[:, 2]
+        self._lead = damping[self.handles.arm_actuators] / gains[self.handles.arm_actuators]
+        self._scratch = mujoco.MjData(self.model)
+        self._rollout = rollout.Rollout(nthread=0)  # in the calling thread: one env, one core
+        self._mass = np.zeros((self.model.nv, self.model.nv))
+        self._state = np.zeros(mujoco.mj_stateSize(self.model, STATE))
+        self._controls = np.zeros((0, self.model.nu + self.model.nv))
+        self._states = np.zeros((1, 0, self._state.size))
+        self._arm: Profile | None = None
+        self._gripper: Profile | None = None
+        self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
+        self._sim_time = 0.0
+        self._skip_rest = spec.sim.mujoco.skip_rest
+        self.skipped_cycles = 0  # cycles the rest shortcut did not simulate
+        self._settled = False
+
+    # ---------------------------------------------------------------- protocol
+
+    def attach_geometry(self, collision) -> None:
+        """Every cycle is simulated in full: nothing to play without dynamics."""
+
+    def reset(self, q_arm, gripper, objects) -> None:
+        model, data, handles = self.model, self.data, self.handles
+        mujoco.mj_resetData(model, data)
+        q_arm = np.asarray(q_arm, float)
+        data.qpos[handles.arm_qpos] = q_arm
+        data.ctrl[handles.arm_actuators] = q_arm
+        if handles.gripper_qpos is not None:
+            value = self.robot.gripper.open if gripper is None else float(gripper)
+            self._place_gripper(value)
+            data.ctrl[handles.gripper_actuator] = value
+        for name, (position, quaternion) in objects.items():
+            if name not in handles.object_qpos:
+                raise BackendError(f"reset places {name!r}, which the task does not declare")
+            x, y, z, w = self.task_frame.quaternion_to_world(quaternion)
+            address = handles.object_qpos[name]
+            data.qpos[address:address + 7] = [*self.task_frame.to_world(position), w, x, y, z]
+        mujoco.mj_forward(model, data)
+        self._arm = self._gripper = None
+        self._sim_time = 0.0
+        self._settled = False
+
+    def _place_gripper(self, value: float) -> None:
+        self.data.qpos[self.handles.gripper_qpos] = value
+        for address, gain in self.handles.followers:
+            self.data.qpos[address] = gain * value
+
+    def command_joints(self, q_arm_target, duration: float) -> None:
+        start = self.data.qpos[self.handles.arm_qpos].copy()
+        end = np.asarray(q_arm_target, float)
+        self._arm = Profile(start, end, self._sim_time, synchronous_length(start, end, duration, self._velocities))
+
+    def command_gripper(self, value: float) -> None:
+        if self.handles.gripper_actuator is None:
+            raise BackendError(f"robot {self.robot.name!r} has no gripper")
+        if self._gripper is not None and self._gripper.end[0] == value:
+            return  # already on its way there: a repeated command does not restart the drive
+        start = np.array([self.data.qpos[self.handles.gripper_qpos]])
+        end = np.array([float(value)])
+        self._gripper = Profile(start, end, self._sim_time, float(abs(end - start)[0]) / self.robot.gripper.max_velocity,
+                                smooth=False)
+
+    def recover(self) -> None:
+        pass  # a simulator has no faults to recover from
+
+    def stop(self) -> None:
+        """Hold the arm where it is now."""
+        here = self.data.qpos[self.handles.arm_qpos].copy()
+        self._arm = Profile(here, here, self._sim_time, 0.0)
+
+    def advance(self, seconds: float) -> None:
+        """Simulate `seconds`: the controls of every substep are laid out first (the servo targets along the
+        profiles, led by kv/kp times the profile's velocity so that the servo is kp (q_ref - q) + kv
+        (qdot_ref - qdot); the profile's acceleration times the arm's inertia fed forward, as a trajectory
+        controller does), then MuJoCo plays them all in one call."""
+        model, data, handles = self.model, self.data, self.handles
+        steps = max(1, round(seconds / self.dt))
+        if self._skip_rest and self._at_rest():
+            self._sim_time += steps * self.dt  # nothing moves, nothing is asked to: no dynamics to pay for
+            self.skipped_cycles += 1
+            return
+        times = self._sim_time + self.dt * np.arange(1, steps + 1)
+        controls = self._controls
+        if controls.shape[0] < steps:
+            controls = self._controls = np.zeros((steps, model.nu + model.nv))
+        controls = controls[:steps]
+        controls[:, :model.nu] = data.ctrl
+        controls[:, model.nu:] = 0.0
+        if self._arm is not None:
+            position, velocity, acceleration = self._arm.at(times)
+            controls[:, handles.arm_actuators] = position + self._lead * velocity
+            mujoco.mj_fullM(model, data, self._mass)
+            dofs = handles.arm_dof
+            controls[:, model.nu + dofs] = acceleration @ self._mass[np.ix_(dofs, dofs)].T
+        if self._gripper is not None:
+            controls[:, handles.gripper_actuator] = self._gripper.at(times)[0][:, 0]
+        mujoco.mj_getState(model, data, self._state, STATE)
+        if self._states.shape[1] != steps:
+            self._states = np.zeros((1, steps, self._state.size))
+        self._rollout.rollout([model], [self._scratch], self._state[None], np.ascontiguousarray(controls[None]),
+                              control_spec=CONTROL, skip_checks=True, nstep=steps, state=self._states)
+        mujoco.mj_setState(model, data, self._states[0, -1], STATE)
+        data.ctrl[:] = controls[-1, :model.nu]
+        mujoco.mj_forward(model, data)
+        self._sim_time += steps * self.dt
+        self._settled = True
+
+    def _at_rest(self) -> bool:
+        """Whether a cycle would change nothing: every body at rest and every command already reached."""
+        if not self._settled or np.max(np.abs(self.data.qvel), initial=0.0) > REST_SPEED:
+            return False  # a scene just placed is not at rest before its contacts have carried its weight
+        here = self.data.qpos
+        if self._arm is not None and np.max(np.abs(self._arm.end - here[self.handles.arm_qpos])) > REST_GAP:
+            return False
+        gripper = self._gripper
+        if gripper is not None and self._sim_time < gripper.t0 + gripper.length and \
+                abs(gripper.end[0] - gripper.start[0]) > REST_GAP:
+            return False  # still on its way (one stopped short of its target squeezes something: that is rest)
+        return True
+
+    def read_joints(self) -> JointReading:
+        return JointReading(self.data.qpos[self.handles.state_qpos].copy(),
+                            self.data.qvel[self.handles.state_dof].copy(), self._sim_time)
+
+    def read_object(self, name: str) -> ObjectReading:
+        body = self.handles.object_body[name]
+        w, x, y, z = self.data.xquat[body]
+        return ObjectReading(self.task_frame.to_task(self.data.xpos[body].copy()),
+                             self.task_frame.quaternion_to_task([x, y, z, w]), self._sim_time)
+
+    def mark_goal(self, position: np.ndarray) -> None:
+        self.data.mocap_pos[self.handles.marker_mocap] = self.task_frame.to_world(position)
+
+    def _renderer(self, width: int, height: int) -> mujoco.Renderer:
+        key = (width, height)
+        if key not in self._renderers:
+            try:
+                self._renderers[key] = mujoco.Renderer(self.model, height, width)
+            except Exception as exc:  # no OpenGL context of any kind on this machine
+                raise BackendError(f"MuJoCo cannot render here ({exc}): {RENDER_HELP}") from None
+        return self._renderers[key]
+
+    def render(self, width: int = 480, height: int = 360) -> np.ndarray:
+        renderer = self._renderer(width, height)
+        table = self.spec.scene.table
+        camera = mujoco.MjvCamera()
+        camera.lookat[:] = [table.center[0] - 0.15, table.center[1], table.top_z + 0.1]
+        camera.distance, camera.azimuth, camera.elevation = 1.25, 230.0, -30.0
+        renderer.update_scene(self.data, camera)
+        return renderer.render().copy()
+
+    def capture(self, camera: CameraSpec) -> CameraFrame:
+        renderer = self._renderer(camera.width, camera.height)
+        options = mujoco.MjvOption()
+        options.geomgroup[3] = 0  # the goal marker is for people watching: the policy's camera must not see it
+        renderer.update_scene(self.data, CAMERA, options)
+        rgb = renderer.render().copy()
+        renderer.enable_depth_rendering()
+        renderer.update_scene(self.data, CAMERA, options)
+        depth = renderer.render().astype(np.float32)
+        renderer.disable_depth_rendering()
+        return CameraFrame(rgb, depth)
+
+    def close(self) -> None:
+        self._rollout.close()
+        for renderer in self._renderers.values():
+            renderer.close()
+        self._renderers.clear()

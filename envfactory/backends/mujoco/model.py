@@ -1,0 +1,164 @@
+"""The MuJoCo model of a spec: the same assembled URDF PyBullet loads, converted by MuJoCo's URDF import,
+placed at the robot's mount inside the scene the safety check guards, with the task's objects, a goal
+marker and the scene camera. Nothing is written per robot: every number comes from the specs.
+
+Choices where MuJoCo and PyBullet differ, each a setting of the model built here:
+- mimic joints are equality constraints from the robot YAML's `gripper.mimic` (the URDF's own mimic tags,
+  which the import also turns into constraints, are dropped so that one source decides);
+- the arm's bodies are gravity-compensated, as UR's controller and xs_sdk compensate the arm's weight, so
+  the position servos track the commanded profile instead of sagging under load;
+- the robot does not collide with itself (the safety check keeps its links apart; the gripper's linkage
+  overlaps by design, as in PyBullet), only with the scene and the objects;
+- friction: elliptic cones with impratio 10, so a grasped cube does not creep out of the pads.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+
+from envfactory.geometry.frames import base_rotation
+from envfactory.geometry.obstacles import scene_obstacles
+from envfactory.schema.models import CameraSpec, EnvSpec
+
+ROBOT_PREFIX = "robot/"
+# contype/conaffinity bits: robot geoms touch the scene and objects, never each other
+ROBOT_TYPE, ROBOT_AFFINITY = 2, 1
+WORLD_TYPE, WORLD_AFFINITY = 1, 3
+SERVO_STIFFNESS_ERROR = 0.01  # rad (or m): the position error at which a servo pushes its full effort
+# Reflected rotor inertia of a joint's drive, in proportion to its effort (a stronger joint has a bigger motor
+# behind a gearbox); it is what keeps a stiff servo on a light link stable at the engine's timestep.
+ARMATURE_PER_EFFORT = 1e-3  # kg m^2 per N m (kg per N on a slide)
+MARKER_RGBA = (0.1, 0.8, 0.2, 0.6)
+CAMERA = "scene_camera"
+
+
+@dataclass(frozen=True)
+class Handles:
+    """Where each thing the backend reads or drives sits in the compiled model."""
+
+    arm_qpos: np.ndarray
+    arm_dof: np.ndarray
+    arm_actuators: np.ndarray
+    state_qpos: np.ndarray  # the /joint_states entries, in order
+    state_dof: np.ndarray
+    gripper_qpos: int | None
+    gripper_actuator: int | None
+    followers: tuple[tuple[int, float], ...]  # (qpos address, gain) of each mimic follower
+    object_qpos: dict[str, int]  # freejoint qpos address of each object
+    object_body: dict[str, int]
+    marker_mocap: int
+
+
+def _wxyz(rotation: np.ndarray) -> list[float]:
+    x, y, z, w = pin.Quaternion(rotation).coeffs()
+    return [float(w), float(x), float(y), float(z)]
+
+
+def _friction_condim(lateral: float, spinning: float, rolling: float) -> int:
+    return 6 if rolling > 0 else 4 if spinning > 0 else 3
+
+
+def _camera_axes(camera: CameraSpec) -> list[float]:
+    """MuJoCo's xyaxes of a camera at `eye` looking at `target` with z up in the image."""
+    forward = np.subtract(camera.target, camera.eye)
+    forward /= np.linalg.norm(forward)
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    return [*right, *up]
+
+
+def build(spec: EnvSpec, urdf_path: Path) -> tuple[mujoco.MjModel, Handles]:
+    robot_spec = spec.robot
+    world = mujoco.MjSpec()
+    world.option.timestep = 1.0 / spec.sim.mujoco.physics_hz
+    world.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    world.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+    world.option.impratio = 10.0
+    world.option.iterations = spec.sim.mujoco.solver_iterations
+    for obstacle in scene_obstacles(spec):
+        world.worldbody.add_geom(name=f"obstacle:{obstacle.name}", type=mujoco.mjtGeom.mjGEOM_BOX,
+                                 size=list(obstacle.half_extents), pos=list(obstacle.center),
+                                 rgba=list(obstacle.rgba), contype=WORLD_TYPE, conaffinity=WORLD_AFFINITY)
+
+    robot = mujoco.MjSpec.from_file(str(urdf_path))
+    for equality in list(robot.equalities):
+        robot.delete(equality)
+    mount = world.worldbody.add_body(name="robot_mount", pos=list(robot_spec.mount),
+                                     quat=_wxyz(base_rotation(robot_spec)))
+    world.attach(robot, frame=mount.add_frame(), prefix=ROBOT_PREFIX)
+    pads = set(robot_spec.gripper.pads.links) if robot_spec.gripper is not None else set()
+    for body in mount.find_all(mujoco.mjtObj.mjOBJ_BODY):
+        body.gravcomp = 1.0
+        for geom in body.geoms:
+            geom.contype, geom.conaffinity = ROBOT_TYPE, ROBOT_AFFINITY
+            if body.name.removeprefix(ROBOT_PREFIX) in pads:
+                contact = robot_spec.gripper.pads
+                geom.friction = [contact.lateral_friction, contact.spinning_friction, contact.rolling_friction]
+                geom.condim = _friction_condim(contact.lateral_friction, contact.spinning_friction,
+                                               contact.rolling_friction)
+
+    for joint, effort in zip(robot_spec.arm_joints, robot_spec.arm_efforts):
+        _servo(world, joint.name, effort)
+    gripper = robot_spec.gripper
+    if gripper is not None:
+        _servo(world, gripper.joint, gripper.force)
+        for follower, gain in gripper.mimic.items():
+            world.add_equality(type=mujoco.mjtEq.mjEQ_JOINT, name1=ROBOT_PREFIX + follower,
+                               name2=ROBOT_PREFIX + gripper.joint, data=[0.0, gain] + [0.0] * 10)
+
+    for index, (name, obj) in enumerate(spec.task.objects.items()):
+        body = world.worldbody.add_body(name=f"object:{name}", pos=[0.0, 0.0, -10.0 - index])
+        body.add_freejoint(name=f"object:{name}")
+        body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[obj.size / 2] * 3, mass=obj.mass, rgba=list(obj.rgba),
+                      friction=[obj.friction, obj.spinning_friction, obj.rolling_friction],
+                      condim=_friction_condim(obj.friction, obj.spinning_friction, obj.rolling_friction),
+                      contype=WORLD_TYPE, conaffinity=WORLD_AFFINITY)
+    marker = world.worldbody.add_body(name="goal_marker", mocap=True, pos=[0.0, 0.0, -10.0])
+    marker.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.025, 0, 0], rgba=list(MARKER_RGBA), contype=0,
+                    conaffinity=0, group=3)
+    camera = spec.scene.camera
+    if camera is not None:
+        world.worldbody.add_camera(name=CAMERA, pos=list(camera.eye), fovy=camera.fov)
+        world.cameras[-1].alt.type = mujoco.mjtOrientation.mjORIENTATION_XYAXES
+        world.cameras[-1].alt.xyaxes = _camera_axes(camera)
+    model = world.compile()
+    return model, _handles(model, spec)
+
+
+def _servo(world: mujoco.MjSpec, joint: str, effort: float) -> None:
+    """A position servo on a joint: full effort at SERVO_STIFFNESS_ERROR, critically damped."""
+    actuator = world.add_actuator(name=f"servo:{joint}", target=ROBOT_PREFIX + joint,
+                                  trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    actuator.set_to_position(kp=effort / SERVO_STIFFNESS_ERROR, dampratio=1.0)
+    actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+    actuator.forcerange = [-effort, effort]
+    world.joint(ROBOT_PREFIX + joint).armature = effort * ARMATURE_PER_EFFORT
+
+
+def _handles(model: mujoco.MjModel, spec: EnvSpec) -> Handles:
+    robot = spec.robot
+
+    def joint(name: str):
+        return model.joint(ROBOT_PREFIX + name)
+
+    gripper = robot.gripper
+    return Handles(
+        arm_qpos=np.array([joint(j.name).qposadr[0] for j in robot.arm_joints]),
+        arm_dof=np.array([joint(j.name).dofadr[0] for j in robot.arm_joints]),
+        arm_actuators=np.array([model.actuator(f"servo:{j.name}").id for j in robot.arm_joints]),
+        state_qpos=np.array([joint(e.urdf_joint).qposadr[0] for e in robot.joint_states]),
+        state_dof=np.array([joint(e.urdf_joint).dofadr[0] for e in robot.joint_states]),
+        gripper_qpos=None if gripper is None else int(joint(gripper.joint).qposadr[0]),
+        gripper_actuator=None if gripper is None else model.actuator(f"servo:{gripper.joint}").id,
+        followers=() if gripper is None else tuple((int(joint(name).qposadr[0]), gain)
+                                                   for name, gain in gripper.mimic.items()),
+        object_qpos={name: int(model.joint(f"object:{name}").qposadr[0]) for name in spec.task.objects},
+        object_body={name: model.body(f"object:{name}").id for name in spec.task.objects},
+        marker_mocap=int(model.body("goal_marker").mocapid[0]),
+    )
