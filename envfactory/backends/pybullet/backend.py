@@ -210,17 +210,20 @@ class PyBulletBackend:
             self._sim_time = 0.0
 
     def command_joints(self, q_arm_target, duration: float) -> None:
-        # The motors move at the speed that lands every joint on its target
-        # after `duration`, which interpolates the motion without per-substep calls.
+        # The motors move at the speeds that land every joint on its target at the same time: after
+        # `duration`, or later when a joint's speed limit needs longer (then every joint slows in proportion),
+        # so the arm moves along the straight joint-space line the safety check proved, as UR's trajectory
+        # controller and xs_sdk move it. It interpolates the motion without per-substep calls.
         # One call per joint: setJointMotorControlArray takes no speed limit, and
         # setJointMotorControlMultiDofArray's maxVelocities do not reach 1-DoF motors
         # (measured: the arm then moves at its full speed).
         c = self.client
         with self._lock:
-            current = [s[0] for s in p.getJointStates(self.body, self._arm, physicsClientId=c)]
-            for joint, target, now, effort, fastest in zip(self._arm, q_arm_target, current, self._efforts,
-                                                           self._velocities):
-                speed = min(max(abs(target - now) / duration, 1e-3), fastest)
+            current = np.array([s[0] for s in p.getJointStates(self.body, self._arm, physicsClientId=c)])
+            travel = np.abs(np.asarray(q_arm_target, float) - current)
+            length = max(duration, float(np.max(travel / np.asarray(self._velocities, float))))
+            for joint, target, distance, effort in zip(self._arm, q_arm_target, travel, self._efforts):
+                speed = max(distance / length, 1e-3)
                 p.setJointMotorControl2(self.body, joint, p.POSITION_CONTROL, targetPosition=float(target),
                                         force=effort, maxVelocity=speed, positionGain=self._position_gain,
                                         physicsClientId=c)
