@@ -116,3 +116,58 @@ def test_a_scene_at_rest_costs_no_substeps_and_ends_where_full_dynamics_does():
     assert skipped == 7 and reference_skipped == 0  # the first cycle after a reset settles the scene
     assert np.max(np.abs(joints - reference_joints)) < 1e-4
     assert np.linalg.norm(cube - reference_cube) < 5e-5
+
+
+def _moving_robot_geoms(model) -> list[int]:
+    moving = np.zeros(model.nbody, dtype=bool)
+    for body in range(1, model.nbody):  # parents come before children
+        moving[body] = model.body_jntnum[body] > 0 or moving[model.body_parentid[body]]
+    return [g for g in range(model.ngeom) if model.body(model.geom_bodyid[g]).name.startswith("robot/")
+            and moving[model.geom_bodyid[g]]]
+
+
+def _closest_approach(env_id: str, seed: int, steps: int, saturated: bool = False) -> tuple[float, int]:
+    """The smallest distance MuJoCo measures between a moving robot geom and a scene obstacle, over every
+    substep of every accepted step (MuJoCo's own distance queries judge, not the safety check's coal), and
+    how many steps were accepted. Random actions, or `saturated`: every row on a bound, held for a few steps,
+    as a saturated policy drives the arm into the table's edge and its own links."""
+    import mujoco
+
+    env = gym.make(env_id, engine="mujoco")
+    unwrapped = env.unwrapped
+    model, backend = unwrapped.backend.model, unwrapped.backend
+    scratch = mujoco.MjData(model)
+    robot = _moving_robot_geoms(model)
+    obstacles = [g for g in range(model.ngeom) if (model.geom(g).name or "").startswith("obstacle:")]
+    nq = model.nq
+    rng = np.random.default_rng(seed)
+    closest, accepted = np.inf, 0
+    try:
+        env.reset(seed=seed)
+        for _ in range(steps):
+            if not saturated:
+                action = rng.uniform(env.action_space.low, env.action_space.high).astype(np.float32)
+            elif _ % 4 == 0:
+                action = np.where(rng.random(env.action_space.shape) < 0.5, env.action_space.low,
+                                  env.action_space.high).astype(np.float32)
+            if env.step(action)[4]["action_rejected"]:
+                continue
+            accepted += 1
+            for row in backend._states[0][::4]:
+                scratch.qpos[:] = row[1:1 + nq]
+                mujoco.mj_kinematics(model, scratch)
+                for geom in robot:
+                    for obstacle in obstacles:
+                        closest = min(closest, mujoco.mj_geomDistance(model, scratch, geom, obstacle, 0.1, None))
+    finally:
+        env.close()
+    return closest, accepted
+
+
+@pytest.mark.parametrize("saturated", [False, True], ids=["random", "saturated"])
+@pytest.mark.parametrize("env_id", ["UR5ePnPSim-v0", "VX300SPushSim-v0", "NED2ReacherSim-v0"])
+def test_no_accepted_step_brings_the_simulated_arm_within_the_margin(env_id, saturated):
+    closest, accepted = _closest_approach(env_id, seed=2, steps=40, saturated=saturated)
+    margin = envfactory.blueprint(env_id).spec.env.safety.surface_margin
+    assert accepted >= 10
+    assert closest >= margin - 1e-3, (closest, margin)
