@@ -2,7 +2,7 @@
 
     pip install -e '.[bench]'
     nice -n 15 python benchmarks/versus_panda_gym.py [--rounds 5] [--steps 1000] [--policy random|scripted|both]
-        [--ids ID ...] [-k name=value ...] [--markdown]
+        [--ids ID ...] [--engines pybullet mujoco] [-k name=value ...] [--markdown]
     nice -n 15 python benchmarks/versus_panda_gym.py --vector 2 [--rounds 3] [--steps 300]
 
 Every (env, round) runs in a fresh process; the rounds interleave the envs
@@ -18,6 +18,10 @@ seconds per wall second, reset / gym.make / import times and the process's
 peak memory. Random actions are action_space.sample() at full scale; the
 scripted experts are envfactory's own and, for panda-gym, a proportional
 controller of the same stages (reach; push from behind; pick and place).
+With --engines, each envfactory ID runs on each engine named (a row per
+engine); physics time is MuJoCo's rollout call there. "touching %" is the
+share of steps that end with the robot within 2 mm of the cube (each engine's
+own distance query, outside the timed step): how much of the run is contact.
 """
 
 from __future__ import annotations
@@ -66,6 +70,20 @@ class PhysicsClock:
             return result
 
         pybullet.stepSimulation = timed
+        try:  # the MuJoCo engine plays a cycle's substeps in one rollout call
+            from mujoco import rollout
+        except ImportError:
+            return
+        original_rollout = rollout.Rollout.rollout
+
+        def timed_rollout(instance, *args, **kwargs):
+            start = clock()
+            result = original_rollout(instance, *args, **kwargs)
+            self.seconds += clock() - start
+            self.calls += kwargs.get("nstep") or 1
+            return result
+
+        rollout.Rollout.rollout = timed_rollout
 
     def read(self) -> tuple[float, int]:
         return self.seconds, self.calls
@@ -124,6 +142,31 @@ class PandaExpert:
         return self._towards(ee, goal, -1.0)
 
 
+def _touching(env, env_id: str):
+    """A function telling whether the robot ends a step within 2 mm of the cube, or None without a cube."""
+    unwrapped = env.unwrapped
+    if env_id.startswith("Panda"):
+        if "Reach" in env_id:
+            return None
+        sim = unwrapped.sim
+        robot, cube = sim._bodies_idx["panda"], sim._bodies_idx["object"]
+        return lambda: bool(sim.physics_client.getClosestPoints(robot, cube, 0.002))
+    backend = unwrapped.backend
+    if "cube" not in unwrapped.blueprint.spec.task.objects:
+        return None
+    if hasattr(backend, "client"):
+        import pybullet
+
+        return lambda: bool(pybullet.getClosestPoints(backend.body, backend.objects["cube"], 0.002,
+                                                      physicsClientId=backend.client))
+    import mujoco
+
+    model, data = backend.model, backend.data
+    cube = next(g for g in range(model.ngeom) if model.geom_bodyid[g] == backend.handles.object_body["cube"])
+    robot = [g for g in range(model.ngeom) if model.body(model.geom_bodyid[g]).name.startswith("robot/")]
+    return lambda: any(mujoco.mj_geomDistance(model, data, g, cube, 0.002, None) <= 0.002 for g in robot)
+
+
 def _policy(env, env_id: str, kind: str, seed: int):
     if kind == "random":
         env.action_space.seed(seed)
@@ -167,13 +210,18 @@ def work(env_id: str, steps: int, policy: str, seed: int, kwargs: dict) -> dict:
     act, restart = _policy(env, env_id, policy, seed)
     observation, _ = env.reset(seed=seed)
     restart()
-    stepping, episodes, successes = 0.0, 0, 0
+    stepping, episodes, successes, touching = 0.0, 0, 0, 0
+    touches = _touching(env, env_id)
     physics_before, calls_before = clock.read()
     for _ in range(steps):
         action = act(observation)
         t = time.perf_counter()
         observation, _, terminated, truncated, info = env.step(action)
         stepping += time.perf_counter() - t
+        if touches is not None:
+            physics_pause = clock.read()
+            touching += touches()
+            clock.seconds, clock.calls = physics_pause  # a distance query is no physics step
         if terminated or truncated:
             episodes += 1
             successes += bool(info.get("is_success", False))
@@ -200,6 +248,7 @@ def work(env_id: str, steps: int, policy: str, seed: int, kwargs: dict) -> dict:
         "import_s": import_s,
         "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
         "episodes": episodes, "successes": successes, "played": played,
+        "touching": None if touches is None else 100.0 * touching / steps,
     }
 
 
@@ -228,14 +277,18 @@ def work_vector(env_id: str, steps: int, num_envs: int, seed: int) -> dict:
 
 # ---------------------------------------------------------------- orchestration
 
-def run_one(env_id: str, steps: int, policy: str, seed: int, kwargs: list[str], vector: int = 0) -> dict:
+def run_one(label: str, steps: int, policy: str, seed: int, kwargs: list[str], vector: int = 0) -> dict:
+    """One env in a fresh process; `label` is an ID, or an ID and an engine as 'ID [engine]'."""
+    env_id, _, engine = label.partition(" [")
+    if engine:
+        kwargs = [*kwargs, f"engine={engine.rstrip(']')}"]
     command = [sys.executable, os.path.abspath(__file__), "--worker", env_id, "--steps", str(steps),
                "--policy", policy, "--seed", str(seed), "--vector-worker", str(vector),
                *[a for k in kwargs for a in ("-k", k)]]
     done = subprocess.run(command, capture_output=True, text=True)
     for line in done.stdout.splitlines():
         if line.startswith(RESULT):
-            return json.loads(line[len(RESULT):])
+            return {**json.loads(line[len(RESULT):]), "id": label}
     raise RuntimeError(f"{env_id} ({policy}) failed:\n{done.stderr[-3000:]}")
 
 
@@ -253,7 +306,7 @@ COLUMNS = [("steps/s", "steps_per_s", "{:,.0f}"), ("÷ panda-gym", "ratio", "{:.
            ("µs outside physics", "outside_us", "{:,.0f}"), ("physics µs/step", "physics_us", "{:,.0f}"),
            ("substeps/step", "substeps", "{:.1f}"), ("sim s / wall s", "sim_s_per_wall_s", "{:,.0f}"),
            ("reset ms", "reset_ms", "{:.2f}"), ("make s", "make_s", "{:.2f}"), ("import s", "import_s", "{:.2f}"),
-           ("peak MB", "peak_mb", "{:.0f}"), ("success", "success", "{}"),
+           ("peak MB", "peak_mb", "{:.0f}"), ("success", "success", "{}"), ("touching %", "touching", "{:.0f}"),
            ("cycles kinematic/at rest/dynamic %", "played", "{}")]
 
 
@@ -320,6 +373,7 @@ def main() -> None:
     parser.add_argument("--policy", choices=["random", "scripted", "both"], default="random")
     parser.add_argument("--ids", nargs="*", help="envfactory IDs (default: every Sim ID); their panda-gym twins join")
     parser.add_argument("-k", "--kwarg", action="append", default=[], help="name=value for every envfactory env")
+    parser.add_argument("--engines", nargs="*", help="run each envfactory ID on each of these engines (a row each)")
     parser.add_argument("--markdown", action="store_true")
     parser.add_argument("--json", help="write every round's raw figures here")
     parser.add_argument("--worker", help=argparse.SUPPRESS)
@@ -338,6 +392,8 @@ def main() -> None:
         return
 
     mine = args.ids or ENVFACTORY_IDS
+    if args.engines:
+        mine = [f"{env_id} [{engine}]" for env_id in mine for engine in args.engines]
     # each panda-gym env runs between the envfactory envs of its task, so a busy spell of the
     # machine lands on a pair that is compared, not on one side of it
     ids = []

@@ -171,3 +171,28 @@ def test_no_accepted_step_brings_the_simulated_arm_within_the_margin(env_id, sat
     margin = envfactory.blueprint(env_id).spec.env.safety.surface_margin
     assert accepted >= 10
     assert closest >= margin - 1e-3, (closest, margin)
+
+
+def test_rendering_works_or_names_what_is_missing():
+    """Where an OpenGL context can be had, rgb_array and camera images render; where none can (this headless
+    machine), make and render say which MUJOCO_GL to set, and the process lives on (a retry inside MuJoCo's
+    GL setup would abort it)."""
+    env = gym.make("UR5eReacherSim-v0", engine="mujoco", render_mode="rgb_array")
+    try:
+        env.reset(seed=0)
+        try:
+            image = env.render()
+        except BackendError as exc:
+            assert "MUJOCO_GL" in str(exc)
+            with pytest.raises(BackendError, match="MUJOCO_GL"):
+                gym.make("UR5ePnPSim-v0", engine="mujoco", use_kinect=True)
+            with pytest.raises(BackendError, match="MUJOCO_GL"):
+                env.render()
+        else:
+            assert image.shape == (360, 480, 3) and image.dtype == np.uint8
+            camera_env = gym.make("UR5ePnPSim-v0", engine="mujoco", use_kinect=True)
+            observation, _ = camera_env.reset(seed=0)
+            assert camera_env.observation_space.contains(observation)
+            camera_env.close()
+    finally:
+        env.close()

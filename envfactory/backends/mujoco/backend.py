@@ -8,6 +8,8 @@ on the path the safety check proved. The servos follow that profile substep by s
 
 from __future__ import annotations
 
+import warnings
+
 import mujoco
 import numpy as np
 from mujoco import rollout
@@ -23,6 +25,7 @@ CONTROL = int(mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_QFRC_APPLIE
 # REST_GAP of its commanded target: over a 0.5 s cycle such a scene drifts less than 0.05 mm.
 REST_SPEED = 1e-4
 REST_GAP = 1e-6
+_render_failure: str | None = None  # why this process cannot render, once a try has shown it
 RENDER_HELP = ("MuJoCo renders through OpenGL: set MUJOCO_GL=egl (needs libEGL and a GPU driver) or "
                "MUJOCO_GL=osmesa (needs libOSMesa, e.g. Debian's libosmesa6) before the first import of mujoco")
 
@@ -92,6 +95,9 @@ class MujocoBackend:
         self._skip_rest = spec.sim.mujoco.skip_rest
         self.skipped_cycles = 0  # cycles the rest shortcut did not simulate
         self._settled = False
+        camera = spec.scene.camera
+        if spec.env.observation.camera_images and camera is not None:
+            self._renderer(camera.width, camera.height)  # images are part of every observation: fail at make
 
     # ---------------------------------------------------------------- protocol
 
@@ -211,12 +217,19 @@ class MujocoBackend:
         self.data.mocap_pos[self.handles.marker_mocap] = self.task_frame.to_world(position)
 
     def _renderer(self, width: int, height: int) -> mujoco.Renderer:
+        global _render_failure
         key = (width, height)
         if key not in self._renderers:
+            # a second try after a failed one aborts the whole process inside MuJoCo's GL setup: never retry
+            if _render_failure is not None:
+                raise BackendError(_render_failure)
             try:
-                self._renderers[key] = mujoco.Renderer(self.model, height, width)
+                with warnings.catch_warnings():  # GLFW's own complaints about the missing display
+                    warnings.simplefilter("ignore")
+                    self._renderers[key] = mujoco.Renderer(self.model, height, width)
             except Exception as exc:  # no OpenGL context of any kind on this machine
-                raise BackendError(f"MuJoCo cannot render here ({exc}): {RENDER_HELP}") from None
+                _render_failure = f"MuJoCo cannot render here ({exc}): {RENDER_HELP}"
+                raise BackendError(_render_failure) from None
         return self._renderers[key]
 
     def render(self, width: int = 480, height: int = 360) -> np.ndarray:
