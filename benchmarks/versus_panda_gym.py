@@ -164,7 +164,8 @@ def _touching(env, env_id: str):
     model, data = backend.model, backend.data
     cube = next(g for g in range(model.ngeom) if model.geom_bodyid[g] == backend.handles.object_body["cube"])
     robot = [g for g in range(model.ngeom) if model.body(model.geom_bodyid[g]).name.startswith("robot/")]
-    return lambda: any(mujoco.mj_geomDistance(model, data, g, cube, 0.002, None) <= 0.002 for g in robot)
+    # mj_geomDistance returns distmax itself for anything farther: ask up to 1 cm, count what is nearer than 2 mm
+    return lambda: any(mujoco.mj_geomDistance(model, data, g, cube, 0.01, None) < 0.002 for g in robot)
 
 
 def _policy(env, env_id: str, kind: str, seed: int):
