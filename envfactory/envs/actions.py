@@ -10,11 +10,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import pinocchio as pin
 
 from envfactory.compiler import ActionLayout
+from envfactory.geometry.frames import nearest_top_down
 from envfactory.geometry.kinematics import Kinematics
-from envfactory.schema.models import Workspace
+from envfactory.schema.models import RobotSpec, Workspace
 from envfactory.state import EnvState
+
+
+TURN_PER_STEP = 0.3  # rad: how far one EE-mode step turns the tool toward its declared orientation
 
 
 @dataclass(frozen=True)
@@ -27,8 +32,13 @@ class Command:
 
 
 class ActionAdapter:
-    def __init__(self, layout: ActionLayout, kinematics: Kinematics, workspace: Workspace, max_joint_delta: float):
+    def __init__(self, layout: ActionLayout, kinematics: Kinematics, workspace: Workspace, max_joint_delta: float,
+                 robot: RobotSpec):
         self.layout = layout
+        # EE mode keeps the tool pointing down (about as far round as it is) or as it is now
+        self.top_down = pin.rpy.rpyToMatrix(*robot.top_down_rpy) if robot.ee_mode_orientation == "top_down" \
+            else None
+        self.closing_axis = "xyz".index(robot.gripper.closing_axis) if robot.gripper is not None else 1
         self.max_joint_delta = max_joint_delta
         self.kinematics = kinematics
         self.low, self.high = layout.low, layout.high
@@ -76,15 +86,35 @@ class ActionAdapter:
         out_of_bounds |= bool(np.any(bounded != target))
         return Command(bounded, gripper, out_of_bounds)
 
+    def _oriented_ik(self, state: EnvState, position: np.ndarray):
+        """IK for the position with the tool as EE mode keeps it: as it is, or turned toward pointing down by at
+        most TURN_PER_STEP (halved while no solution is found), so that from a pose far from it (the home of an
+        arm that points its gripper forward) it turns over a few steps, each solve staying near the pose."""
+        current = state.ee_rotation
+        if self.top_down is None:
+            return self.kinematics.solve_ik(state.q_arm, position, target_rotation=current, gripper=state.gripper,
+                                            max_iterations=40)
+        turn = pin.log3(nearest_top_down(self.top_down, current, self.closing_axis) @ current.T)
+        angle = float(np.linalg.norm(turn))
+        for share in (1.0, 0.5, 0.25):
+            rotation = pin.exp3(turn * min(1.0, share * TURN_PER_STEP / max(angle, 1e-12))) @ current
+            solution = self.kinematics.solve_ik(state.q_arm, position, target_rotation=rotation,
+                                                gripper=state.gripper, max_iterations=40)
+            if solution.success or angle < 1e-6:
+                break
+        return solution
+
     def _ee_target(self, arm: np.ndarray, state: EnvState, gripper: float | None, out_of_bounds: bool) -> Command:
         target = state.ee_position + self.layout.delta_coeff * arm if self.layout.delta else arm
         bounded = np.clip(target, self.workspace_min, self.workspace_max)
         out_of_bounds |= bool(np.any(bounded != target))
-        # keep the wrist's current orientation so a position step does not spin it
-        solution = self.kinematics.solve_ik(
-            state.q_arm, bounded, target_rotation=state.ee_rotation, gripper=state.gripper, max_iterations=40
-        )
-        if not solution.success or np.max(np.abs(solution.q_arm - state.q_arm)) > self.max_joint_delta:
+        solution = self._oriented_ik(state, bounded)
+        step = np.max(np.abs(solution.q_arm - state.q_arm))
+        if solution.success and step > self.max_joint_delta and self.top_down is not None:
+            # a turn that costs more joint motion than a step allows goes the allowed part of the way
+            return Command(state.q_arm + (solution.q_arm - state.q_arm) * (self.max_joint_delta / step), gripper,
+                           out_of_bounds)
+        if not solution.success or step > self.max_joint_delta:
             # Holding the orientation can be out of reach near the workspace edge,
             # or cost a large wrist roll on a 6-DoF arm: then only the position counts.
             solution = self.kinematics.solve_ik(state.q_arm, bounded, gripper=state.gripper, max_iterations=60)

@@ -46,7 +46,8 @@ class RobotEnv(gym.Env):
         geometry = robot_geometry(spec, blueprint.asset_root)  # shared with every env of this robot
         self.safety = geometry.safety_check(spec.env.safety)  # this env's own: it measures and remembers
         self.kinematics = self.safety.kinematics
-        self.actions = ActionAdapter(blueprint.action, self.kinematics, spec.workspace, spec.env.safety.max_joint_delta)
+        self.actions = ActionAdapter(blueprint.action, self.kinematics, spec.workspace, spec.env.safety.max_joint_delta,
+                                     robot)
         self.object_guard = ObjectPressGuard(self.safety.collision, spec.task.objects, self.task_frame) \
             if spec.task.objects else None
         self.home = np.asarray(robot.home, float)

@@ -11,6 +11,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
+from envfactory.geometry.frames import nearest_top_down
+
 AXES = {"x": 0, "y": 1, "z": 2}
 
 
@@ -19,10 +21,6 @@ def shrink_into(vector: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.nda
     limit = np.where(vector >= 0, high, -low)
     ratio = np.max(np.abs(vector) / np.maximum(limit, 1e-9))
     return vector / ratio if ratio > 1.0 else vector
-
-
-def yaw_rotation(angle: float) -> np.ndarray:
-    return pin.rpy.rpyToMatrix(0.0, 0.0, angle)
 
 
 class ArmMotion:
@@ -53,21 +51,7 @@ class ArmMotion:
         little as possible from the current orientation; None if the robot declares no top-down pose."""
         if self.down is None:
             return None
-        wanted, current = yaw - self._base_yaw(), self._current_yaw()
-        wanted = current + (wanted - current + period / 2) % period - period / 2
-        return yaw_rotation(wanted) @ self.down
-
-    def _base_yaw(self) -> float:
-        axis = self.down[:2, self.closing_axis]
-        return float(np.arctan2(axis[1], axis[0]))
-
-    def _current_yaw(self) -> float:
-        """How far the closing axis, seen from above, is turned from the top-down orientation's.
-        Read from the axis itself, so it means the same whether or not the gripper points down yet."""
-        axis = self.env.state.ee_rotation[:2, self.closing_axis]
-        if np.linalg.norm(axis) < 1e-6:
-            return 0.0
-        return float(np.arctan2(axis[1], axis[0])) - self._base_yaw()
+        return nearest_top_down(self.down, self.env.state.ee_rotation, self.closing_axis, yaw, period)
 
     # ------------------------------------------------------------ actions
 

@@ -80,3 +80,17 @@ class TaskFrame:
         corners = [[table.center[0] + sx * half[0], table.center[1] + sy * half[1], table.top_z]
                    for sx in (-1, 1) for sy in (-1, 1)]
         return np.array([self.to_task(c)[:2] for c in corners])
+
+
+def nearest_top_down(down: np.ndarray, current: np.ndarray, closing_axis: int, yaw: float | None = None,
+                     period: float = np.pi) -> np.ndarray:
+    """The top-down orientation (`down` turned about the vertical) whose finger-closing axis, seen from above,
+    lies at `yaw` modulo `period` (the fingers are symmetric: a half turn grips alike; a box's faces: a
+    quarter turn), turned as little as possible from `current`; with no `yaw`, where `current` has it now.
+    Read from the closing axis itself, so it means the same whether or not the gripper points down yet."""
+    base = float(np.arctan2(down[1, closing_axis], down[0, closing_axis]))
+    axis = current[:2, closing_axis]
+    now = float(np.arctan2(axis[1], axis[0])) - base if np.linalg.norm(axis) > 1e-6 else 0.0
+    wanted = now if yaw is None else yaw - base
+    wanted = now + (wanted - now + period / 2) % period - period / 2
+    return pin.rpy.rpyToMatrix(0.0, 0.0, wanted) @ down

@@ -190,6 +190,10 @@ class RobotSpec(Model):
     ee_frame: str
     ee_bounds: tuple[Position, Position]  # EE position bounds in the task frame (obs and absolute EE actions)
     top_down_rpy: Rpy | None = None  # task-frame EE orientation that points the gripper straight down
+    # The tool orientation EE mode keeps while it moves the EE: "held", the orientation the arm has (the
+    # reference pages' EE mode), or "top_down", the gripper turned straight down (top_down_rpy) about as far
+    # round as it is now: what manipulation needs of an arm whose home points the gripper forward.
+    ee_mode_orientation: Literal["held", "top_down"] = "held"
     joint_states: list[JointStateEntry] = Field(min_length=1)
     joint_states_topic: str
     gripper: GripperSpec | None = None
@@ -231,6 +235,9 @@ class RobotSpec(Model):
 
     @model_validator(mode="after")
     def _consistent(self) -> "RobotSpec":
+        if self.ee_mode_orientation == "top_down" and self.top_down_rpy is None:
+            raise located("ee_mode_orientation", "'top_down' needs top_down_rpy: the orientation that points "
+                                                 "the gripper straight down")
         tilted = bool(self.mount_rpy[0] or self.mount_rpy[1])
         if tilted and self.task_frame == "base":
             raise located("mount_rpy", f"a base tilted by roll/pitch {list(self.mount_rpy[:2])} needs 'task_frame: "
