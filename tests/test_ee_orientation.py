@@ -40,7 +40,9 @@ def test_ee_mode_turns_the_gripper_down_and_keeps_it_down(env_id):
         tilts = []
         for step in range(30):
             wanted = over_cube + (rng.uniform(-0.03, 0.03, 3) if step >= 15 else 0.0) - unwrapped.state.ee_position
-            action = np.clip(wanted / coefficient, env.action_space.low, env.action_space.high).astype(np.float32)
+            action = unwrapped.actions.hold_action(unwrapped.state)  # the gripper row, where there is one, holds
+            action[:3] = wanted / coefficient
+            action = np.clip(action, env.action_space.low, env.action_space.high).astype(np.float32)
             assert not env.step(action)[4]["action_rejected"]
             if step >= 15:
                 tilts.append(_tool_axis_tilt(env))
