@@ -1,7 +1,10 @@
 """The scripted experts on both engines: success over seeds 0..N-1 (the episode runner: an episode counts
 when the goal is reached at some step) and env.step throughput, per Push and PnP Sim ID.
 
-    python benchmarks/engines.py [--episodes 10] [--engines pybullet mujoco] [--ids ID ...] [--markdown]
+    python benchmarks/engines.py [--episodes 10] [--engines pybullet mujoco] [--ids ID ...] [-k name=value ...]
+        [--markdown]
+
+`-k ee_action_type=true` measures the experts in EE mode.
 """
 
 from __future__ import annotations
@@ -10,14 +13,15 @@ import argparse
 import time
 
 import gymnasium as gym
+import yaml
 
 from envfactory import registry
 from envfactory.episodes import run_episodes
 from envfactory.experts import make_policy
 
 
-def measure(env_id: str, engine: str, episodes: int) -> tuple[int, float]:
-    env = gym.make(env_id, engine=engine)
+def measure(env_id: str, engine: str, episodes: int, kwargs: dict) -> tuple[int, float]:
+    env = gym.make(env_id, engine=engine, **kwargs)
     try:
         start = time.perf_counter()
         results = run_episodes(env, make_policy("scripted", env), episodes, 0)
@@ -34,15 +38,17 @@ def main() -> None:
     parser.add_argument("--ids", nargs="*", default=sorted(
         env_id for env_id, record in registry.records().items()
         if record.backend == "pybullet" and not record.goal_env and ("Push" in env_id or "PnP" in env_id)))
+    parser.add_argument("-k", "--kwarg", action="append", default=[], help="name=value for every env")
     parser.add_argument("--markdown", action="store_true")
     args = parser.parse_args()
+    kwargs = {name: yaml.safe_load(value) for name, _, value in (pair.partition("=") for pair in args.kwarg)}
     if args.markdown:
         print("| ID | " + " | ".join(f"{engine} success | {engine} steps/s" for engine in args.engines) + " |")
         print("|---|" + "---|---|" * len(args.engines))
     for env_id in args.ids:
         cells = []
         for engine in args.engines:
-            successes, rate = measure(env_id, engine, args.episodes)
+            successes, rate = measure(env_id, engine, args.episodes, kwargs)
             cells += [f"{successes}/{args.episodes}", f"{rate:.0f}"]
         print(f"| {env_id} | " + " | ".join(cells) + " |" if args.markdown else f"{env_id:20s} " + "  ".join(cells))
 
