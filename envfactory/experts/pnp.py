@@ -56,8 +56,11 @@ class PickPlaceExpert(Expert):
         above = np.append(cube[:2], cube[2] + p.clearance)
         grasp = np.append(cube[:2], cube[2] + p.grasp_height)
 
-        if self.phase in ("lift", "carry", "place") and np.linalg.norm(cube - ee - self.hold_offset) > 0.03:
-            self.phase = "release"  # the cube slipped out: open, rise and start again
+        # the cube slipped out when it is no longer as far from the EE as when it was grasped (a cube that only
+        # turns in the grip keeps that distance): open, rise and start again
+        held_at = np.linalg.norm(self.hold_offset)
+        if self.phase in ("lift", "carry", "place") and abs(np.linalg.norm(cube - ee) - held_at) > 0.03:
+            self.phase = "release"
         if self.phase == "release":
             if gripper.closure(state.gripper) < 0.1 and ee[2] > cube[2] + p.clearance - 0.02:
                 self.phase = "approach"
@@ -97,4 +100,6 @@ class PickPlaceExpert(Expert):
         if self.phase == "carry" and np.linalg.norm(ee[:2] - ee_goal[:2]) > 0.01:
             return motion.toward(np.append(ee_goal[:2], carry_z), state.ee_rotation, grip, p.step)
         self.phase = "place"
-        return motion.toward(ee_goal, state.ee_rotation, grip, p.step)
+        # closed on the cube itself: a cube that turns or slides in the grip moves its offset from the EE,
+        # and holding the EE where that offset once put the cube would let the cube drift off the goal
+        return motion.toward(ee + (goal - cube), state.ee_rotation, grip, p.step)
