@@ -168,6 +168,8 @@ def test_collect_writes_a_minari_dataset_that_loads_back(tmp_path, monkeypatch, 
             distance = np.linalg.norm(obs["achieved_goal"][1:] - obs["desired_goal"][1:], axis=1)
             assert np.array_equal(episode.rewards, np.where(distance < 0.02, 0.0, -1.0))
             assert episode.terminations[-1] and distance[-1] < 0.02  # the expert reaches every goal
+            # success per step, judged against the recorded goals (2 cm tolerance)
+            assert np.array_equal(episode.infos["is_success"][1:], distance < 0.02)
     finally:
         env.close()
 

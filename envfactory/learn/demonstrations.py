@@ -46,7 +46,7 @@ class EpisodeRecorder(gym.Wrapper):
     def reset(self, *, seed=None, options=None):
         observation, info = self.env.reset(seed=seed, options=options)
         self._current = {"seed": seed, "observations": [observation], "actions": [], "rewards": [],
-                         "terminations": [], "truncations": []}
+                         "terminations": [], "truncations": [], "successes": [bool(info["is_success"])]}
         return observation, info
 
     def step(self, action):
@@ -54,7 +54,7 @@ class EpisodeRecorder(gym.Wrapper):
         episode = self._current
         for key, value in (("observations", observation), ("actions", np.asarray(action, np.float32)),
                            ("rewards", float(reward)), ("terminations", bool(terminated)),
-                           ("truncations", bool(truncated))):
+                           ("truncations", bool(truncated)), ("successes", bool(info["is_success"]))):
             episode[key].append(value)
         if terminated or truncated:
             self.episodes.append(episode)
@@ -101,14 +101,18 @@ def collect(env_id: str, episodes: int, dataset_id: str | None = None, seed: int
                 on_episode(result)
         buffers = [EpisodeBuffer(id=index, seed=e["seed"], observations=_stacked(e["observations"]),
                                  actions=e["actions"], rewards=e["rewards"], terminations=e["terminations"],
-                                 truncations=e["truncations"], infos={})
+                                 truncations=e["truncations"],
+                                 # per step, so a learner can tell a demonstration that ends successful
+                                 infos={"is_success": np.array(e["successes"])})
                    for index, e in enumerate(env.episodes)]
         expert_name = env.unwrapped.blueprint.spec.task.expert.policy
         try:
             dataset = minari.create_dataset_from_buffers(
                 dataset_id, buffers, env=env.env.spec, algorithm_name=f"envfactory scripted expert ({expert_name})",
                 description=f"{len(buffers)} episodes of the scripted expert on {env_id} with kwargs "
-                            f"{env_kwargs or {}}, seeds {seed}..{seed + len(buffers) - 1}; {successes} reach the goal.",
+                            f"{env_kwargs or {}}, seeds {seed}..{seed + len(buffers) - 1}; {successes} reach the goal, "
+                            f"{sum(e['successes'][-1] for e in env.episodes)} end successful (infos['is_success'] "
+                            f"per step).",
                 data_format="hdf5")
         except BaseException:
             shutil.rmtree(folder, ignore_errors=True)  # no half-written dataset blocks the next try
