@@ -1,0 +1,85 @@
+"""Why random steps are refused: of the steps the safety check refuses, how many truly come within the margin
+(PyBullet's distance queries along the commanded motion: another engine's shapes, not the check's) and how
+many the proof only fails to clear; beside them the steps refused before the check (no IK solution, a
+joint step over max_joint_delta) and by the object press guard. Per Sim ID and action mode.
+
+    python benchmarks/refusals.py [--steps 300] [--ids ID ...] [--modes joint ee] [--markdown]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections import Counter
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the independent judge is a test helper
+
+from bullet_oracle import BulletJudge  # noqa: E402
+from envfactory import registry  # noqa: E402
+
+# a refused motion sampled this finely by the judge (per straight joint-space segment)
+JUDGE_SAMPLES = 32
+
+
+def classify(env_id: str, ee: bool, steps: int, seed: int = 0) -> Counter:
+    env = gym.make(env_id, ee_action_type=ee)
+    unwrapped = env.unwrapped
+    margin = unwrapped.blueprint.spec.env.safety.surface_margin
+    judge = BulletJudge(unwrapped, margin)
+    counts: Counter = Counter()
+    rng = np.random.default_rng(seed)
+    try:
+        env.reset(seed=seed)
+        for step in range(steps):
+            if step % 25 == 0:
+                env.reset(seed=seed + step)
+            state = unwrapped.state
+            action = rng.uniform(env.action_space.low, env.action_space.high).astype(np.float32)
+            command = unwrapped.actions.translate(action, state)
+            counts["steps"] += 1
+            if command.rejection:
+                counts["before the check"] += 1
+            else:
+                verdict = unwrapped.safety.check(state.q_arm, command.q_arm, state.gripper, command.gripper)
+                unwrapped.safety.forget()  # judged alone: the env's own step below checks it again
+                if not verdict.accepted:
+                    gripper_to = state.gripper if command.gripper is None else command.gripper
+                    lowest, _ = judge.commanded(state.q_arm, command.q_arm, state.gripper, gripper_to,
+                                                samples=JUDGE_SAMPLES)
+                    counts["truly within" if lowest < margin else "not proven"] += 1
+            info = env.step(action)[4]
+            if info["action_rejected"] and not command.rejection and "object" in info["rejection_reason"]:
+                counts["object press"] += 1
+    finally:
+        judge.close()
+        env.close()
+    return counts
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=300)
+    parser.add_argument("--ids", nargs="*", default=sorted(
+        env_id for env_id, record in registry.records().items() if record.backend == "pybullet" and not record.goal_env))
+    parser.add_argument("--modes", nargs="*", default=["joint", "ee"])
+    parser.add_argument("--markdown", action="store_true")
+    args = parser.parse_args()
+    columns = ["before the check", "truly within", "not proven", "object press"]
+    if args.markdown:
+        print("| ID | mode | refused before the check | refused, truly within the margin | refused, not proven "
+              "| object press | steps |")
+        print("|---|---|---|---|---|---|---|")
+    for env_id in args.ids:
+        for mode in args.modes:
+            counts = classify(env_id, mode == "ee", args.steps)
+            shares = [f"{100 * counts[c] / counts['steps']:.1f}%" for c in columns]
+            print(f"| {env_id} | {mode} | " + " | ".join(shares) + f" | {counts['steps']} |" if args.markdown
+                  else f"{env_id:22s} {mode:5s} " + "  ".join(f"{c} {s}" for c, s in zip(columns, shares)))
+
+
+if __name__ == "__main__":
+    main()
