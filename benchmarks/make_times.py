@@ -1,0 +1,43 @@
+"""What gym.make costs: the import, the first make of an ID in a process and the second, each ID in a fresh
+process, `--runs` times.
+
+    python benchmarks/make_times.py [--runs 3] [--ids ID ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+
+WORKER = """
+import time
+start = time.perf_counter()
+import envfactory, gymnasium as gym
+imported = time.perf_counter()
+gym.make({env_id!r})
+first = time.perf_counter()
+gym.make({env_id!r})
+second = time.perf_counter()
+print(f"{{imported - start:.3f}} {{first - imported:.3f}} {{second - first:.3f}}")
+"""
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--ids", nargs="*", default=["UR5eReacherSim-v0", "UR5ePnPSim-v0", "VX300SPnPSim-v0",
+                                                      "RX200PnPSim-v0", "NED2PnPSim-v0"])
+    args = parser.parse_args()
+    print("| ID | import s | first make s | second make s | second ÷ first |")
+    print("|---|---|---|---|---|")
+    for env_id in args.ids:
+        for _ in range(args.runs):
+            done = subprocess.run([sys.executable, "-c", WORKER.format(env_id=env_id)], capture_output=True,
+                                  text=True, check=True)
+            imported, first, second = (float(v) for v in done.stdout.split()[-3:])
+            print(f"| {env_id} | {imported:.2f} | {first:.2f} | {second:.3f} | {second / first:.0%} |")
+
+
+if __name__ == "__main__":
+    main()
