@@ -154,7 +154,7 @@ def safety_table(compiled: Blueprint) -> Table:
     skipped = len(collision.ignored)
     table.caption = (f"{collision.pair_count} pairs measured ({len(collision.scene_shape)} link–obstacle, "
                      f"{len(collision.self_a)} link–link); {skipped} link pairs skipped as rigid, adjacent, "
-                     f"gripper mechanism or always touching")
+                     f"gripper mechanism or proven apart")
     objects = compiled.spec.task.objects
     if objects:
         guard = ObjectPressGuard(collision, objects, TaskFrame.of(compiled.spec.robot))

@@ -11,6 +11,7 @@ import struct
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+import coal
 import numpy as np
 import pinocchio as pin
 
@@ -56,17 +57,21 @@ def surface_points(corners: np.ndarray, spacing: float = 0.004) -> np.ndarray:
     return np.vstack(points)
 
 
-def link_mesh_points(urdf: Path, strip: str = "") -> dict[str, np.ndarray]:
-    """Each link's collision mesh surface in the link frame, by link name less `strip`."""
+def link_mesh_points(urdf: Path, strip: str = "", spacing: float = 0.004,
+                     links: set[str] | None = None) -> dict[str, np.ndarray]:
+    """Each link's collision mesh surface in the link frame (points at most `spacing` apart), by link name
+    less `strip`; only the named links, if given."""
     result = {}
     for link in ET.parse(urdf).getroot().findall("link"):
+        if links is not None and link.get("name").removeprefix(strip) not in links:
+            continue
         clouds = []
         for collision in link.findall("collision"):
             mesh = collision.find("geometry/mesh")
             if mesh is None:
                 continue
             scale = np.array([float(s) for s in (mesh.get("scale") or "1 1 1").split()])
-            points = surface_points(read_stl(urdf.parent / mesh.get("filename")) * scale)
+            points = surface_points(read_stl(urdf.parent / mesh.get("filename")) * scale, spacing)
             placement = _origin(collision)
             clouds.append(points @ placement.rotation.T + placement.translation)
         if clouds:
@@ -118,3 +123,56 @@ def configuration(model: pin.Model, values: dict[str, float]) -> np.ndarray:
         else:
             q[joint.idx_q] = value
     return q
+
+
+def link_triangles(urdf: Path, strip: str = "") -> dict[str, np.ndarray]:
+    """Each link's collision mesh as triangles (n, 3, 3) in the link frame, by link name less `strip`."""
+    result = {}
+    for link in ET.parse(urdf).getroot().findall("link"):
+        triangles = []
+        for collision in link.findall("collision"):
+            mesh = collision.find("geometry/mesh")
+            if mesh is None:
+                continue
+            scale = np.array([float(s) for s in (mesh.get("scale") or "1 1 1").split()])
+            corners = read_stl(urdf.parent / mesh.get("filename")) * scale
+            placement = _origin(collision)
+            triangles.append((corners @ placement.rotation.T + placement.translation).reshape(-1, 3, 3))
+        if triangles:
+            result[link.get("name").removeprefix(strip)] = np.concatenate(triangles)
+    return result
+
+
+class MakerMeshes:
+    """A maker's robot posed by forward kinematics of the maker's own URDF, its links' meshes measured as
+    meshes: coal's distance between triangle soups (not their convex hulls, which would close the Ned2's
+    open fork and the elbow's L), 0 where their triangles cross."""
+
+    def __init__(self, urdf: Path, strip: str = ""):
+        self.model = pin.buildModelFromUrdf(str(urdf))
+        self.data = self.model.createData()
+        self.frames = {frame.name.removeprefix(strip): index for index, frame in enumerate(self.model.frames)
+                       if frame.type == pin.BODY}
+        self.meshes = {}
+        for link, triangles in link_triangles(urdf, strip).items():
+            mesh = coal.BVHModelOBBRSS()
+            mesh.beginModel(len(triangles), 3 * len(triangles))
+            mesh.addVertices(triangles.reshape(-1, 3))
+            mesh.addTriangles(np.arange(3 * len(triangles)).reshape(-1, 3))
+            mesh.endModel()
+            self.meshes[link] = mesh
+
+    def pose(self, values: dict[str, float]) -> dict[str, coal.Transform3s]:
+        """Every meshed link's placement at these joint values (by name; the others at zero)."""
+        pin.framesForwardKinematics(self.model, self.data, configuration(self.model, values))
+        return {link: coal.Transform3s(self.data.oMf[self.frames[link]].rotation,
+                                       self.data.oMf[self.frames[link]].translation) for link in self.meshes}
+
+    def distance(self, placed: dict[str, coal.Transform3s], first: str, second: str) -> float:
+        """The gap between two posed links' meshes; 0 when they touch or cross."""
+        a, b = self.meshes[first], self.meshes[second]
+        crossing = coal.CollisionResult()
+        if coal.collide(a, placed[first], b, placed[second], coal.CollisionRequest(), crossing):
+            return 0.0
+        return max(coal.distance(a, placed[first], b, placed[second], coal.DistanceRequest(), coal.DistanceResult()),
+                   0.0)

@@ -2,8 +2,10 @@
 
 For every robot whose maker model is present: forward kinematics agree within 1 mm at random joint values,
 link masses and centres of mass agree, and each link's collision primitives contain the maker's mesh of that
-link (its whole surface, not only its vertices) with at most SLACK outside. Skipped with the reason where the
-models are absent: set ENVFACTORY_ROBOT_MODELS, or keep them at ../shared/robot-models beside the repository.
+link (its whole surface, not only its vertices) with at most SLACK outside, and none at all for the links
+whose pairs the generated list measures against margins of their own (down to contact). Skipped with the
+reason where the models are absent: set ENVFACTORY_ROBOT_MODELS, or keep them at ../shared/robot-models
+beside the repository.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ ROTATION_TOLERANCE = 0.001  # rad
 SLACK = 0.01  # m of a maker's mesh allowed outside our primitives
 MASS_TOLERANCE = 0.002  # kg: frame-only links carry 1 g where a maker gives none
 SAMPLES = 50
+DENSE = 0.001  # m between the points checked on each triangle where no slack is allowed
 
 
 def _our_robots() -> dict[str, Path]:
@@ -104,3 +107,30 @@ def test_collision_primitives_enclose_the_maker_meshes(name, ours, maker):
         outside = np.min([outside_distance(points, *shape) for shape in shapes], axis=0)
         report[link] = float(outside.max())
     assert max(report.values()) <= SLACK, f"{name}: mesh outside our primitives, m: {report}"
+
+
+def _links_with_own_margins(name: str) -> set[str]:
+    """The links whose pairs the robot's generated list measures against margins of their own."""
+    spec = yaml.safe_load((ROOT / "robots" / f"{name}.yaml").read_text())
+    pairs_file = (spec.get("safety") or {}).get("collision_pairs")
+    if pairs_file is None:
+        return set()
+    data = yaml.safe_load((ROOT / "robots" / pairs_file).read_text())
+    # shape names are the link's name and the shape's index: <link>_<n>
+    return {shape.rsplit("_", 1)[0] for entry in data.get("pair_margins", []) for shape in entry[:2]}
+
+
+@pytest.mark.parametrize("name, ours, maker", _pairs())
+def test_links_with_own_margins_enclose_the_maker_meshes_without_slack(name, ours, maker):
+    """A pair measured against a margin of its own, down to contact, has no room for a part of the real link
+    outside its shapes: those links' primitives must hold the maker's whole mesh, checked every millimetre
+    over each triangle."""
+    links = _links_with_own_margins(name)
+    if not links:
+        pytest.skip(f"{name}: no pair has a margin of its own")
+    meshes = link_mesh_points(maker, strip=f"{name}/", spacing=DENSE, links=links)
+    primitives = link_primitives(ours)
+    report = {link: float(np.min([outside_distance(points, *shape) for shape in primitives[link]], axis=0).max())
+              for link, points in meshes.items()}
+    assert set(report) == links, f"{name}: links with own margins and no mesh in the maker's model: {links - set(report)}"
+    assert max(report.values()) <= 1e-9, f"{name}: mesh outside our primitives, m: {report}"

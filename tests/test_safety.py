@@ -55,7 +55,13 @@ def _assert_judged(results, env_id, ee):
 @pytest.mark.parametrize("env_id", SIM_IDS)
 def test_accepted_steps_keep_the_margin_by_bullet(env_id, ee):
     """A few hundred steps per ID and mode: no accepted step comes within the margin, simulated or commanded."""
-    _assert_judged(_judge(env_id, ee, steps=50), env_id, ee)
+    _assert_judged(_judge(env_id, ee, steps=LONGER.get((env_id, ee), 50)), env_id, ee)
+
+
+# Where 50 steps of each adversary never meet the check: the Ned2 Push in EE mode keeps its gripper down and
+# clear, and its adversaries first reach the table after about 60 steps (its coarse old shapes refused
+# motions Niryo's meshes show 37 mm clear, which made 50 look enough)
+LONGER = {("NED2PushSim-v0", True): 100}
 
 
 @pytest.mark.slow

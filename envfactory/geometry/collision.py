@@ -26,6 +26,17 @@ from envfactory.geometry.kinematics import Kinematics
 from envfactory.geometry.obstacles import Obstacle
 
 
+class PairRules(dict):
+    """What a generated pair list says of the self pairs: shape-name pairs -> why they are skipped (the
+    mapping itself), and in `margins` shape-name pairs -> the smaller margin (m) each keeps instead of the
+    surface margin: pairs the robot's design holds inside the surface margin, measured against a margin of
+    their own rather than skipped."""
+
+    def __init__(self, skipped=(), margins=None):
+        super().__init__(skipped)
+        self.margins: dict[frozenset, float] = dict(margins or {})
+
+
 @dataclass(frozen=True)
 class Shape:
     """One collision shape of the robot, with the capsule and the box that enclose it (parent joint frame)."""
@@ -380,9 +391,11 @@ class CollisionModel:
         return len(self.geometry.collisionPairs) - 1
 
     def set_ignored_pairs(self, ignored: dict[frozenset, str]) -> None:
-        """Skip the self pairs a sampled allowed-collision list names (link-name pairs -> reason)."""
+        """Skip the self pairs a sampled allowed-collision list names (shape-name pairs -> reason); a
+        PairRules also gives measured pairs their own margins (`pair_margin`)."""
+        margins = getattr(ignored, "margins", {})
         self.ignored = {}
-        checked = []
+        checked, own = [], []
         for a, b, why in self.self_pairs:
             key = frozenset((self.shapes[a].name, self.shapes[b].name))
             why = why or ignored.get(key, "")
@@ -390,8 +403,11 @@ class CollisionModel:
                 self.ignored[key] = why
             else:
                 checked.append((a, b))
+                own.append(margins.get(key, np.nan))
         self.self_a = np.array([a for a, _ in checked], dtype=int)
         self.self_b = np.array([b for _, b in checked], dtype=int)
+        # per measured pair, the margin it keeps instead of the surface margin; NaN: the surface margin
+        self.pair_margin = np.concatenate([np.full(len(self.scene_shape), np.nan), np.array(own, float)])
         existing = {(p.first, p.second): k for k, p in enumerate(self.geometry.collisionPairs)}
         self._pin_pairs_self = np.array([existing.get((a, b)) if (a, b) in existing else self._add_pair(a, b)
                                          for a, b in checked], dtype=int)

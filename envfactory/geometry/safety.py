@@ -92,7 +92,12 @@ class SafetyCheck:
         self.kinematics = collision.kinematics
         self.settings = settings
         scene, own = len(collision.scene_shape), len(collision.self_a)
-        self.margin = settings.surface_margin + self.ROUNDING + self.SHAPE_TOLERANCE * np.repeat([1.0, 2.0], [scene, own])
+        tolerance = self.ROUNDING + self.SHAPE_TOLERANCE * np.repeat([1.0, 2.0], [scene, own])
+        # A self pair the robot's design holds inside the surface margin keeps the margin the generated pair
+        # list gives it instead (down to zero: contact): the surface margin would refuse the poses the arm is
+        # built to take, and skipping the pair would let a motion fold those links into each other.
+        # (fmin passes over NaN, which marks the pairs that keep the surface margin)
+        self.margin = np.fmin(collision.pair_margin, settings.surface_margin) + tolerance
         # the last accepted motion's end pose and the gripper range it was judged over
         self._last_end: tuple[Anchor, tuple[float, float]] | None = None
 
