@@ -2,7 +2,7 @@
 when the goal is reached at some step) and env.step throughput, per Push and PnP Sim ID.
 
     python benchmarks/engines.py [--episodes 10] [--engines pybullet mujoco] [--ids ID ...] [-k name=value ...]
-        [--markdown]
+        [-o OVERRIDE ...] [--markdown]
 
 `-k ee_action_type=true` measures the experts in EE mode.
 """
@@ -20,8 +20,8 @@ from envfactory.episodes import run_episodes
 from envfactory.experts import make_policy
 
 
-def measure(env_id: str, engine: str, episodes: int, kwargs: dict) -> tuple[int, float]:
-    env = gym.make(env_id, engine=engine, **kwargs)
+def measure(env_id: str, engine: str, episodes: int, kwargs: dict, overrides: list[str]) -> tuple[int, float]:
+    env = gym.make(env_id, engine=engine, overrides=overrides, **kwargs)
     try:
         start = time.perf_counter()
         results = run_episodes(env, make_policy("scripted", env), episodes, 0)
@@ -39,6 +39,7 @@ def main() -> None:
         env_id for env_id, record in registry.records().items()
         if record.backend == "pybullet" and not record.goal_env and ("Push" in env_id or "PnP" in env_id)))
     parser.add_argument("-k", "--kwarg", action="append", default=[], help="name=value for every env")
+    parser.add_argument("-o", "--override", action="append", default=[], help="a spec override for every env")
     parser.add_argument("--markdown", action="store_true")
     args = parser.parse_args()
     kwargs = {name: yaml.safe_load(value) for name, _, value in (pair.partition("=") for pair in args.kwarg)}
@@ -48,7 +49,7 @@ def main() -> None:
     for env_id in args.ids:
         cells = []
         for engine in args.engines:
-            successes, rate = measure(env_id, engine, args.episodes, kwargs)
+            successes, rate = measure(env_id, engine, args.episodes, kwargs, args.override)
             cells += [f"{successes}/{args.episodes}", f"{rate:.0f}"]
         print(f"| {env_id} | " + " | ".join(cells) + " |" if args.markdown else f"{env_id:20s} " + "  ".join(cells))
 

@@ -57,26 +57,32 @@ def surface_points(corners: np.ndarray, spacing: float = 0.004) -> np.ndarray:
     return np.vstack(points)
 
 
-def link_mesh_points(urdf: Path, strip: str = "", spacing: float = 0.004,
-                     links: set[str] | None = None) -> dict[str, np.ndarray]:
-    """Each link's collision mesh surface in the link frame (points at most `spacing` apart), by link name
-    less `strip`; only the named links, if given."""
-    result = {}
+def _link_meshes(urdf: Path, strip: str = "", links: set[str] | None = None):
+    """(link name less `strip`, [mesh triangle corners (3n, 3) in the link frame, one array per collision
+    mesh]) of every link with a collision mesh; only the named links, if given."""
     for link in ET.parse(urdf).getroot().findall("link"):
-        if links is not None and link.get("name").removeprefix(strip) not in links:
+        name = link.get("name").removeprefix(strip)
+        if links is not None and name not in links:
             continue
-        clouds = []
+        meshes = []
         for collision in link.findall("collision"):
             mesh = collision.find("geometry/mesh")
             if mesh is None:
                 continue
             scale = np.array([float(s) for s in (mesh.get("scale") or "1 1 1").split()])
-            points = surface_points(read_stl(urdf.parent / mesh.get("filename")) * scale, spacing)
             placement = _origin(collision)
-            clouds.append(points @ placement.rotation.T + placement.translation)
-        if clouds:
-            result[link.get("name").removeprefix(strip)] = np.vstack(clouds)
-    return result
+            corners = read_stl(urdf.parent / mesh.get("filename")) * scale
+            meshes.append(corners @ placement.rotation.T + placement.translation)
+        if meshes:
+            yield name, meshes
+
+
+def link_mesh_points(urdf: Path, strip: str = "", spacing: float = 0.004,
+                     links: set[str] | None = None) -> dict[str, np.ndarray]:
+    """Each link's collision mesh surface in the link frame (points at most `spacing` apart), by link name
+    less `strip`; only the named links, if given."""
+    return {name: np.vstack([surface_points(corners, spacing) for corners in meshes])
+            for name, meshes in _link_meshes(urdf, strip, links)}
 
 
 def link_primitives(urdf: Path) -> dict[str, list[tuple[str, pin.SE3, np.ndarray]]]:
@@ -127,20 +133,8 @@ def configuration(model: pin.Model, values: dict[str, float]) -> np.ndarray:
 
 def link_triangles(urdf: Path, strip: str = "") -> dict[str, np.ndarray]:
     """Each link's collision mesh as triangles (n, 3, 3) in the link frame, by link name less `strip`."""
-    result = {}
-    for link in ET.parse(urdf).getroot().findall("link"):
-        triangles = []
-        for collision in link.findall("collision"):
-            mesh = collision.find("geometry/mesh")
-            if mesh is None:
-                continue
-            scale = np.array([float(s) for s in (mesh.get("scale") or "1 1 1").split()])
-            corners = read_stl(urdf.parent / mesh.get("filename")) * scale
-            placement = _origin(collision)
-            triangles.append((corners @ placement.rotation.T + placement.translation).reshape(-1, 3, 3))
-        if triangles:
-            result[link.get("name").removeprefix(strip)] = np.concatenate(triangles)
-    return result
+    return {name: np.vstack([corners.reshape(-1, 3, 3) for corners in meshes])
+            for name, meshes in _link_meshes(urdf, strip)}
 
 
 class MakerMeshes:
