@@ -1,10 +1,11 @@
-"""The scripted experts on both engines: success over seeds 0..N-1 (the episode runner: an episode counts
-when the goal is reached at some step) and env.step throughput, per Push and PnP Sim ID.
+"""The scripted experts (or random actions) on both engines: success over seeds 0..N-1 (the episode runner: an
+episode counts when the goal is reached at some step) and env.step throughput, per Push and PnP Sim ID.
 
     python benchmarks/engines.py [--episodes 10] [--engines pybullet mujoco] [--ids ID ...] [-k name=value ...]
-        [-o OVERRIDE ...] [--markdown]
+        [-o OVERRIDE ...] [--policy scripted|random] [--markdown [PATH]]
 
-`-k ee_action_type=true` measures the experts in EE mode.
+`-k ee_action_type=true` measures the experts in EE mode. Steps/s counts whole episodes (up to the first
+success), the policy's own time included.
 """
 
 from __future__ import annotations
@@ -18,13 +19,15 @@ import yaml
 from envfactory import registry
 from envfactory.episodes import run_episodes
 from envfactory.experts import make_policy
+from report import Report, add_markdown_option
 
 
-def measure(env_id: str, engine: str, episodes: int, kwargs: dict, overrides: list[str]) -> tuple[int, float]:
+def measure(env_id: str, engine: str, episodes: int, kwargs: dict, overrides: list[str],
+            policy: str = "scripted") -> tuple[int, float]:
     env = gym.make(env_id, engine=engine, overrides=overrides, **kwargs)
     try:
         start = time.perf_counter()
-        results = run_episodes(env, make_policy("scripted", env), episodes, 0)
+        results = run_episodes(env, make_policy(policy, env, seed=0), episodes, 0)
         seconds = time.perf_counter() - start
     finally:
         env.close()
@@ -40,18 +43,22 @@ def main() -> None:
         if record.backend == "pybullet" and not record.goal_env and ("Push" in env_id or "PnP" in env_id)))
     parser.add_argument("-k", "--kwarg", action="append", default=[], help="name=value for every env")
     parser.add_argument("-o", "--override", action="append", default=[], help="a spec override for every env")
-    parser.add_argument("--markdown", action="store_true")
+    parser.add_argument("--policy", choices=["scripted", "random"], default="scripted",
+                        help="the task's scripted expert, or random actions (seeded 0)")
+    add_markdown_option(parser)
     args = parser.parse_args()
+    report = Report.start(parser, args, __doc__)
     kwargs = {name: yaml.safe_load(value) for name, _, value in (pair.partition("=") for pair in args.kwarg)}
-    if args.markdown:
-        print("| ID | " + " | ".join(f"{engine} success | {engine} steps/s" for engine in args.engines) + " |")
-        print("|---|" + "---|---|" * len(args.engines))
+    settings = ", ".join([*(f"{k}={v!r}" for k, v in kwargs.items()), *args.override]) or "no kwargs"
+    table = report.table(["ID"] + [f"{engine} {what}" for engine in args.engines for what in ("success", "steps/s")],
+                         title=f"{args.policy} policy, seeds 0–{args.episodes - 1}, {settings}")
     for env_id in args.ids:
         cells = []
         for engine in args.engines:
-            successes, rate = measure(env_id, engine, args.episodes, kwargs, args.override)
+            successes, rate = measure(env_id, engine, args.episodes, kwargs, args.override, args.policy)
             cells += [f"{successes}/{args.episodes}", f"{rate:.0f}"]
-        print(f"| {env_id} | " + " | ".join(cells) + " |" if args.markdown else f"{env_id:20s} " + "  ".join(cells))
+        table.add(env_id, *cells)
+    report.finish()
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
 """The fast fidelity against full dynamics: distributions of the gaps, per ID.
 
-    python benchmarks/fidelity.py [--episodes 5] [--ids ID ...] [-k name=value ...]
+    python benchmarks/fidelity.py [--episodes 5] [--ids ID ...] [-k name=value ...] [--markdown [PATH]]
 
 Per ID and policy (random actions, the scripted expert): paired steps (each cycle
 simulated in full and played fast from one saved state; see
@@ -22,7 +22,8 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the paired probe is a test helper
 
-from fidelity_probe import Gaps, expert_success, paired_episode, trajectory_gaps
+from fidelity_probe import Gaps, expert_success, paired_episode, trajectory_gaps  # noqa: E402
+from report import Report, add_markdown_option  # noqa: E402
 
 import envfactory  # noqa: E402
 
@@ -34,13 +35,13 @@ def spread(values, scale: float) -> str:
     return f"{np.median(values):.4f} / {np.percentile(values, 99):.4f} / {values.max():.4f}"
 
 
-def row(env_id: str, what: str, gaps: Gaps) -> str:
+def row(env_id: str, what: str, gaps: Gaps) -> list[str]:
     kinds = Counter(gaps.kinds)
     total = max(1, sum(kinds.values()))
     share = " ".join(f"{kind} {100 * kinds[kind] / total:.0f}%" for kind in ("kinematic", "at_rest", "dynamic")) \
         if kinds else "—"
-    return (f"| {env_id} | {what} | {len(gaps.ee)} | {spread(gaps.ee, 1e3)} | {spread(gaps.joint, 1e3)} | "
-            f"{spread(gaps.object_position, 1e3)} | {spread(gaps.object_angle, 180 / np.pi)} | {share} |")
+    return [env_id, what, str(len(gaps.ee)), spread(gaps.ee, 1e3), spread(gaps.joint, 1e3),
+            spread(gaps.object_position, 1e3), spread(gaps.object_angle, 180 / np.pi), share]
 
 
 def main() -> None:
@@ -48,28 +49,31 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=5)
     parser.add_argument("--ids", nargs="*")
     parser.add_argument("-k", "--kwarg", action="append", default=[], help="name=value for every env made")
+    add_markdown_option(parser)
     args = parser.parse_args()
+    report = Report.start(parser, args, __doc__)
     kwargs = {name: yaml.safe_load(value) for name, _, value in (pair.partition("=") for pair in args.kwarg)}
     ids = args.ids or sorted(i for i, r in envfactory.records().items() if r.backend == "pybullet" and "Goal" not in i)
-    print("gaps to full dynamics: median / p99 / max; EE, object in mm; joints in mrad; object angle in degrees; "
-          f"kwargs: {kwargs or 'none'}")
-    print("| ID | measure | steps | EE mm | arm joint mrad | object mm | object ° | cycles played |")
-    print("|---|---|---|---|---|---|---|---|")
+    table = report.table(["ID", "measure", "steps", "EE mm", "arm joint mrad", "object mm", "object °",
+                          "cycles played"],
+                         title=f"gaps to full dynamics: median / p99 / max; EE, object in mm; joints in mrad; object "
+                               f"angle in degrees; {args.episodes} episodes per measure; kwargs: {kwargs or 'none'}")
     for env_id in ids:
         for policy in ("random", "scripted"):
             gaps = Gaps()
             for seed in range(args.episodes):
                 gaps.extend(paired_episode(env_id, policy, seed=seed, **kwargs)[0])
-            print(row(env_id, f"paired, {policy}", gaps), flush=True)
+            table.add(*row(env_id, f"paired, {policy}", gaps))
         trajectories = Gaps()
         for seed in range(args.episodes):
             trajectories.extend(trajectory_gaps(env_id, seed=seed, steps=100, **kwargs))
-        print(row(env_id, "trajectory, random", trajectories), flush=True)
+        table.add(*row(env_id, "trajectory, random", trajectories))
         seeds = list(range(args.episodes * 2))
         fast, full = expert_success(env_id, "fast", seeds, **kwargs), expert_success(env_id, "full", seeds, **kwargs)
         changed = [s for s, a, b in zip(seeds, fast, full) if a != b]
-        print(f"| {env_id} | expert success fast / full | {len(seeds)} episodes | {sum(fast)} / {sum(full)} "
-              f"| seeds that differ: {changed or 'none'} | | | |", flush=True)
+        table.add(env_id, "expert success fast / full", f"{len(seeds)} episodes", f"{sum(fast)} / {sum(full)}",
+                  f"seeds that differ: {changed or 'none'}", "", "", "")
+    report.finish()
 
 
 if __name__ == "__main__":

@@ -2,7 +2,7 @@
 tolerance of the desired one, with goals drawn as before (`++task.goal.allow_achieved_at_reset=true`) and as
 now (drawn again). Every GoalSim ID, seeds 0..N-1.
 
-    python benchmarks/free_goals.py --resets 300 [--markdown]
+    python benchmarks/free_goals.py --resets 300 [--markdown [PATH]]
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ import argparse
 import gymnasium as gym
 
 from envfactory import registry
+from report import Report, add_markdown_option
 
 ALLOWED = ["++task.goal.allow_achieved_at_reset=true"]  # a key the task files leave to its default
 
@@ -27,18 +28,17 @@ def free_share(env_id: str, resets: int, overrides: list[str]) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--resets", type=int, default=300)
-    parser.add_argument("--markdown", action="store_true")
+    add_markdown_option(parser)
     args = parser.parse_args()
+    report = Report.start(parser, args, __doc__)
     ids = sorted(env_id for env_id, record in registry.records().items()
                  if record.goal_env and record.backend == "pybullet")
-    rows = [(env_id, free_share(env_id, args.resets, ALLOWED), free_share(env_id, args.resets, []))
-            for env_id in ids]
-    if args.markdown:
-        print(f"| goal env | successful at reset, drawn as before | now | ({args.resets} resets) |")
-        print("|---|---|---|---|")
-    for env_id, before, after in rows:
-        print(f"| {env_id} | {before:.1%} | {after:.1%} | |" if args.markdown else
-              f"{env_id:28s} before {before:6.1%}  now {after:6.1%}")
+    table = report.table(["goal env", "successful at reset, drawn as before", "now"],
+                         title=f"share of {args.resets} resets (seeds 0–{args.resets - 1}) that start successful")
+    for env_id in ids:
+        before, now = free_share(env_id, args.resets, ALLOWED), free_share(env_id, args.resets, [])
+        table.add(env_id, f"{before:.1%}", f"{now:.1%}")
+    report.finish()
 
 
 if __name__ == "__main__":

@@ -6,11 +6,12 @@ but no verdicts (lazy registration, as before verdicts existed), and with the
 verdicts `envfactory validate` records (the broken family stays out). Prints the
 medians and the per-round ratio of the last two.
 
-    python benchmarks/import_verdicts.py [rounds]
+    python benchmarks/import_verdicts.py [rounds] [--markdown [PATH]]
 """
 
 from __future__ import annotations
 
+import argparse
 import os
 import shutil
 import statistics
@@ -20,13 +21,15 @@ import tempfile
 import time
 from pathlib import Path
 
+from report import Report, add_markdown_option
+
 ROOT = Path(__file__).parents[1]
 GOOD = (ROOT / "tests" / "broken_specs" / "unknown_key.yaml").read_text()
 PROBE = ("import envfactory, gymnasium as gym; "
          "print(sum(i.startswith('BenchFam') for i in gym.registry), 'BenchBroken-v0' in gym.registry)")
 
 
-def main(rounds: int) -> None:
+def main(rounds: int, report: Report) -> None:
     work = Path(tempfile.mkdtemp(prefix="envfactory-import-bench-"))
     try:
         folder, empty, checked = work / "user", work / "no-verdicts", work / "verdicts"
@@ -49,14 +52,21 @@ def main(rounds: int) -> None:
                                      text=True, cwd=work)
                 times[way].append(time.perf_counter() - start)
                 seen[way] = out.stdout.strip()
+        table = report.table(["import", "median s", "min s", "registered (BenchFam IDs, broken one)"],
+                             title=f"{rounds} rounds, the three ways alternating, a fresh process each")
         for way in ways:
-            print(f"{way:26s} median {statistics.median(times[way]):.3f} s  min {min(times[way]):.3f} s  "
-                  f"(registered: {seen[way]})")
+            table.add(way, f"{statistics.median(times[way]):.3f}", f"{min(times[way]):.3f}", seen[way])
         ratios = [b / a for a, b in zip(times["user folder, no verdicts"], times["user folder, verdicts"])]
-        print(f"verdicts / no verdicts, per round: median {statistics.median(ratios):.3f}")
+        report.note(f"verdicts / no verdicts, per round: median {statistics.median(ratios):.3f}")
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
 
 if __name__ == "__main__":
-    main(int(sys.argv[1]) if len(sys.argv) > 1 else 9)
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("rounds", nargs="?", type=int, default=9)
+    add_markdown_option(parser)
+    args = parser.parse_args()
+    report = Report.start(parser, args, __doc__)
+    main(args.rounds, report)
+    report.finish()

@@ -1,7 +1,7 @@
 """What gym.make costs: the import, the first make of an ID in a process and the second, each ID in a fresh
 process, `--runs` times.
 
-    python benchmarks/make_times.py [--runs 3] [--ids ID ...]
+    python benchmarks/make_times.py [--runs 3] [--ids ID ...] [--markdown [PATH]]
 """
 
 from __future__ import annotations
@@ -9,6 +9,8 @@ from __future__ import annotations
 import argparse
 import subprocess
 import sys
+
+from report import Report, add_markdown_option
 
 WORKER = """
 import time
@@ -28,15 +30,18 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--ids", nargs="*", default=["UR5eReacherSim-v0", "UR5ePnPSim-v0", "VX300SPnPSim-v0",
                                                       "RX200PnPSim-v0", "NED2PnPSim-v0"])
+    add_markdown_option(parser)
     args = parser.parse_args()
-    print("| ID | import s | first make s | second make s | second ÷ first |")
-    print("|---|---|---|---|---|")
+    report = Report.start(parser, args, __doc__)
+    table = report.table(["ID", "import s", "first make s", "second make s", "second ÷ first"],
+                         title=f"each ID in {args.runs} fresh process(es), one row each")
     for env_id in args.ids:
         for _ in range(args.runs):
             done = subprocess.run([sys.executable, "-c", WORKER.format(env_id=env_id)], capture_output=True,
                                   text=True, check=True)
             imported, first, second = (float(v) for v in done.stdout.split()[-3:])
-            print(f"| {env_id} | {imported:.2f} | {first:.2f} | {second:.3f} | {second / first:.0%} |")
+            table.add(env_id, f"{imported:.2f}", f"{first:.2f}", f"{second:.3f}", f"{second / first:.0%}")
+    report.finish()
 
 
 if __name__ == "__main__":

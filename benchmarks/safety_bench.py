@@ -1,6 +1,6 @@
 """Cost of the safety check per step, on random actions, per ID and action mode.
 
-    python benchmarks/safety_bench.py [--steps N] [--ids ID ...]
+    python benchmarks/safety_bench.py [--steps N] [--ids ID ...] [--markdown [PATH]]
 
 Times `SafetyCheck.check` inside real env steps (full-scale random actions from
 the action space), and reports the median and 90th percentile, the poses it
@@ -21,6 +21,7 @@ import time
 import numpy as np
 
 import envfactory  # noqa: F401  (registers the IDs)
+from report import Report, add_markdown_option
 
 SIM_IDS = ["UR5eReacherSim-v0", "UR5ePushSim-v0", "UR5ePnPSim-v0",
            "VX300SReacherSim-v0", "VX300SPushSim-v0", "VX300SPnPSim-v0"]
@@ -82,20 +83,24 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=1000)
     parser.add_argument("--ids", nargs="*", default=SIM_IDS)
+    add_markdown_option(parser)
     args = parser.parse_args()
-    print(f"{'ID':<22} {'mode':<6} {'median µs':>10} {'p90 µs':>8} {'CPU µs':>7} {'poses/check':>12} "
-          f"{'coal/check':>10} {'refused':>8} {'step µs':>8} {'share':>6} {'object µs':>9}")
+    report = Report.start(parser, args, __doc__)
+    table = report.table(["ID", "mode", "median µs", "p90 µs", "CPU µs", "poses/check", "coal/check", "refused",
+                          "step µs", "share", "object µs"],
+                         title=f"{args.steps} random steps per ID and mode (seed 0)")
     pooled, pooled_cpu = [], []
     for env_id in args.ids:
         for ee in (False, True):
             r = measure(env_id, ee, args.steps)
             pooled.append(r["all"])
             pooled_cpu.append(r["all_cpu"])
-            print(f"{env_id:<22} {'EE' if ee else 'joint':<6} {r['median']:>10.0f} {r['p90']:>8.0f} {r['cpu']:>7.0f} "
-                  f"{r['poses']:>12.2f} {r['coal']:>10.1f} {r['refused']:>8.1%} {r['step']:>8.0f} {r['median'] / r['step']:>6.1%} {r['guard']:>9.0f}",
-                  flush=True)
-    print(f"pooled median: {np.median(np.concatenate(pooled)):.0f} µs wall, "
-          f"{np.median(np.concatenate(pooled_cpu)):.0f} µs CPU")
+            table.add(env_id, "EE" if ee else "joint", f"{r['median']:.0f}", f"{r['p90']:.0f}", f"{r['cpu']:.0f}",
+                      f"{r['poses']:.2f}", f"{r['coal']:.1f}", f"{r['refused']:.1%}", f"{r['step']:.0f}",
+                      f"{r['median'] / r['step']:.1%}", f"{r['guard']:.0f}")
+    report.note(f"pooled median: {np.median(np.concatenate(pooled)):.0f} µs wall, "
+                f"{np.median(np.concatenate(pooled_cpu)):.0f} µs CPU")
+    report.finish()
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
 """The safety check's own cost, apart from what the physics around it does to the CPU caches.
 
-    python benchmarks/safety_replay.py [--steps N] [--ids ID ...]
+    python benchmarks/safety_replay.py [--steps N] [--ids ID ...] [--markdown [PATH]]
 
 Records the checks an env makes on full-scale random actions (joint and EE
 mode), then replays the same checks in one process and times them (CPU time
@@ -19,6 +19,7 @@ import numpy as np
 import pybullet as p
 
 import envfactory  # noqa: F401  (registers the IDs)
+from report import Report, add_markdown_option
 from safety_bench import SIM_IDS  # the same IDs the in-env timing covers
 
 
@@ -70,9 +71,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=500)
     parser.add_argument("--ids", nargs="*", default=SIM_IDS)
+    add_markdown_option(parser)
     args = parser.parse_args()
-    print(f"{'ID':<22} {'mode':<6} {'warm µs':>8} {'after physics µs':>17} {'coal/check':>11} {'accepted':>9}",
-          flush=True)
+    report = Report.start(parser, args, __doc__)
+    table = report.table(["ID", "mode", "warm µs", "after physics µs", "coal/check", "accepted"],
+                         title=f"the checks of {args.steps} random steps per ID and mode (seed 0), replayed")
     warm_all = []
     for env_id in args.ids:
         for ee in (False, True):
@@ -84,10 +87,11 @@ def main() -> None:
             warm, queries, accepted = replay(env, calls, 0)
             cold, _, _ = replay(env, calls, substeps)
             warm_all.append(warm)
-            print(f"{env_id:<22} {'EE' if ee else 'joint':<6} {warm:>8.0f} {cold:>17.0f} {queries:>11.1f} "
-                  f"{accepted:>9.1%}", flush=True)
+            table.add(env_id, "EE" if ee else "joint", f"{warm:.0f}", f"{cold:.0f}", f"{queries:.1f}",
+                      f"{accepted:.1%}")
             env.close()
-    print(f"median over IDs and modes, warm: {np.median(warm_all):.0f} µs")
+    report.note(f"median over IDs and modes, warm: {np.median(warm_all):.0f} µs")
+    report.finish()
 
 
 if __name__ == "__main__":

@@ -2,8 +2,8 @@
 
     pip install -e '.[bench]'
     nice -n 15 python benchmarks/versus_panda_gym.py [--rounds 5] [--steps 1000] [--policy random|scripted|both]
-        [--ids ID ...] [--engines pybullet mujoco] [-k name=value ...] [--markdown]
-    nice -n 15 python benchmarks/versus_panda_gym.py --vector 2 [--rounds 3] [--steps 300]
+        [--ids ID ...] [--engines pybullet mujoco] [-k name=value ...] [--markdown [PATH]]
+    nice -n 15 python benchmarks/versus_panda_gym.py --vector 2 [--rounds 3] [--steps 300] [--markdown [PATH]]
 
 Every (env, round) runs in a fresh process; the rounds interleave the envs
 (round 1 runs every env once, then round 2, ...), each panda-gym env between
@@ -34,6 +34,8 @@ import statistics
 import subprocess
 import sys
 import time
+
+from report import Report, add_markdown_option
 
 PANDA_TWIN = {"Reacher": "PandaReach-v3", "Push": "PandaPush-v3", "PnP": "PandaPickAndPlace-v3"}
 ENVFACTORY_IDS = ["UR5eReacherSim-v0", "UR5ePushSim-v0", "UR5ePnPSim-v0",
@@ -311,20 +313,9 @@ COLUMNS = [("steps/s", "steps_per_s", "{:,.0f}"), ("÷ panda-gym", "ratio", "{:.
            ("cycles kinematic/at rest/dynamic %", "played", "{}")]
 
 
-def table(rows: list[dict], markdown: bool) -> str:
-    head = ["env"] + [c[0] for c in COLUMNS]
-    lines = []
-    body = [[r["id"]] + [("—" if r.get(key) is None else fmt.format(r[key])) for _, key, fmt in COLUMNS]
-            for r in rows]
-    if markdown:
-        lines.append("| " + " | ".join(head) + " |")
-        lines.append("|" + "---|" * len(head))
-        lines += ["| " + " | ".join(row) + " |" for row in body]
-    else:
-        widths = [max(len(h), *(len(row[i]) for row in body)) for i, h in enumerate(head)]
-        lines.append("  ".join(h.rjust(w) for h, w in zip(head, widths)))
-        lines += ["  ".join(v.rjust(w) for v, w in zip(row, widths)) for row in body]
-    return "\n".join(lines)
+def cells(row: dict) -> list[str]:
+    """A summarised env's row of the results table, in COLUMNS' order after the env."""
+    return [row["id"]] + [("—" if row.get(key) is None else fmt.format(row[key])) for _, key, fmt in COLUMNS]
 
 
 def summarise(results: list[dict], ids: list[str]) -> list[dict]:
@@ -353,18 +344,17 @@ def summarise(results: list[dict], ids: list[str]) -> list[dict]:
     return rows
 
 
-def vector_scaling(ids: list[str], args) -> None:
+def vector_scaling(ids: list[str], args, report: Report) -> None:
     counts = sorted({1, args.vector})
     results = [run_one(env_id, args.steps, "random", r, [], vector=n)
                for r in range(args.rounds) for env_id in ids for n in counts]
-    print(f"\nasync vector envs, random actions: env steps/s summed over the sub-processes "
-          f"(medians of {args.rounds} rounds x {args.steps} vector steps; {os.cpu_count()} cores)")
-    print("| env | " + " | ".join(f"num_envs={n}" for n in counts) + f" | scaling {counts[-1]} ÷ 1 |")
-    print("|---|" + "---|" * (len(counts) + 1))
+    table = report.table(["env", *(f"num_envs={n}" for n in counts), f"scaling {counts[-1]} ÷ 1"],
+                         title=f"async vector envs, random actions: env steps/s summed over the sub-processes "
+                               f"(medians of {args.rounds} rounds x {args.steps} vector steps; {os.cpu_count()} cores)")
     for env_id in ids:
         rates = [statistics.median(r["steps_per_s"] for r in results if r["id"] == env_id and r["num_envs"] == n)
                  for n in counts]
-        print(f"| {env_id} | " + " | ".join(f"{rate:,.0f}" for rate in rates) + f" | {rates[-1] / rates[0]:.2f}× |")
+        table.add(env_id, *(f"{rate:,.0f}" for rate in rates), f"{rates[-1] / rates[0]:.2f}×")
 
 
 def main() -> None:
@@ -375,7 +365,7 @@ def main() -> None:
     parser.add_argument("--ids", nargs="*", help="envfactory IDs (default: every Sim ID); their panda-gym twins join")
     parser.add_argument("-k", "--kwarg", action="append", default=[], help="name=value for every envfactory env")
     parser.add_argument("--engines", nargs="*", help="run each envfactory ID on each of these engines (a row each)")
-    parser.add_argument("--markdown", action="store_true")
+    add_markdown_option(parser)
     parser.add_argument("--json", help="write every round's raw figures here")
     parser.add_argument("--worker", help=argparse.SUPPRESS)
     parser.add_argument("--seed", type=int, default=0, help=argparse.SUPPRESS)
@@ -392,6 +382,7 @@ def main() -> None:
         print(RESULT + json.dumps(result), flush=True)
         return
 
+    report = Report.start(parser, args, __doc__)
     mine = args.ids or ENVFACTORY_IDS
     if args.engines:
         mine = [f"{env_id} [{engine}]" for env_id in mine for engine in args.engines]
@@ -403,11 +394,12 @@ def main() -> None:
         ids += group[:1] + ([twin] if group else []) + group[1:]
     ids += [i for i in mine if i not in ids]
     if args.vector:
-        vector_scaling(ids, args)
+        vector_scaling(ids, args, report)
+        report.finish()
         return
     policies = ["random", "scripted"] if args.policy == "both" else [args.policy]
-    print(f"load before: {os.getloadavg()[0]:.2f}; {args.rounds} rounds x {args.steps} steps; "
-          f"kwargs: {args.kwarg or 'none'}", flush=True)
+    report.note(f"load before: {os.getloadavg()[0]:.2f}; {args.rounds} rounds x {args.steps} steps; "
+                f"kwargs: {args.kwarg or 'none'}")
     raw = []
     for policy in policies:
         results = []
@@ -417,12 +409,16 @@ def main() -> None:
                 print(f"  round {round_index + 1} {policy:8} {env_id:22} {results[-1]['steps_per_s']:8.0f} steps/s",
                       file=sys.stderr, flush=True)
         raw += results
-        print(f"\n{policy} actions (medians of {args.rounds} rounds x {args.steps} steps, fresh process each):")
-        print(table(summarise(results, ids), args.markdown), flush=True)
-    print(f"load after: {os.getloadavg()[0]:.2f}")
+        table = report.table(["env"] + [c[0] for c in COLUMNS],
+                             title=f"{policy} actions (medians of {args.rounds} rounds x {args.steps} steps, "
+                                   f"fresh process each)")
+        for row in summarise(results, ids):
+            table.add(*cells(row))
+    report.note(f"load after: {os.getloadavg()[0]:.2f}")
     if args.json:
         with open(args.json, "w") as out:
             json.dump(raw, out, indent=1)
+    report.finish()
 
 
 if __name__ == "__main__":

@@ -1,12 +1,17 @@
-"""Print a blueprint the way the reference pages lay out an env: index tables first."""
+"""Describe a blueprint the way the reference pages lay out an env, index tables first: printed by `envfactory
+describe`, listed part by part for the docs site's env pages
+(docs/scripts/generate.py renders the parts as Markdown)."""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 from rich import box
 from rich.console import Console
 from rich.table import Table
 
 from envfactory.compiler import Blueprint
+from envfactory.compiler.scene_checks import height_summary
 from envfactory.envs.managers import ObservationManager, RewardManager
 from envfactory.geometry.frames import TaskFrame
 from envfactory.geometry.object_press import ObjectPressGuard
@@ -99,7 +104,7 @@ def ros_table(compiled: Blueprint) -> Table:
 def task_lines(compiled: Blueprint) -> list[str]:
     """Objects, gripper use and the lift stage: what the reset sets up."""
     task, spec = compiled.spec.task, compiled.spec
-    lines = []
+    lines = [height_summary(spec)]  # a goal or spawn height given in the wrong frame or unit shows here first
     for name, obj in task.objects.items():
         spawn = obj.spawn
         where = f"± {list(spawn.offset)} in x, y" if spawn.random else "fixed"
@@ -125,12 +130,23 @@ def value_at(spec, dotted: str):
     return node
 
 
+def kwarg_paths(spec) -> dict[str, str]:
+    """Every gym.make kwarg a composed spec accepts, by name, with the spec path it sets (the family's
+    aliases and its task's)."""
+    return dict(sorted({**spec.kwargs, **spec.task.kwargs}.items()))
+
+
 def kwarg_lines(compiled: Blueprint) -> list[str]:
     """Every gym.make kwarg of the ID with the value it has here: kwargs and overrides show."""
     spec = compiled.spec
-    aliases = {**spec.kwargs, **spec.task.kwargs}
-    values = [f"{name}={value_at(spec, path)!r}" for name, path in sorted(aliases.items())]
+    values = [f"{name}={value_at(spec, path)!r}" for name, path in kwarg_paths(spec).items()]
     return ["Kwargs: " + ", ".join(values)]
+
+
+def id_summary(compiled: Blueprint) -> tuple[str, str, str, str, str]:
+    """Robot, task, backend, observation size and action size: an ID's row in `envfactory list`."""
+    obs = str(compiled.observation_size) + (" + goal 3+3" if compiled.goal_env else "")
+    return compiled.spec.robot.name, compiled.spec.task.name, compiled.backend, obs, str(compiled.action.size)
 
 
 def safety_table(compiled: Blueprint) -> Table:
@@ -188,36 +204,58 @@ def _turn(rpy) -> str:
     return f" turned rpy {list(rpy)}" if any(rpy) else ""
 
 
-def render_description(compiled: Blueprint, console: Console) -> None:
+@dataclass(frozen=True)
+class Part:
+    """One piece of a description, a table or a line, in the order `envfactory describe` prints them. `kind`
+    names what it shows, so two IDs' descriptions compare piece by piece (the docs' family pages do)."""
+
+    kind: str
+    body: Table | str
+    plain: bool = False  # a long line of values: printed unhighlighted and soft-wrapped
+
+
+def env_kind(compiled: Blueprint) -> str:
+    return "goal-conditioned (Dict)" if compiled.goal_env else "standard (Box)"
+
+
+def description_parts(compiled: Blueprint) -> list[Part]:
+    """The description of a blueprint: what the console prints and what the docs' Markdown renders."""
     spec = compiled.spec
-    kind = "goal-conditioned (Dict)" if compiled.goal_env else "standard (Box)"
-    console.print(f"[bold]{compiled.env_id}[/] — {spec.robot.label}, {spec.task.label}, {kind}, "
-                  f"backend {compiled.backend}, frame {spec.robot.task_frame}, "
-                  f"base at {list(spec.robot.mount)}{_turn(spec.robot.mount_rpy)}, "
-                  f"max_episode_steps {compiled.max_episode_steps}")
-    console.print(observation_table(compiled))
+    parts = [Part("summary", f"[bold]{compiled.env_id}[/] — {spec.robot.label}, {spec.task.label}, "
+                             f"{env_kind(compiled)}, backend {compiled.backend}, frame {spec.robot.task_frame}, "
+                             f"base at {list(spec.robot.mount)}{_turn(spec.robot.mount_rpy)}, "
+                             f"max_episode_steps {compiled.max_episode_steps}"),
+             Part("observation", observation_table(compiled))]
     if compiled.goal_env:
-        console.print(goal_table(compiled))
+        parts.append(Part("goal", goal_table(compiled)))
         source = "EE" if compiled.achieved_from == "ee" else compiled.achieved_from
-        console.print(f"achieved_goal: Box(3,) — current {source} XYZ, same frame as desired_goal\n")
+        parts.append(Part("achieved goal", f"achieved_goal: Box(3,) — current {source} XYZ, same frame as "
+                                           f"desired_goal\n"))
     else:
         goal = spec.task.goal
-        console.print(f"Goal box: min {list(goal.box[0])}, max {list(goal.box[1])}\n")
+        parts.append(Part("goal", f"Goal box: min {list(goal.box[0])}, max {list(goal.box[1])}\n"))
     if compiled.images:
-        console.print(image_table(compiled))
-    for line in task_lines(compiled):
-        console.print(line)
+        parts.append(Part("images", image_table(compiled)))
+    parts += [Part("task", line) for line in task_lines(compiled)]
     if compiled.backend == "rosbridge" and compiled.spec.robot.ros is not None:
-        console.print(ros_table(compiled))
+        parts.append(Part("ros", ros_table(compiled)))
         real = compiled.spec.env.real
-        console.print(f"Gates: motion {'allowed' if real.allow_motion else 'closed'} (allow_real_robot_motion), "
-                      f"joint states ≤ {real.joint_state_timeout_s:g} s old, object poses ≤ "
-                      f"{real.cube_pose_timeout_s:g} s old, deadman {real.deadman_s:g} s\n")
-    console.print(action_table(compiled))
-    console.print(safety_table(compiled))
-    console.print(reward_table(compiled))
+        parts.append(Part("gates", f"Gates: motion {'allowed' if real.allow_motion else 'closed'} "
+                                   f"(allow_real_robot_motion), joint states ≤ {real.joint_state_timeout_s:g} s old, "
+                                   f"object poses ≤ {real.cube_pose_timeout_s:g} s old, "
+                                   f"deadman {real.deadman_s:g} s\n"))
+    parts += [Part("action", action_table(compiled)), Part("safety", safety_table(compiled)),
+              Part("reward", reward_table(compiled))]
     active = [f"{t.name} ({t.term.name})" for t in compiled.terminations if t.active]
-    console.print(f"Termination: {', '.join(active) or 'none on this reward type'}; "
-                  f"truncation at {compiled.max_episode_steps} steps")
-    for line in kwarg_lines(compiled):
-        console.print(line, highlight=False, soft_wrap=True)
+    parts.append(Part("termination", f"Termination: {', '.join(active) or 'none on this reward type'}; "
+                                     f"truncation at {compiled.max_episode_steps} steps"))
+    parts += [Part("kwargs", line, plain=True) for line in kwarg_lines(compiled)]
+    return parts
+
+
+def render_description(compiled: Blueprint, console: Console) -> None:
+    for part in description_parts(compiled):
+        if part.plain:
+            console.print(part.body, highlight=False, soft_wrap=True)
+        else:
+            console.print(part.body)

@@ -50,15 +50,16 @@ def check_family(records: list[IdRecord], whole: bool = True) -> None:
         verdicts.remember(records[0].family.path, True)
 
 
-# Problems a command fixes without editing the family: its IDs must stay registered for that
-# command (`envfactory collision-pairs ROBOT` finds the robot through them).
-_FIXED_BY_COMMAND = {"robot.safety.collision_pairs"}
+# Problems that are not the family's to remember as broken: one a command fixes without editing the family (its
+# IDs must stay registered for that command: `envfactory collision-pairs ROBOT` finds the robot through them),
+# and one of this machine rather than the folder (a GUI without a display works on the next machine).
+_NOT_THE_FAMILYS = {"robot.safety.collision_pairs", "env.gui"}
 
 
 def _remember_failure(record: IdRecord, error: SpecError) -> None:
     if record.source == BUILTIN_SOURCE or not error.problems:
         return
-    if all(problem.path in _FIXED_BY_COMMAND for problem in error.problems):
+    if all(problem.path in _NOT_THE_FAMILYS for problem in error.problems):
         return
     # the family's own line first: that is where the user looks
     own = [p for p in error.problems if p.file and Path(p.file).resolve() == record.family.path.resolve()]

@@ -21,8 +21,15 @@ from pydantic import ValidationError
 
 from envfactory import user_config, verdicts
 from envfactory.schema.compose import FamilyFile
-from envfactory.schema.errors import Problem, SpecError, suggest
-from envfactory.schema.folders import builtin_root, family_files, folder_of, search_roots
+from envfactory.schema.errors import Problem, SpecError, nearest, suggest
+from envfactory.schema.folders import (
+    builtin_root,
+    family_files,
+    folder_of,
+    list_folder,
+    search_roots,
+    unread_files,
+)
 from envfactory.schema.models import Registration
 from envfactory.schema.sources import Findings, SourceMap, load_plain
 from envfactory.schema.validation import validation_problems
@@ -171,11 +178,16 @@ def register_folder(folder: str | Path, check: FamilyCheck | None = None, source
     is read, and a family an earlier check found broken stays out."""
     folder = Path(folder).expanduser()
     if not folder.is_dir():
-        return [], [SpecError([Problem("", "no such spec folder", str(folder))])]
+        return [], [SpecError([Problem("", not_a_folder(folder), str(folder))])]
     roots = search_roots(folder)
-    added, problems = [], []
+    added = []
     pending: dict[str, IdRecord] = {}
-    paths = family_files(folder)
+    listing = list_folder(folder)
+    paths = listing.families
+    # a family file that is not read is never passed over silently: each is a problem of its own
+    problems = [SpecError([Problem("", why, str(path))], path.stem) for path, why in unread_files(listing)]
+    if not paths:
+        return [], problems
     if len(paths) > MAX_FAMILY_FILES:
         return [], [SpecError([Problem("", f"{len(paths)} family files; a spec folder may hold at most "
                                            f"{MAX_FAMILY_FILES}", str(folder))])]
@@ -202,6 +214,25 @@ def register_folder(folder: str | Path, check: FamilyCheck | None = None, source
         pending.update({r.env_id: r for r in records})
         added += [r.env_id for r in fresh]
     return added, problems
+
+
+def not_a_folder(path: Path) -> str:
+    """Why a path given as a spec folder is none: a family file (name its folder), or nothing there."""
+    if path.is_file():
+        folder = folder_of(path)
+        return (f"is a file, not a spec folder: spec folders are registered whole; give the folder that holds it, "
+                f"{folder}" + (" (its family files are in specs/)" if path.parent.name == "specs" else ""))
+    return f"no such spec folder{nearest_entry(path)}"
+
+
+def nearest_entry(path: Path) -> str:
+    """' (did you mean ...?)' among the entries beside a path that does not exist, or where the path stops existing."""
+    parent = path.parent
+    if not parent.is_dir():
+        existing = next((p for p in path.parents if p.is_dir()), None)
+        return f" ({parent} does not exist either{f'; {existing} does' if existing else ''})"
+    close = nearest(path.name, (entry.name for entry in parent.iterdir()))
+    return f" (did you mean {close!r}?)" if close else ""
 
 
 def unregister_folder(folder: str | Path) -> list[str]:

@@ -38,10 +38,42 @@ def test_validate_ok_and_broken(tmp_path):
 
 def test_run_prints_a_table_and_writes_video(tmp_path):
     video = tmp_path / "reach.mp4"
-    result = runner.invoke(app, ["run", "VX300SReacherSim-v0", "-n", "2", "--video", str(video)])
+    result = runner.invoke(app, ["run", "VX300SReacherSim-v0", "-n", "2", "--video", str(video), "--stop-at-success"])
     assert result.exit_code == 0, result.output
     assert "success rate" in result.output and "Return" in result.output
     assert video.stat().st_size > 1000
+
+
+def _episode_rows(output: str) -> list[list[str]]:
+    """The cells of each episode row of `run`'s table."""
+    rows = [[cell.strip() for cell in line.strip("│ ").split("│")] for line in output.splitlines()
+            if line.startswith("│")]
+    return [row for row in rows if row and row[0].isdigit()]
+
+
+def test_run_follows_the_env_end_unless_told_to_stop_at_success():
+    """A Dense ID never terminates at the goal: by default an episode lasts to the time limit, as a learner
+    sees it; --stop-at-success ends it at the first success. The table says which, and when the goal was
+    first reached either way."""
+    import gymnasium as gym
+
+    limit = gym.spec("UR5eReacherSim-v0").max_episode_steps
+    full = runner.invoke(app, ["run", "UR5eReacherSim-v0", "-n", "1"])
+    assert full.exit_code == 0, full.output
+    text = " ".join(full.output.split())
+    assert "each episode until the env ends it" in text and "Episodes end where the env ends them" in text
+    [row] = _episode_rows(full.output)
+    length, success, first = int(row[3]), row[4], row[5]
+    assert length == limit and success == "yes" and first.startswith("step ")
+    reached = int(first.split()[1])
+    assert 0 < reached < limit
+
+    short = runner.invoke(app, ["run", "UR5eReacherSim-v0", "-n", "1", "--stop-at-success"])
+    assert short.exit_code == 0, short.output
+    assert "each episode until its first success" in " ".join(short.output.split())
+    [row] = _episode_rows(short.output)
+    assert int(row[3]) == reached and row[5] == f"step {reached}"  # same seed, same path, cut at the goal
+    assert float(row[2]) < float(_episode_rows(full.output)[0][2])
 
 
 def test_describe_real_id_prints_topics_and_gates():
@@ -60,7 +92,20 @@ def test_list_shows_real_ids():
 def test_twin_of_an_unknown_robot_fails_clearly():
     result = runner.invoke(app, ["twin", "ur10", "--port", "0"])
     assert result.exit_code == 1
-    assert "no Sim ID pairs robot 'ur10' with task 'push'" in result.output
+    assert "no robot named 'ur10' (robots with a real path: ned2, rx200, ur5e, vx300s)" in result.output
+    task = runner.invoke(app, ["twin", "ur5e", "--task", "wipe", "--port", "0"])
+    assert task.exit_code == 1 and "no Sim ID pairs robot 'ur5e' with task 'wipe'" in task.output
+
+
+def test_twin_help_lists_every_robot_with_a_real_path():
+    from envfactory import factory, registry
+
+    real = {factory.blueprint(env_id).spec.robot.name for env_id, record in registry.records().items()
+            if record.backend == "rosbridge"}
+    assert real == {"ur5e", "vx300s", "rx200", "ned2"}
+    result = runner.invoke(app, ["twin", "--help"])
+    assert result.exit_code == 0
+    assert f"robots with a real path: {', '.join(sorted(real))}" in " ".join(result.output.replace("│", " ").split())
 
 
 def test_run_real_id_without_the_gate_is_refused(monkeypatch):

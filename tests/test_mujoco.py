@@ -4,6 +4,8 @@ joint-synchronous line the safety check proved; out of contact it ends every ste
 
 from __future__ import annotations
 
+import time
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -90,6 +92,17 @@ def test_out_of_contact_the_engines_agree_within_a_millimetre(env_id):
 def test_a_gui_on_mujoco_is_refused_with_the_engine_that_has_one():
     with pytest.raises(BackendError, match="engine='pybullet'"):
         gym.make("UR5eReacherSim-v0", engine="mujoco", gui=True)
+
+
+def test_realtime_mode_paces_mujoco_steps_to_the_wall_clock():
+    """realtime_mode=True lets each cycle last its simulated time (a lower bound only: load makes it longer)."""
+    paced = gym.make("UR5eReacherSim-v0", engine="mujoco", realtime_mode=True, action_cycle_time=0.2)
+    paced.reset(seed=0)
+    started = time.perf_counter()
+    for _ in range(3):
+        paced.step(np.zeros(paced.action_space.shape, paced.action_space.dtype))
+    assert time.perf_counter() - started >= 3 * 0.2 * 0.99
+    paced.close()
 
 
 def test_engine_is_refused_on_a_real_id():

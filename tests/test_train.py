@@ -1,4 +1,5 @@
-"""Smoke tests of the learning pipeline: train -> saved model -> replay, and expert episodes -> Minari dataset.
+"""Tests of the learning pipeline: train -> saved model -> replay; run folders never overwritten; a run stopped and
+resumed; model.json; TensorBoard; nothing left by a failed start; expert episodes -> Minari dataset, without warnings.
 
 They need the [train] extra and are skipped (with the reason) without it. The
 learning itself is measured by benchmarks/learning.py, not here.
@@ -91,6 +92,165 @@ def test_run_refuses_a_model_trained_on_other_spaces(tmp_path):
     assert "Traceback" not in result.output
 
 
+def _tiny_run(folder, *extra_args, steps="240"):
+    return runner.invoke(app, ["train", "VX300SReacherGoalSim-v0", "--steps", steps, "--eval-every", "120",
+                               "--eval-episodes", "1", "--no-progress", "-o", str(folder), *TINY, *extra_args])
+
+
+@needs_train
+def test_a_second_run_never_overwrites_the_first(tmp_path):
+    first = _tiny_run(tmp_path / "run", steps="120")
+    assert first.exit_code == 0, first.output
+    model = (tmp_path / "run" / "model.zip").read_bytes()
+    second = _tiny_run(tmp_path / "run", "--seed", "1", steps="120")
+    assert second.exit_code == 0, second.output
+    assert f"{tmp_path / 'run'} holds an earlier run, which is never overwritten: this run goes to " \
+           f"{tmp_path / 'run-2'}" in second.output.replace("\n", "")
+    assert (tmp_path / "run" / "model.zip").read_bytes() == model
+    assert json.loads((tmp_path / "run-2" / "model.json").read_text())["seed"] == 1
+
+    from envfactory.learn.runs import RunFolderError, claim
+
+    with pytest.raises(RunFolderError, match="holds an earlier run"):  # the library refuses it too
+        claim(tmp_path / "run")
+
+
+@needs_train
+def test_model_json_records_every_setting_that_shaped_the_run(tmp_path):
+    result = _tiny_run(tmp_path / "run", "-k", "delta_coeff=0.03", "--seed", "3", steps="120")
+    assert result.exit_code == 0, result.output
+    meta = json.loads((tmp_path / "run" / "model.json").read_text())
+    assert (meta["seed"], meta["steps"], meta["eval_every"], meta["eval_episodes"]) == (3, 120, 120, 1)
+    assert meta["kwargs"] == {"delta_coeff": 0.03} and meta["env_kwargs"]["delta_coeff"] == 0.03
+    assert meta["overrides"] == TINY[1::2]
+    # the merged hyperparameters, and exactly what the algorithm's constructor was given
+    assert meta["hyperparameters"]["policy_kwargs"] == {"net_arch": [32, 32]} and meta["hyperparameters"]["gamma"] == 0.95
+    assert meta["algorithm_kwargs"]["replay_buffer_class"] == "HerReplayBuffer"
+    assert meta["algorithm_kwargs"]["replay_buffer_kwargs"] == {"n_sampled_goal": 4, "goal_selection_strategy": "future"}
+    assert meta["demos"] is None and meta["normalize"] is False
+    part = meta["parts"][0]
+    assert part["status"] == "finished" and part["from_timesteps"] == 0 and part["timesteps"] == 120
+    assert part["versions"]["stable-baselines3"] and part["versions"]["torch"] and part["versions"]["envfactory"]
+    # the recorded command repeats the run
+    assert meta["command"].startswith("envfactory train VX300SReacherGoalSim-v0 --algo sac --seed 3 --steps 120 "
+                                      "--eval-every 120 --eval-episodes 1 -p learning_starts=110")
+    assert "-k delta_coeff=0.03" in meta["command"]
+
+
+@needs_train
+def test_resume_continues_the_model_buffer_statistics_and_curve(tmp_path):
+    import pickle
+
+    folder = tmp_path / "run"
+    first = _tiny_run(folder, "-p", "normalize=true")
+    assert first.exit_code == 0, first.output
+    with open(folder / "replay_buffer.pkl", "rb") as handle:
+        saved = pickle.load(handle)
+    with open(folder / "vecnormalize.pkl", "rb") as handle:
+        count = pickle.load(handle).obs_rms["observation"].count
+
+    again = runner.invoke(app, ["train", "--resume", str(folder), "--steps", "480", "--no-progress"])
+    assert again.exit_code == 0, again.output
+    rows = list(csv.DictReader(open(folder / "curve.csv")))
+    assert [int(r["timesteps"]) for r in rows] == [120, 240, 360, 480]  # the curve goes on from its last step
+    walls = [float(r["wall_s"]) for r in rows]
+    assert walls == sorted(walls) and walls[2] > walls[1]  # wall-clock time adds up over the parts
+    with open(folder / "replay_buffer.pkl", "rb") as handle:
+        resumed = pickle.load(handle)
+    assert resumed.pos == 480  # the buffer holds both parts' steps, the first part's unchanged
+    assert np.array_equal(resumed.observations["observation"][:240], saved.observations["observation"][:240])
+    with open(folder / "vecnormalize.pkl", "rb") as handle:
+        assert pickle.load(handle).obs_rms["observation"].count > count + 200  # statistics went on, not restarted
+    meta = json.loads((folder / "model.json").read_text())
+    assert [(p["from_timesteps"], p["target_timesteps"], p["status"]) for p in meta["parts"]] == \
+           [(0, 240, "finished"), (240, 480, "finished")]
+    assert meta["timesteps"] == 480 and meta["steps"] == 480
+
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    assert load_from_zip_file(folder / "model.zip")[0]["num_timesteps"] == 480  # the model itself went on
+
+
+@needs_train
+def test_a_stopped_run_saves_where_it_stands_and_resumes(tmp_path):
+    from envfactory.learn.trainer import resume, train
+
+    def stop(row):
+        raise KeyboardInterrupt  # Ctrl-C (or SIGTERM) during the run
+
+    with pytest.raises(KeyboardInterrupt):
+        train("VX300SReacherGoalSim-v0", tmp_path, steps=360, eval_every=120, eval_episodes=1, progress_bar=False,
+              overrides=tuple(TINY[1::2]), on_evaluation=stop)
+    meta = json.loads((tmp_path / "model.json").read_text())
+    assert meta["parts"][0]["status"] == "interrupted" and meta["timesteps"] == 120
+    assert (tmp_path / "replay_buffer.pkl").is_file() and meta["replay_buffer_timesteps"] == 120
+    result = resume(tmp_path, progress_bar=False)  # on to the run's own 360 steps
+    assert [r.timesteps for r in result.evaluations] == [120, 240, 360]
+    meta = json.loads((tmp_path / "model.json").read_text())
+    assert [p["status"] for p in meta["parts"]] == ["interrupted", "finished"]
+
+
+@needs_train
+def test_resume_refuses_what_it_cannot_continue(tmp_path):
+    folder = tmp_path / "run"
+    assert _tiny_run(folder, steps="120").exit_code == 0
+    cases = [(["--resume", str(folder), "-p", "gamma=0.9"], "drop -p"),
+             (["--resume", str(folder), "--algo", "td3", "--seed", "2"], "drop --algo, --seed"),
+             (["--resume", str(folder)], "the run is at 120 steps already; pass --steps above 120"),
+             (["UR5eReacherGoalSim-v0", "--resume", str(folder)], "that run trains VX300SReacherGoalSim-v0"),
+             (["--resume", str(tmp_path)], "no model.json, so not a run folder"),
+             ([], "give the ID to train, or --resume RUN_FOLDER")]
+    for args, message in cases:
+        result = runner.invoke(app, ["train", *args, "--no-progress"])
+        assert result.exit_code == 1 and message in result.output, (args, result.output)
+        assert "Traceback" not in result.output
+    meta = json.loads((folder / "model.json").read_text())
+    (folder / "model.json").write_text(json.dumps({**meta, "replay_buffer_timesteps": 60}))  # an older buffer
+    result = runner.invoke(app, ["train", "--resume", str(folder), "--steps", "240"])
+    assert result.exit_code == 1 and "replay_buffer.pkl was saved at 60 steps but its model at 120" in result.output
+    (folder / "model.json").write_text(json.dumps(meta))
+    (folder / "replay_buffer.pkl").unlink()  # as after a hard kill
+    result = runner.invoke(app, ["train", "--resume", str(folder), "--steps", "240"])
+    assert result.exit_code == 1 and "no replay_buffer.pkl, so the run cannot continue" in result.output
+
+
+@needs_train
+def test_tensorboard_log_gets_the_run_and_its_evaluations(tmp_path):
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    result = _tiny_run(tmp_path / "run", "-p", f"tensorboard_log={tmp_path / 'tb'}")
+    assert result.exit_code == 0, result.output
+    events = tmp_path / "tb" / "run_1"
+    assert list(events.glob("events.out.tfevents.*"))
+    accumulator = EventAccumulator(str(events))
+    accumulator.Reload()
+    rates = accumulator.Scalars("eval/success_rate")
+    curve = list(csv.DictReader(open(tmp_path / "run" / "curve.csv")))
+    assert [(e.step, e.value) for e in rates] == [(int(r["timesteps"]), float(r["success_rate"])) for r in curve]
+    assert "train/actor_loss" in accumulator.Tags()["scalars"]
+    assert json.loads((tmp_path / "run" / "model.json").read_text())["tensorboard"] == str(events)
+
+
+@needs_train
+def test_a_run_that_fails_before_its_first_evaluation_leaves_nothing(tmp_path, monkeypatch):
+    (tmp_path / "taken").write_text("a file where the TensorBoard folder would go")
+    result = _tiny_run(tmp_path / "run", "-p", f"tensorboard_log={tmp_path / 'taken'}")
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert not (tmp_path / "run").exists()
+
+    import envfactory.learn.loop as loop
+    from envfactory.learn.trainer import train
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("the evaluation env broke")
+
+    monkeypatch.setattr(loop, "evaluate", broken)  # fails at step 120, after TensorBoard began its events
+    with pytest.raises(RuntimeError, match="the evaluation env broke"):
+        train("VX300SReacherGoalSim-v0", tmp_path / "run", steps=240, eval_every=120, eval_episodes=1,
+                      progress_bar=False, overrides=(*TINY[1::2], f"tensorboard_log={tmp_path / 'tb'}"))
+    assert not (tmp_path / "run").exists() and not (tmp_path / "tb" / "run_1").exists()
+
+
 def test_hyperparameters_merge_default_family_and_command_line():
     hyper = load("sac", "UR5eReacherGoalSim-v0", ["gamma=0.9", "policy_kwargs.net_arch=[64, 64]", "her.n_sampled_goal=8"])
     assert hyper.values["gamma"] == 0.9 and hyper.values["policy_kwargs"]["net_arch"] == [64, 64]
@@ -122,6 +282,25 @@ def test_bad_hyperparameters_are_named(tmp_path, monkeypatch):
     monkeypatch.setattr(hp, "builtin_folder", lambda: tmp_path)
     with pytest.raises(HyperparameterError, match=r"sac.yaml:\d+: not valid YAML"):
         load("sac", "UR5eReacherGoalSim-v0")
+
+
+def test_floats_read_as_yaml_1_2_writes_them():
+    """PyYAML reads `3e-4` as text; a learning rate of '3e-4' used to fail deep inside SB3."""
+    assert parse_overrides(["learning_rate=3e-4", "buffer_size=1e6", "name=e5", "net=[1e-3, x]"]) == {
+        "learning_rate": 0.0003, "buffer_size": 1_000_000.0, "name": "e5", "net": [0.001, "x"]}
+
+
+@needs_train
+@pytest.mark.parametrize("override, message", [
+    ("learning_rate=fast", "learning_rate must be a number, got 'fast'"),
+    ("gamma=[0.9]", "gamma must be a number, got [0.9]"),
+    ("batch_size=12.5", "batch_size must be a whole number, got 12.5"),
+])
+def test_hyperparameters_of_the_wrong_type_fail_before_training(tmp_path, override, message):
+    result = runner.invoke(app, ["train", "VX300SReacherGoalSim-v0", "-p", override, "-o", str(tmp_path / "run")])
+    assert result.exit_code == 1
+    assert message in result.output and "command line" in result.output
+    assert not (tmp_path / "run").exists()
 
 
 @needs_train
@@ -175,3 +354,28 @@ def test_collect_writes_a_minari_dataset_that_loads_back(tmp_path, monkeypatch, 
 
     again = runner.invoke(app, ["collect", "UR5eReacherGoalSim-v0", "--episodes", "1", "--data-path", str(tmp_path)])
     assert again.exit_code == 1 and "already exists" in again.output and "--overwrite" in again.output
+
+
+@needs_minari
+def test_collect_warns_of_nothing_and_records_what_it_is_given(tmp_path, monkeypatch):
+    """Minari warned four times per dataset (no author, e-mail, code link, evaluation env): collect now gives the
+    code link and the evaluation env, and the author and e-mail when the user does (--author, --author-email)."""
+    import warnings
+
+    import minari
+
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path))
+    command = ["collect", "UR5eReacherGoalSim-v0", "--episodes", "1", "--data-path", str(tmp_path)]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        plain = runner.invoke(app, command)
+        signed = runner.invoke(app, [*command, "--dataset-id", "test/signed-v0", "--author", "Ada",
+                                     "--author-email", "ada@example.org"])
+    assert plain.exit_code == 0 and signed.exit_code == 0, plain.output + signed.output
+    assert [f"{w.category.__name__}: {w.message}" for w in caught] == []
+    unsigned = minari.load_dataset("envfactory/ur5ereachergoalsim/expert-v0").storage.metadata
+    assert "author" not in unsigned and "author_email" not in unsigned  # never guessed
+    metadata = minari.load_dataset("test/signed-v0").storage.metadata
+    assert metadata["author"] == {"Ada"} and metadata["author_email"] == {"ada@example.org"}
+    assert metadata["code_permalink"].startswith("envfactory ")
+    assert metadata["eval_env_spec"] == metadata["env_spec"]  # evaluated where it was collected

@@ -5,12 +5,20 @@ Positions are in the task frame; joint vectors are in /joint_states order.
 
 from __future__ import annotations
 
+import os
+import sys
 from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
 
 from envfactory.schema.models import CameraSpec
+
+
+def window_impossible() -> bool:
+    """Whether a window cannot open here: Linux without an X display (PyBullet's GUI then ends the whole
+    process from inside its C code, so the check must come before it is asked)."""
+    return sys.platform.startswith("linux") and not os.environ.get("DISPLAY")
 
 
 @dataclass(frozen=True)

@@ -1,19 +1,28 @@
-"""Commands that learn from the envs: train (SAC, TD3, TQC; HER on goal envs) and collect (expert datasets)."""
+"""Commands that learn from the envs: train (SAC, TD3, TQC; HER on goal envs; from demonstrations; resumed) and
+collect (expert datasets)."""
 
 from __future__ import annotations
 
+from contextlib import nullcontext
+from functools import partial
 from pathlib import Path
 from typing import List, Optional
 
 import typer
 
 from envfactory import registry
-from envfactory.cli.app import KWARG_HELP, _fail, _known, _parse_kwargs, command, console
+from envfactory.cli.app import KWARG_HELP, _fail, _known, _parse_kwargs, command, console, errors
+from envfactory.cli.scale import (SEEDS_HELP, SWEEP_HELP, address_option, cluster_module, cluster_size,
+                                  parse_seeds, train_trials, workers_option)
 from envfactory.learn import extra
+from envfactory.learn.demo_replay import DemonstrationError
 from envfactory.learn.demonstrations import collect as run_collection
+from envfactory.learn.demonstrations import record as record_here
 from envfactory.learn.extra import MissingExtra, require
 from envfactory.learn.hyperparams import HyperparameterError, load
-from envfactory.learn.trainer import CSV_FILE, META_FILE, MODEL_FILE, PNG_FILE
+from envfactory.learn.runs import RunFolderError, RunRecord, fresh_folder
+from envfactory.learn.trainer import BUFFER_FILE, CSV_FILE, META_FILE, MODEL_FILE, PNG_FILE, WALL_PNG_FILE
+from envfactory.learn.trainer import resume as resume_training
 from envfactory.learn.trainer import train as run_training
 
 
@@ -26,48 +35,122 @@ def _require(modules: dict, what: str) -> None:
 
 @command()
 def train(
-    env_id: str,
-    algo: str = typer.Option("sac", "--algo", "-a", help="sac, td3 or tqc"),
-    steps: Optional[int] = typer.Option(None, "--steps", "-n", min=1, help="Environment steps (default: n_timesteps "
-                                                                            "of the hyperparameters)"),
-    seed: int = typer.Option(0, help="Seed of the model and of the training env"),
-    out: Optional[Path] = typer.Option(None, "--out", "-o", help="Run folder (default: runs/ID-ALGO-seedN)"),
+    env_id: Optional[str] = typer.Argument(None, help="The ID to train (with --resume: the run's own, if given)"),
+    algo: Optional[str] = typer.Option(None, "--algo", "-a", help="sac, td3 or tqc (default: sac)"),
+    steps: Optional[int] = typer.Option(None, "--steps", "-n", min=1, help="Environment steps in all (default: "
+                                                                            "n_timesteps of the hyperparameters; "
+                                                                            "with --resume, the run's own)"),
+    seed: Optional[int] = typer.Option(None, help="Seed of the model and of the training env (default: 0)"),
+    out: Optional[Path] = typer.Option(None, "--out", "-o", help="Run folder (default: runs/ID-ALGO-seedN); one "
+                                                                 "holding an earlier run is never overwritten: the "
+                                                                 "run goes to NAME-2, NAME-3..."),
     hyperparameter: List[str] = typer.Option(None, "--hyperparameter", "-p",
                                              help="Override as name=value (dotted names nest), repeatable"),
     kwarg: List[str] = typer.Option(None, "--kwarg", "-k", help=KWARG_HELP + " (over the hyperparameters' "
                                                                              "env_kwargs)"),
     eval_every: Optional[int] = typer.Option(None, min=1, help="Evaluate every this many steps"),
     eval_episodes: Optional[int] = typer.Option(None, min=1, help="Episodes per evaluation"),
+    demos: Optional[str] = typer.Option(None, "--demos", help="Learn from demonstrations: a Minari dataset (ID, or "
+                                                              "its folder) written by `envfactory collect` with the "
+                                                              "same kwargs; they seed the replay buffer and the "
+                                                              "behaviour-cloning term (the `demos` block of the "
+                                                              "hyperparameters)"),
+    resume: Optional[Path] = typer.Option(None, "--resume", help="Continue the run in this folder with its model, "
+                                                                 "replay buffer and settings; --steps sets the new "
+                                                                 "total"),
+    seeds: Optional[str] = typer.Option(None, "--seeds", help=SEEDS_HELP),
+    sweep: List[str] = typer.Option(None, "--sweep", help=SWEEP_HELP),
+    workers: Optional[int] = workers_option(),
+    address: Optional[str] = address_option(),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar"),
 ):
-    """Train SAC, TD3 or TQC on an ID (HER on goal envs); save the model and the success-rate curve."""
+    """Train SAC, TD3 or TQC on an ID (HER on goal envs), optionally from demonstrations; save the model, the
+    replay buffer and the success-rate curve. --resume continues a stopped run. --seeds (and --sweep) train
+    several runs, with --workers as Ray tasks."""
 
-    _known(env_id)
     _require({**extra.TRAIN_MODULES, **extra.PLOT_MODULES}, "envfactory train")
-
-    try:
-        load(algo, env_id, hyperparameter or ())  # bad names or values fail before anything is built
-    except HyperparameterError as exc:
-        _fail(str(exc))
-    folder = out or Path("runs") / f"{env_id}-{algo.lower()}-seed{seed}"
-    if folder.exists() and not folder.is_dir():
-        _fail(f"{folder}: is a file; give a folder for the run")
+    if seeds is not None or sweep:
+        if resume is not None or (seeds is not None and seed is not None) or env_id is None:
+            _fail("--seeds and --sweep start new runs of an ID: give the ID, and drop --resume and --seed")
+        _known(env_id)
+        train_trials(env_id, algo or "sac", parse_seeds(seeds) if seeds is not None else [seed or 0], sweep or [],
+                     out, tuple(hyperparameter or ()), steps, _parse_kwargs(kwarg), eval_every, eval_episodes, demos,
+                     workers, address, progress)
+        return
+    if workers is not None or address is not None:
+        _fail("--workers and --address spread several runs: give --seeds (or --sweep) too")
 
     def report(row) -> None:
         console.print(f"step {row.timesteps:>7}: success {row.success_rate:6.1%}  return {row.mean_return:8.2f}  "
                       f"length {row.mean_length:5.1f}  ({row.episodes} episodes, {row.wall_s:.0f} s)")
 
+    if resume is not None:
+        folder = _resumable(resume, env_id, {"--algo": algo, "--seed": seed, "--out": out, "-p": hyperparameter,
+                                             "-k": kwarg, "--eval-every": eval_every,
+                                             "--eval-episodes": eval_episodes, "--demos": demos})
+        console.print(f"resuming {folder}")
+        start = partial(resume_training, folder, steps=steps, progress_bar=progress, on_evaluation=report)
+    else:
+        if env_id is None:
+            _fail("give the ID to train, or --resume RUN_FOLDER")
+        _known(env_id)
+        algo, seed = algo or "sac", 0 if seed is None else seed
+        try:
+            load(algo, env_id, hyperparameter or ())  # bad names or values fail before anything is built
+        except HyperparameterError as exc:
+            _fail(str(exc))
+        asked = out or Path("runs") / f"{env_id}-{algo.lower()}-seed{seed}"
+        if asked.exists() and not asked.is_dir():
+            _fail(f"{asked}: is a file; give a folder for the run")
+        folder = fresh_folder(asked)
+        if folder != asked:
+            console.print(f"{asked} holds an earlier run, which is never overwritten: this run goes to {folder} "
+                          f"(`envfactory train --resume {asked}` would continue that one)")
+        start = partial(
+            run_training, env_id, folder, algo=algo, seed=seed, steps=steps, overrides=tuple(hyperparameter or ()),
+            env_kwargs=_parse_kwargs(kwarg), eval_every=eval_every, eval_episodes=eval_episodes, demos=demos,
+            progress_bar=progress, on_evaluation=report)
     try:
-        result = run_training(env_id, folder, algo=algo, seed=seed, steps=steps, overrides=tuple(hyperparameter or ()),
-                              env_kwargs=_parse_kwargs(kwarg), eval_every=eval_every, eval_episodes=eval_episodes,
-                              progress_bar=progress, on_evaluation=report)
-    except HyperparameterError as exc:
+        result = start()
+    except (HyperparameterError, RunFolderError, DemonstrationError) as exc:
         _fail(str(exc))
-    console.print(f"model: {folder / MODEL_FILE} (trained on: {folder / META_FILE})")
-    console.print(f"learning curve: {folder / CSV_FILE}, {folder / PNG_FILE}")
+    except KeyboardInterrupt:
+        _stopped(folder)
+    env_id = RunRecord.read(folder).data["env_id"]
+    console.print(f"model: {folder / MODEL_FILE} (its settings and parts: {folder / META_FILE})")
+    console.print(f"replay buffer: {folder / BUFFER_FILE} ({result.replay_buffer_bytes / 1e6:.0f} MB; "
+                  f"`envfactory train --resume {folder} --steps N` continues the run)")
+    console.print(f"learning curve: {folder / CSV_FILE}, {folder / PNG_FILE}, {folder / WALL_PNG_FILE}")
     if result.evaluations:
         console.print(f"final success rate: {result.evaluations[-1].success_rate:.0%}; replay it with "
                       f"`envfactory run {env_id} --policy {folder / MODEL_FILE}`")
+
+
+def _resumable(folder: Path, env_id: str | None, settings: dict) -> Path:
+    """The run folder to resume, refused with the reason before anything is built."""
+    given = [name for name, value in settings.items() if value not in (None, [], ())]
+    if given:
+        _fail(f"--resume continues the run with the settings it was started with ({folder / META_FILE}); "
+              f"drop {', '.join(given)}")
+    try:
+        record = RunRecord.read(folder)
+    except RunFolderError as exc:
+        _fail(str(exc))
+    if env_id is not None and env_id != record.data["env_id"]:
+        _fail(f"--resume {folder}: that run trains {record.data['env_id']}, not {env_id}")
+    return folder
+
+
+def _stopped(folder: Path) -> None:
+    """Ctrl-C or SIGTERM: the trainer saved where the run stands; say how to go on."""
+    try:
+        record = RunRecord.read(folder)
+    except RunFolderError:
+        errors.print(f"stopped before {folder} held a run")
+        raise typer.Exit(130)
+    errors.print(f"stopped at step {record.data.get('timesteps', 0)}: model and replay buffer saved in {folder}; "
+                 f"continue with `envfactory train --resume {folder}`")
+    raise typer.Exit(130)
 
 
 @command()
@@ -81,22 +164,38 @@ def collect(
                                                                        "MINARI_DATASETS_PATH or ~/.minari/datasets)"),
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace a dataset of the same ID"),
     kwarg: List[str] = typer.Option(None, "--kwarg", "-k", help=KWARG_HELP),
+    author: Optional[str] = typer.Option(None, "--author", help="Recorded in the dataset's metadata (left out if "
+                                                                "not given)"),
+    author_email: Optional[str] = typer.Option(None, "--author-email", help="Recorded in the dataset's metadata "
+                                                                            "(left out if not given)"),
+    workers: Optional[int] = workers_option(),
+    address: Optional[str] = address_option(),
 ):
-    """Run the scripted expert and write its episodes as a Minari dataset (load with minari.load_dataset)."""
+    """Run the scripted expert and write its episodes as a Minari dataset (load with minari.load_dataset).
+
+    Each episode runs until the env ends it (terminated or truncated), not at its first success, so a learner
+    sees what follows success too. Recover the env in any process with
+    envfactory.learn.demonstrations.load_env(dataset), which also registers a user folder's IDs. With
+    --workers the episodes run as Ray tasks; the dataset is the same."""
 
     _known(env_id)
     _require(extra.COLLECT_MODULES, "envfactory collect")
 
-
     kwargs = _parse_kwargs(kwarg)
     if registry.records()[env_id].backend != "pybullet":
         _fail(f"{env_id}: collect runs simulated IDs only (it would drive the real arm for every episode)")
+    size = cluster_size(workers, address)
+    pool = None if size is None else cluster_module("pool", "collect --workers/--address")
     try:
-        result = run_collection(env_id, episodes, dataset_id=dataset_id, seed=seed, env_kwargs=kwargs,
-                                data_path=data_path, overwrite=overwrite)
+        with pool.connected(size, address) if pool else nullcontext():
+            recorder = pool.recorder(pool.cluster_cpus(size)) if pool else record_here
+            result = run_collection(env_id, episodes, dataset_id=dataset_id, seed=seed, env_kwargs=kwargs,
+                                    data_path=data_path, overwrite=overwrite, author=author,
+                                    author_email=author_email, recorder=recorder)
     except FileExistsError as exc:
         _fail(str(exc))
-    console.print(f"dataset {result.dataset_id}: {result.episodes} episodes, {result.steps} steps, "
-                  f"{result.successes} reach the goal; written to {result.path}")
+    console.print(f"dataset {result.dataset_id}: {result.episodes} episodes run to the env's end, {result.steps} "
+                  f"steps, {result.successes} reach the goal; written to {result.path}")
     console.print(f"load it with: import minari; minari.load_dataset({result.dataset_id!r})"
-                  + (f" (with MINARI_DATASETS_PATH={data_path.resolve()})" if data_path else ""))
+                  + (f" (with MINARI_DATASETS_PATH={data_path.resolve()})" if data_path else "")
+                  + "; its env: envfactory.learn.demonstrations.load_env(dataset)")

@@ -12,17 +12,23 @@ from typing import List, Optional
 
 import typer
 from rich.table import Table
+from typer.core import TyperCommand
 
+# first of the package: importing cli.app drops PyBullet's load-time banner, before anything below loads PyBullet
+from envfactory.cli.app import KWARG_HELP, _check_output, _fail, _known, _parse_kwargs, app, command, console, errors
 from envfactory import factory, registry, user_config
 from envfactory.backends.base import BackendError
 from envfactory.cli import learn as _learn_commands  # noqa: F401  (registers its commands)
+from envfactory.cli import scale as _scale_commands  # noqa: F401  (registers its commands)
 from envfactory.cli import safety as _safety_commands  # noqa: F401  (registers its commands)
-from envfactory.cli.app import KWARG_HELP, _check_output, _fail, _known, _parse_kwargs, app, command, console, errors
+from envfactory.cli.lookup import robots_with_backend, unknown_robot
+from envfactory.compiler.scene_checks import height_summary
 from envfactory.describe import render_description
 from envfactory.episodes import iter_episodes, success_rate
 from envfactory.experts import make_policy
 from envfactory.learn.extra import TRAIN_MODULES, MissingExtra, require
 from envfactory.learn.trainer import load_policy, read_meta
+from envfactory.schema.compose import load_env_spec
 from envfactory.schema.errors import SpecError
 from envfactory.terms import catalog, plugins
 from envfactory.twin import Twin
@@ -33,17 +39,14 @@ from envfactory.user_config import config_file
 def validate(paths: List[Path] = typer.Argument(None, help="Spec folders or family files; default: every spec.")):
     """Compose and compile every ID of the given specs as make would; report errors with file:line."""
 
-    targets: list[Path] = []
     missing = [path for path in paths or [] if not path.exists()]
     if missing:
-        _fail("; ".join(f"{path}: no such file or folder" for path in missing))
+        _fail("; ".join(f"{path}: no such file or folder{registry.nearest_entry(path)}" for path in missing))
     folders = paths or [registry.builtin_root(), *(folder for folder, _ in registry.user_folders())]
-    for path in folders:
-        if path.is_dir():
-            targets.extend(registry.family_files(path))
-        elif path.exists() or not paths:
-            targets.append(path)
-    failures, checked = 0, 0
+    targets, unread, notes = _validate_targets(folders, given=bool(paths))
+    failures, checked = len(unread), 0
+    for message in unread:
+        errors.print(message, highlight=False, markup=False, soft_wrap=True)
     pending: dict = {}
     for path in targets:
         try:
@@ -54,14 +57,35 @@ def validate(paths: List[Path] = typer.Argument(None, help="Spec folders or fami
             factory.check_family(records)
             pending.update({r.env_id: r for r in records})
             checked += len(records)
+            if records:
+                spec = load_env_spec(records[0].family, (), dict(records[0].kwargs), env_id=records[0].env_id).spec
+                console.print(f"{path.stem}: {len(records)} ID(s) valid. {height_summary(spec)}", highlight=False,
+                              soft_wrap=True)
         except SpecError as exc:
             failures += 1
             errors.print(str(exc), highlight=False, markup=False, soft_wrap=True)
-    if not targets:
-        _fail(f"no family files (*.yaml) in {', '.join(map(str, folders))}")
+    for note in notes:
+        console.print(note, highlight=False, soft_wrap=True)
     if failures:
         _fail(f"{failures} spec file(s) invalid, {checked} ID(s) valid")
     console.print(f"{checked} ID(s) in {len(targets)} spec file(s): valid")
+
+
+def _validate_targets(folders: list[Path], given: bool) -> tuple[list[Path], list[str], list[str]]:
+    """The family files to validate; the messages of folders whose families are not read (refused: a family that
+    is never registered must not pass unnoticed); notes on what `register` will make of a path."""
+    targets, unread, notes = [], [], []
+    for path in folders:
+        if path.is_dir():
+            listing = registry.list_folder(path)
+            targets += listing.families
+            unread += [f"{file}: {why}" for file, why in registry.unread_files(listing)]
+        elif path.exists() or not given:
+            targets.append(path)
+            if given:
+                notes.append(f"note: {path} is a family file; `envfactory register` and {registry.SPEC_PATH_VARIABLE} "
+                             f"take its spec folder, {registry.folder_of(path)}")
+    return targets, unread, notes
 
 
 @command("list")
@@ -122,7 +146,7 @@ def register(
     failed = False
     for path in paths:
         if not path.is_dir():
-            errors.print(f"{path}: no such spec folder", highlight=False, markup=False)
+            errors.print(f"{path}: {registry.not_a_folder(path)}", highlight=False, markup=False)
             failed = True
             continue
         factory.unregister_folder(path)  # registered lazily at import: validate it in full now
@@ -228,8 +252,15 @@ def run(
     kwarg: List[str] = typer.Option(None, "--kwarg", "-k", help=KWARG_HELP),
     allow_real_robot_motion: bool = typer.Option(
         False, "--allow-real-robot-motion", help="Let a Real ID move the arm (the motion gate); clear the workspace first"),
+    stop_at_success: bool = typer.Option(
+        False, "--stop-at-success", help="End each episode at its first success, even on Dense IDs (which go on to "
+                                         "the time limit), so Length reads as time-to-success"),
 ):
-    """The main job: run episodes and print a per-episode table."""
+    """The main job: run episodes and print a per-episode table.
+
+    Each episode ends where the env ends it (terminated or truncated), as a learner sees it: Return, Length
+    and Success (is_success at the last step) are the learner's; "First success" is the step the goal was
+    first reached. --stop-at-success ends episodes there instead."""
     import gymnasium as gym
     from rich.progress import Progress
 
@@ -256,18 +287,18 @@ def run(
             task = progress.add_task(f"{env_id} ({policy})", total=episodes * limit)
             # the first reset is the first episode's: a real arm drives home once
             for result in iter_episodes(env, actor, episodes, seed, on_frame=frames.append if video else None,
-                                        on_step=lambda: progress.advance(task)):
+                                        on_step=lambda: progress.advance(task), stop_on_success=stop_at_success):
                 results.append(result)
     except KeyboardInterrupt:
         env.close()  # before the message: on a real robot this sends the stop
-        _print_results(env_id, policy, results)
+        _print_results(env_id, policy, results, stop_at_success)
         errors.print("interrupted: the env is closed and the arm stopped")
         raise typer.Exit(130)
     except (ValueError, BackendError) as exc:
         failure = str(exc)
     finally:
         env.close()
-    _print_results(env_id, policy, results)
+    _print_results(env_id, policy, results, stop_at_success)
     if failure:
         _fail(f"the run stopped after {len(results)} of {episodes} episodes: {failure}")
     if video:
@@ -309,23 +340,52 @@ def _bind_model(path: Path, env, algo: str | None):
               f"trained with (model.json beside it, or -k)")
 
 
-def _print_results(env_id: str, policy: str, results) -> None:
+# What the table measures: (its title's tail, the footnote under it), by --stop-at-success.
+EPISODE_END = {
+    False: ("each episode until the env ends it",
+            "Episodes end where the env ends them (terminated or truncated), as a learner sees them; Success is "
+            "is_success at the last step."),
+    True: ("each episode until its first success",
+           "Episodes end at their first success (--stop-at-success), else where the env ends them: on IDs that go on "
+           "after success (Dense) Length and Return stop short of what a learner sees."),
+}
+
+
+def _print_results(env_id: str, policy: str, results, stop_at_success: bool) -> None:
     aborted = any(r.abort_reason for r in results)
-    columns = ["Episode", "Seed", "Return", "Length", "Success", "Rejected actions"] + (["Aborted"] if aborted else [])
-    table = Table(*columns, title=f"{env_id} — {policy}")
+    columns = ["Episode", "Seed", "Return", "Length", "Success", "First success", "Rejected actions"]
+    scope, footnote = EPISODE_END[stop_at_success]
+    table = Table(*columns, *(["Aborted"] if aborted else []), title=f"{env_id} — {policy} — {scope}")
     for r in results:
         row = [str(r.index), str(r.seed), f"{r.episode_return:.2f}", str(r.length), "yes" if r.success else "no",
-               str(r.rejected)]
+               "-" if r.first_success is None else f"step {r.first_success}", str(r.rejected)]
         table.add_row(*row, *([r.abort_reason] if aborted else []))
     console.print(table)
+    console.print(footnote, highlight=False)
     aborts = sum(bool(r.abort_reason) for r in results)
     console.print(f"success rate: {success_rate(results):.0%} over {len(results)} episodes"
                   + (f"; {aborts} aborted by a fault" if aborts else ""))
 
 
-@command()
+TWIN_ROBOT_HELP = "Robot name (the Robot column of `envfactory list`)"
+
+
+class _TwinHelp(TyperCommand):
+    """`twin --help` names the robots with a real path (a rosbridge ID), read from the registered specs when
+    the help is shown: a robot YAML added later is listed without touching this file, and no other command
+    pays for composing the families."""
+
+    def format_help(self, ctx, formatter) -> None:
+        robots = robots_with_backend("rosbridge")
+        for param in self.params:
+            if param.name == "robot":
+                param.help = f"{TWIN_ROBOT_HELP}; robots with a real path: {', '.join(robots) or 'none'}"
+        super().format_help(ctx, formatter)
+
+
+@command(cls=_TwinHelp)
 def twin(
-    robot: str = typer.Argument(..., help="Robot name, e.g. ur5e (the Robot column of `envfactory list`)"),
+    robot: str = typer.Argument(..., help=TWIN_ROBOT_HELP),
     task: str = typer.Option("push", help="The task whose objects it simulates (push has the cube)"),
     port: int = typer.Option(9090, help="Port of the rosbridge websocket; 0 picks a free one"),
     host: str = typer.Option("127.0.0.1", help="Interface to listen on (loopback by default)"),
@@ -352,6 +412,9 @@ def twin(
     import time
 
 
+    real_robots = robots_with_backend("rosbridge")
+    if robot not in real_robots:
+        _fail(unknown_robot(robot, real_robots, "robots with a real path"))
     types = {}
     for item in topic_type or []:
         topic, sep, type_name = item.partition("=")

@@ -7,7 +7,8 @@ from pathlib import Path
 import typer
 
 from envfactory import factory, registry
-from envfactory.cli.app import KWARG_HELP, _fail, _parse_kwargs, command, console
+from envfactory.cli.app import KWARG_HELP, _fail, _known, _parse_kwargs, command, console
+from envfactory.cli.lookup import robot_ids, unknown_robot
 from envfactory.geometry.robot_model import regenerate_pairs
 from envfactory.registry import record
 from envfactory.safety_view import render_clearance
@@ -16,25 +17,29 @@ from envfactory.schema.errors import SpecError
 
 
 def _robot_blueprint(name: str):
-    """The first ID of a robot (by robot name or by ID)."""
+    """The ID named, or the first simulated ID of the robot named."""
 
-    ids = sorted(registry.records())
-    if name in ids:
+    records = registry.records()
+    if name in records:
         try:
             return factory.blueprint(name)
         except SpecError as exc:
             return _only_pairs_stale(name, exc) or _fail(str(exc))
-    for env_id in ids:
+    robots = robot_ids()
+    if name not in robots:
+        _fail(unknown_robot(name, list(robots), ids=tuple(records)))
+    first_error = None
+    for env_id in robots[name]:
+        if records[env_id].backend != "pybullet":
+            continue
         try:
-            compiled = factory.blueprint(env_id)
+            return factory.blueprint(env_id)
         except SpecError as exc:
             compiled = _only_pairs_stale(env_id, exc)
-            if compiled is None:
-                continue
-        if compiled.spec.robot.name == name and registry.records()[env_id].backend == "pybullet":
-            return compiled
-    robots = sorted({compiled.spec.robot.name for i in ids if (compiled := _loaded(i)) is not None})
-    _fail(f"no robot or ID named {name!r} (robots: {', '.join(robots)})")
+            if compiled is not None:
+                return compiled
+            first_error = first_error or exc
+    _fail(str(first_error) if first_error else f"robot {name!r} has no simulated (pybullet) ID to build it from")
 
 
 class _Unchecked:
@@ -87,6 +92,7 @@ def safety_view(
 ):
     """Render the arm with its checked collision shapes, coloured by clearance (red near, green clear)."""
 
+    _known(env_id)
     if not out.parent.exists():
         _fail(f"--out {out}: the folder {out.parent} does not exist")
     compiled = factory.blueprint(env_id, **_parse_kwargs(kwarg))

@@ -7,7 +7,7 @@ import numpy as np
 from pydantic import BaseModel, ValidationError
 
 from envfactory import backends
-from envfactory.compiler import robot_checks
+from envfactory.compiler import robot_checks, sim_checks
 from envfactory.compiler.blueprint import (
     ActionLayout,
     ActionRow,
@@ -17,7 +17,7 @@ from envfactory.compiler.blueprint import (
     TerminationSlot,
     WeightedTerm,
 )
-from envfactory.compiler.scene_checks import check_scene
+from envfactory.compiler.scene_checks import check_expert_workspace, check_scene
 from envfactory.experts import EXPERTS
 from envfactory.geometry.point_boxes import derived_boxes
 from envfactory.schema.compose import LoadedSpec
@@ -28,6 +28,8 @@ from envfactory.schema.models import EnvSpec
 from envfactory.terms import IMAGES, OBSERVATIONS, REWARDS, TERMINATIONS, Layout, plugins
 from envfactory.terms.rewards import step_info_keys
 from envfactory.terms.stages import stage_factory
+
+SIMULATORS = ("pybullet", "mujoco")  # the backends that integrate physics (sim.physics_hz, sim.mujoco)
 
 
 def _action_layout(spec: EnvSpec) -> ActionLayout:
@@ -254,11 +256,15 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
     _check_info_keys(spec, rewards, terminations, found)
     achieved_from = _achieved_from(spec, found)
     _check_expert(spec, found)
+    check_expert_workspace(spec, found)
     images = _images(spec, found)
     backend = _engine(spec, env_id, backend, found)
     _check_backend(spec, env_id, backend, found)
+    if backend in SIMULATORS:
+        sim_checks.check_physics_rate(spec, backend, found)
+        sim_checks.check_display(spec, backend, found)
     if not found:
-        robot_checks.check(spec, loaded.file_of("robot.model").parent, found)
+        robot_checks.check(spec, loaded.file_of("robot.model").parent, found, loaded.family.path, env_id)
     found.raise_if_any(env_id)
     info_keys = tuple(sorted({key for t in (*rewards, *terminations) for key in t.term.info_keys}))
     return Blueprint(

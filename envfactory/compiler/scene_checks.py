@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from envfactory.compiler.expert_points import expert_points
 from envfactory.geometry.frames import TaskFrame
 from envfactory.geometry.obstacles import table_bounds_xy
 from envfactory.schema.models import EnvSpec
@@ -18,7 +19,17 @@ from envfactory.schema.sources import Findings
 TOLERANCE_FRACTION = 0.05
 # How far an object's declared spawn height may sit from resting on the table top.
 RESTING_SLACK = 0.01
-
+# An object's goal is where the arm carries it from the table: a goal box reaching higher than this above the
+# table top is a frame or unit mistake, not a task. The shipped pick-and-place goals reach 0.25 m; a world-frame
+# height pasted into a base-frame robot on the cafe table lands near 0.8 m, which the reach check alone lets
+# through on a tall arm while the expert never gets the object there.
+MAX_OBJECT_GOAL_HEIGHT = 0.5
+# Heights read in the other frame "sit on the table" when they land this close above its top: a goal or spawn
+# point near the table is how both frames' boxes start.
+NEAR_TABLE = 0.1
+# A task frame whose origin is this far above or below the world's makes a height pasted from the other frame a
+# mistake the table catches; closer, the frames' heights cannot be told apart.
+FRAME_SHIFT_MIN = 0.1
 
 
 def _fmt(values) -> str:
@@ -54,10 +65,47 @@ class TaskFrameScene:
         low, high = self._world_table
         return bool(np.all(corners >= low) and np.all(corners <= high))
 
+    def height(self, z: float) -> float:
+        """Height above the table top of a task-frame z."""
+        return float(z) - self.top_z
+
+    def other_frame_hint(self, spec: EnvSpec, low_z: float) -> str:
+        """'; ... looks like <other>-frame heights ...' when a box starting at `low_z` would sit on the table read
+        in the other frame (world heights in a base frame, or base heights in the world frame), else ''."""
+        robot = spec.robot
+        shift = float(robot.mount[2])  # the base frame's origin height in the world
+        if abs(shift) < FRAME_SHIFT_MIN:
+            return ""
+        table_world = spec.scene.table.top_z
+        if robot.task_frame == "base":
+            # a world height w is w - shift in the base frame: read as world, does the box sit on the table?
+            if -RESTING_SLACK <= low_z - table_world <= NEAR_TABLE:
+                return (f"; these look like world-frame heights: robot {robot.name!r} gives goals and spawns in its "
+                        f"base frame (task_frame: base), whose origin is {shift:g} m up (robot.mount), so the table "
+                        f"top is at z {self.top_z:g} there: subtract {shift:g} from every z")
+            return ""
+        if -RESTING_SLACK <= low_z + shift - table_world <= NEAR_TABLE:
+            return (f"; these look like base-frame heights: robot {robot.name!r} gives goals and spawns in the world "
+                    f"frame (task_frame: world), where its base is {shift:g} m up (robot.mount) and the table top at "
+                    f"z {table_world:g}: add {shift:g} to every z")
+        return ""
+
     def footprint(self) -> str:
         low, high = self._world_table if self.frame.rotated else (self.table_min, self.table_max)
         world = " (world frame)" if self.frame.rotated else ""
         return f"x in [{low[0]:g}, {high[0]:g}], y in [{low[1]:g}, {high[1]:g}]{world}"
+
+
+def height_summary(spec: EnvSpec) -> str:
+    """The goal box's and each object's spawn height above the table top: what a frame or unit mistake in a
+    height changes first, shown by describe and validate."""
+    scene = TaskFrameScene(spec)
+    low, high = (box[2] for box in spec.task.goal.box)
+    parts = [f"goal {scene.height(low):.3f}–{scene.height(high):.3f} m"]
+    parts += [f"{name} centre {scene.height(obj.spawn.position[2]):.3f} m (resting: {obj.size / 2:g})"
+              for name, obj in spec.task.objects.items()]
+    return (f"Heights above the table top (z {scene.top_z:g} in the {spec.robot.task_frame} frame): "
+            + ", ".join(parts))
 
 
 def check_scene(spec: EnvSpec, found: Findings) -> None:
@@ -110,6 +158,7 @@ def _goal(spec: EnvSpec, scene: TaskFrameScene, found: Findings) -> None:
     low, high = (np.asarray(b, float) for b in goal.box)
     source = goal.achieved.partition(".")[0]
     ee_low, ee_high = (np.asarray(b, float) for b in spec.robot.ee_bounds)
+    other_frame = scene.other_frame_hint(spec, low[2])
     if source == "ee":
         # the EE is only ever commanded inside the workspace, so a goal outside it is never reached
         bounds, name = (np.asarray(workspace.min, float), np.asarray(workspace.max, float)), "the workspace"
@@ -118,15 +167,26 @@ def _goal(spec: EnvSpec, scene: TaskFrameScene, found: Findings) -> None:
     outside = [axis for axis, lo, hi, b_lo, b_hi in zip("xyz", low, high, *bounds) if lo < b_lo or hi > b_hi]
     if outside:
         found.add("task.goal.box", f"goal box {_box(low, high)} leaves {name} {_box(*bounds)} in "
-                                   f"{', '.join(outside)}; valid: a box inside it")
+                                   f"{', '.join(outside)}; valid: a box inside it{other_frame if 'z' in outside else ''}")
     if source != "ee" and source in spec.task.objects and not scene.inside_table(low[:2], high[:2]):
         found.add("task.goal.box", f"goal box x/y {_box(low[:2], high[:2])} leaves the table "
                                    f"({scene.footprint()}); {source} goals must lie over the table")
     surface = scene.top_z if scene.over_table(low[:2], high[:2]) else scene.floor_z
     what = "table top" if surface == scene.top_z else "floor"
+    where = f"(z {scene.top_z:g} in the {spec.robot.task_frame} frame)"
     if low[2] < surface:
         found.add("task.goal.box", f"goal box bottom z {low[2]:g} lies below the {what} "
-                                   f"(z {surface:g} in the {spec.robot.task_frame} frame); valid: z >= {surface:g}")
+                                   f"(z {surface:g} in the {spec.robot.task_frame} frame); valid: z >= {surface:g}"
+                                   f"{other_frame}")
+    elif other_frame and scene.height(low[2]) > abs(spec.robot.mount[2]) / 2:
+        # nearer the table read in the other frame than in its own: a pasted height, wherever the arm reaches
+        found.add("task.goal.box", f"goal box bottom z {low[2]:g} lies {scene.height(low[2]):.3g} m above the table "
+                                   f"top {where}{other_frame}")
+    elif source != "ee" and scene.height(high[2]) > MAX_OBJECT_GOAL_HEIGHT:
+        found.add("task.goal.box", f"goal box top z {high[2]:g} lies {scene.height(high[2]):.3g} m above the table "
+                                   f"top {where}: {source} is carried there from the table, and a goal more than "
+                                   f"{MAX_OBJECT_GOAL_HEIGHT:g} m above it is out of any pick-and-place task; valid: "
+                                   f"z <= {scene.top_z + MAX_OBJECT_GOAL_HEIGHT:.3g}")
 
 
 def _objects(spec: EnvSpec, scene: TaskFrameScene, found: Findings) -> None:
@@ -143,16 +203,43 @@ def _objects(spec: EnvSpec, scene: TaskFrameScene, found: Findings) -> None:
         resting = scene.top_z + half
         if position[2] < resting - RESTING_SLACK:
             found.add(f"{path}.position", f"{name} centre z {position[2]:g} puts it inside the table: "
-                                          f"resting on the top it is at z {resting:g}")
+                                          f"resting on the top it is at z {resting:g}"
+                                          f"{scene.other_frame_hint(spec, position[2] - half)}")
         elif position[2] > resting + RESTING_SLACK:
-            found.add(f"{path}.position", f"{name} centre z {position[2]:g} floats above the table: "
-                                          f"resting on the top it is at z {resting:g}")
+            found.add(f"{path}.position", f"{name} centre z {position[2]:g} floats {position[2] - resting:.3g} m above "
+                                          f"the table: resting on the top it is at z {resting:g}"
+                                          f"{scene.other_frame_hint(spec, position[2] - half)}")
         lift = spec.task.goal.lift
         if lift is not None and spec.task.goal.achieved == f"{name}.position" and \
                 position[2] + lift.height > spec.workspace.max[2]:
             found.add("task.goal.lift.height", f"lifting {name} by {lift.height:g} m reaches z "
                                                f"{position[2] + lift.height:g}, above the workspace "
                                                f"(max z {spec.workspace.max[2]:g})")
+
+
+def check_expert_workspace(spec: EnvSpec, found: Findings) -> None:
+    """EE mode never commands the EE outside the workspace: an expert point out of it is never reached there.
+    (Run with the compiler's checks, once the expert's params are known to be valid.)"""
+    low, high = (np.asarray(bound, float) for bound in (spec.workspace.min, spec.workspace.max))
+    for point in expert_points(spec):
+        for axis, name in enumerate("xyz"):
+            values = point.points[:, axis]
+            if values.min() < low[axis] - point.slack:
+                bound, edge, value = "min", "below the workspace floor" if name == "z" else f"below its min {name}", \
+                    values.min()
+            elif values.max() > high[axis] + point.slack:
+                bound, edge, value = "max", "above the workspace ceiling" if name == "z" else f"above its max {name}", \
+                    values.max()
+            else:
+                continue
+            limit = (low if bound == "min" else high)[axis]
+            height = f" (the object's centre z {value - point.offset:g} + {point.offset:g})" if name == "z" else ""
+            found.add(f"workspace.{bound}", f"the expert's {point.name} point {name} {value:.3g}{height} lies {edge} "
+                                            f"(workspace.{bound} {name} {limit:g}) by more than the {point.slack * 1000:g} mm "
+                                            f"the expert allows: in EE mode (ee_action_type) the EE is never commanded "
+                                            f"outside the workspace, so the expert never gets there; "
+                                            f"valid: a workspace holding it, or another {found.where(point.param)}")
+            break
 
 
 def _tolerance(spec: EnvSpec, found: Findings) -> None:

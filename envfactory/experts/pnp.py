@@ -14,6 +14,13 @@ from envfactory.experts.motion import Expert
 from envfactory.terms.library import TermParams
 
 
+# How near the EE must come to a point for the expert to go on; the compiler's reach checks
+# (compiler/expert_points.py) allow the same slack.
+GRASP_WITHIN = 0.006  # closes within this of the grasp point, m
+APPROACH_WITHIN = 0.03  # the approach height is reached within this, m
+LIFT_WITHIN = 0.01  # the carry height is reached within this, m
+
+
 class PickPlaceParams(TermParams):
     object: str = "cube"
     grasp_height: float = Field(default=0.0, ge=-0.5, le=0.5)  # EE height above the cube centre when closing, m
@@ -68,7 +75,7 @@ class PickPlaceExpert(Expert):
                 return motion.toward(np.append(ee[:2], cube[2] + p.clearance), gripper=gripper.open,
                                      max_step=p.step)
         if self.phase == "approach":
-            if np.linalg.norm(ee[:2] - cube[:2]) < 0.008 and abs(ee[2] - above[2]) < 0.03:
+            if np.linalg.norm(ee[:2] - cube[:2]) < 0.008 and abs(ee[2] - above[2]) < APPROACH_WITHIN:
                 self.phase = "descend"
             else:
                 if ee[2] < above[2] - 0.03 and np.linalg.norm(ee[:2] - cube[:2]) > 0.02:
@@ -78,7 +85,7 @@ class PickPlaceExpert(Expert):
             if np.linalg.norm(ee[:2] - cube[:2]) > 0.015:
                 self.phase = "approach"
                 return motion.toward(above, rotation, gripper.open, p.step)
-            if np.linalg.norm(ee - grasp) < 0.006:
+            if np.linalg.norm(ee - grasp) < GRASP_WITHIN:
                 self.phase, self.closing = "close", 0
             else:
                 return motion.toward(grasp, rotation, gripper.open, p.step / 2)
@@ -94,7 +101,7 @@ class PickPlaceExpert(Expert):
         carry_z = max(ee_goal[2], self.floor_z - self.hold_offset[2] + p.lift)
         if self.phase == "lift":
             # straight up first: the lift stage of the curriculum, and clear of the table
-            if ee[2] < carry_z - 0.01:
+            if ee[2] < carry_z - LIFT_WITHIN:
                 return motion.toward(np.append(ee[:2], carry_z), state.ee_rotation, grip, p.step)
             self.phase = "carry"
         if self.phase == "carry" and np.linalg.norm(ee[:2] - ee_goal[:2]) > 0.01:

@@ -13,6 +13,11 @@ from envfactory.experts.motion import Expert
 from envfactory.terms.library import TermParams
 
 
+# The push starts once the EE is within this above the push height, m; the compiler's reach checks
+# (compiler/expert_points.py) allow the same slack.
+PUSH_WITHIN = 0.02
+
+
 class PushParams(TermParams):
     object: str = "cube"
     paddle: float = Field(default=0.02, gt=0, le=0.5)  # from the EE to the pushing face of the gripper, plus a margin, m
@@ -48,7 +53,7 @@ class PushExpert(Expert):
         relative = ee[:2] - cube[:2]
         along = float(relative @ direction)
         across = float(np.linalg.norm(relative - along * direction))
-        low = ee[2] < push_z + 0.02
+        low = ee[2] < push_z + PUSH_WITHIN
         if low and along < -offset + 0.015 and across < p.lateral_tolerance:
             # in contact range behind the cube and on the line: push, aiming the cube at the goal
             target = np.append(env.goal[:2] - direction * offset, push_z)

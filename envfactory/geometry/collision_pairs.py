@@ -49,6 +49,7 @@ import yaml
 
 from envfactory.geometry.collision import CollisionModel, PairRules, shape_points
 from envfactory.geometry.safety import SafetyCheck
+from envfactory.schema.errors import suggest
 from envfactory.schema.models import EnvSpec
 
 DEFAULT_SAMPLES = 5000
@@ -73,34 +74,90 @@ class UncheckablePairs(ValueError):
     safe. Their shapes must be fitted tighter."""
 
 
-def fingerprint(collision: CollisionModel, margin: float) -> str:
-    """A digest of everything the pair list depends on: shapes, joints, their limits and the margin."""
+# What a pair list depends on (the keys of its `inputs` digests), and how a stale list names each: where a
+# robot YAML or spec sets it.
+INPUTS = {"shapes": "collision shapes (the URDF's, and where they sit)",
+          "joints": "joints (the URDF's kinds and placements)",
+          "limits": "arm joint limits (robot.arm_joints lower/upper)",
+          "gripper": "gripper open/closed/mimic (robot.gripper)",
+          "padding": "padding (robot.safety.padding)",
+          "margin": "margin (env.safety.surface_margin)"}
+SHAPES, JOINTS, LIMITS, GRIPPER, PADDING, MARGIN = INPUTS
+
+
+def _fingerprint_records(collision: CollisionModel, margin: float, padding: dict[str, float] | None = None,
+                         gripper: tuple | None = None) -> list[tuple[str, bytes]]:
+    """(input, record) of everything the pair list depends on, in digest order. `padding` (link -> m) and
+    `gripper` (open, closed, mimic) stand in for the robot's own, to test what an older list was made for."""
     kin = collision.kinematics
     model = kin.model
-    digest = hashlib.sha256()
     # + 0.0: a -0.0 (a turned and unturned zero) digests as 0.0
     rounded = lambda values: [round(float(v), 6) + 0.0 for v in np.ravel(values)]  # noqa: E731
     # the self pairs do not depend on how the base is turned (mount_rpy): digest what hangs on
     # the universe as the URDF places it, so one list serves the robot however it is mounted
     unturn = pin.SE3(kin.base_rotation, np.zeros(3)).inverse()
+    records = []
     for shape, geometry_object in zip(collision.shapes, collision.geometry.geometryObjects):
         # the shape as the URDF gives it (kind, sizes, placement), not what is fitted around it: a fit
         # may settle on another of equally good axes when the base is turned
         placement = unturn * geometry_object.placement if shape.joint == 0 else geometry_object.placement
-        digest.update(json.dumps([shape.name, shape.link, model.names[shape.joint],
-                                  _shape_digest(geometry_object.geometry, rounded), round(shape.padding, 6),
-                                  rounded(placement.homogeneous)]).encode())
+        pad = shape.padding if padding is None else padding.get(shape.link, 0.0)
+        records.append((SHAPES, json.dumps([shape.name, shape.link, model.names[shape.joint],
+                                            _shape_digest(geometry_object.geometry, rounded), round(pad, 6),
+                                            rounded(placement.homogeneous)]).encode()))
     for joint in range(1, model.njoints):
         placement = model.jointPlacements[joint]
         placement = unturn * placement if model.parents[joint] == 0 else placement
-        digest.update(json.dumps([model.names[joint], model.joints[joint].shortname(),
-                                  rounded(placement.homogeneous)]).encode())
+        records.append((JOINTS, json.dumps([model.names[joint], model.joints[joint].shortname(),
+                                            rounded(placement.homogeneous)]).encode()))
     robot = kin.robot
-    digest.update(json.dumps([[j.name, j.lower, j.upper] for j in robot.arm_joints]).encode())
+    records.append((LIMITS, json.dumps([[j.name, j.lower, j.upper] for j in robot.arm_joints]).encode()))
     if robot.gripper is not None:
-        digest.update(json.dumps([robot.gripper.open, robot.gripper.closed, robot.gripper.mimic]).encode())
-    digest.update(json.dumps(round(margin, 6)).encode())
+        values = gripper or (robot.gripper.open, robot.gripper.closed, robot.gripper.mimic)
+        records.append((GRIPPER, json.dumps(list(values)).encode()))
+    records.append((MARGIN, json.dumps(round(margin, 6)).encode()))
+    return records
+
+
+def fingerprint(collision: CollisionModel, margin: float, padding: dict[str, float] | None = None,
+                gripper: tuple | None = None) -> str:
+    """A digest of everything the pair list depends on: shapes, joints, their limits and the margin."""
+    digest = hashlib.sha256()
+    for _, record in _fingerprint_records(collision, margin, padding, gripper):
+        digest.update(record)
     return digest.hexdigest()[:16]
+
+
+def input_digests(collision: CollisionModel, margin: float) -> dict[str, str]:
+    """A digest per input of the fingerprint, kept in the list so a stale one says which input changed. The
+    shapes are digested without their padding, which is an input of its own."""
+    digests = {name: hashlib.sha256() for name in INPUTS}
+    for name, record in _fingerprint_records(collision, margin, padding={}):
+        digests[name].update(record)
+    padding = {shape.link: round(shape.padding, 6) for shape in collision.shapes if shape.padding}
+    digests[PADDING].update(json.dumps(sorted(padding.items())).encode())
+    return {name: digest.hexdigest()[:16] for name, digest in digests.items()}
+
+
+def stale_inputs(collision: CollisionModel, data: dict, margin: float) -> list[str]:
+    """Which inputs differ from those the list was generated for: read from its input digests, or, for a list
+    written before it kept them, found by testing the usual changes against its fingerprint."""
+    stored = data.get("inputs")
+    if isinstance(stored, dict):
+        now = input_digests(collision, margin)
+        return [INPUTS[name] for name in INPUTS if stored.get(name) != now[name]]
+    robot = collision.kinematics.robot
+    found = []
+    padded = {shape.link: shape.padding for shape in collision.shapes if shape.padding}
+    if padded and fingerprint(collision, margin, padding={}) == data.get("fingerprint"):
+        found.append(f"{INPUTS[PADDING]}: {', '.join(f'{link} +{pad:g} m' for link, pad in sorted(padded.items()))} added "
+                     f"since the list was generated (it was made without padding)")
+    gripper = robot.gripper
+    if gripper is not None and fingerprint(collision, margin, gripper=(gripper.closed, gripper.open, gripper.mimic)) \
+            == data.get("fingerprint"):
+        found.append(f"{INPUTS[GRIPPER]}: open ({gripper.open:g}) and closed ({gripper.closed:g}) are swapped against the "
+                     f"values the list was generated for")
+    return found
 
 
 def _shape_digest(geometry, rounded) -> list:
@@ -165,6 +222,7 @@ def sample_pairs(collision: CollisionModel, margin: float, samples: int = DEFAUL
     structural = sorted([*sorted(key), why] for key, why in collision.ignored.items())
     result = {
         "fingerprint": fingerprint(collision, margin),
+        "inputs": input_digests(collision, margin),  # so that a stale list can say which input changed
         "margin": margin,
         "samples": samples,
         "seed": seed,
@@ -251,33 +309,43 @@ def _shapes_of(collision: CollisionModel, pair: int) -> tuple[int, int]:
 
 
 def write_pairs(path: Path, robot_name: str, result: dict) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)  # a user's own list may go into a folder not made yet
     path.write_text(HEADER.format(robot=robot_name) + yaml.safe_dump(result, sort_keys=False, width=120,
                                                                      default_flow_style=None))
 
 
 def read_pairs(path: Path, collision: CollisionModel, margin: float) -> PairRules:
-    """The pairs to skip and the pairs' own margins; StalePairs when the file no longer matches the robot."""
+    """The pairs to skip and the pairs' own margins; StalePairs when the file no longer matches the robot. The
+    messages say what is wrong with the list; how to write it again depends on whose folder it is in, which the
+    caller knows (compiler.robot_checks)."""
     try:
-        data = yaml.safe_load(path.read_text())
+        text = path.read_text()
+        data = yaml.safe_load(text)
     except (OSError, yaml.YAMLError) as exc:
         raise StalePairs(f"{path}: cannot read the collision pair list ({exc})") from exc
+    robot = collision.kinematics.robot.name
     expected = fingerprint(collision, data.get("margin", margin) if isinstance(data, dict) else margin)
     if not isinstance(data, dict) or data.get("fingerprint") != expected:
-        raise StalePairs(f"{path}: the collision pair list is stale for robot {collision.kinematics.robot.name!r}: "
-                         f"run `envfactory collision-pairs {collision.kinematics.robot.name}`")
+        changed = stale_inputs(collision, data, data.get("margin", margin)) if isinstance(data, dict) else []
+        what = (f"what changed: {'; '.join(changed)}" if changed else
+                f"the list does not tell which of its inputs changed (it keeps no digest per input): it covers the "
+                f"{', '.join(INPUTS.values())}")
+        raise StalePairs(f"{path}: the collision pair list is stale for robot {robot!r}: it was generated for "
+                         f"another robot model or settings; {what}")
+    unknown = _unknown_entries(text, data, collision)
+    if unknown:
+        raise StalePairs(f"{path}:{unknown[0][0]}: the collision pair list names collision shapes robot {robot!r} "
+                         f"does not have: {'; '.join(message for _, message in unknown)}; such an entry would be "
+                         f"ignored (a skipped pair that is no pair of this robot). Shapes are named after their link "
+                         f"and a count (e.g. {collision.shapes[0].name})")
     if data.get("checksum") != checksum(data):
-        line = next((number for number, text in enumerate(path.read_text().splitlines(), 1)
-                     if text.startswith("checksum:")), 1)
-        robot = collision.kinematics.robot.name
+        line = next((number for number, text in enumerate(text.splitlines(), 1) if text.startswith("checksum:")), 1)
         raise StalePairs(f"{path}:{line}: the collision pair list differs from what `envfactory collision-pairs` "
                          f"wrote (its entries no longer match this checksum{'' if 'checksum' in data else ', or it has none'}): "
-                         f"an edited list could skip a pair that can touch. Run `envfactory collision-pairs {robot}` "
-                         f"to write it again")
-    robot = collision.kinematics.robot.name
+                         f"an edited list could skip a pair that can touch")
     if data.get("margin", margin) > margin:
         # a pair always within a wide margin need not be always within a narrower one
-        raise StalePairs(f"{path}: sampled with margin {data['margin']} m, above the spec's surface_margin {margin} m: "
-                         f"run `envfactory collision-pairs {robot} --margin {margin}`")
+        raise StalePairs(f"{path}: sampled with margin {data['margin']} m, above the spec's surface_margin {margin} m")
     skipped = {frozenset(entry[:2]): entry[2] for entry in data.get("skipped", [])}
     # A list from before pairs got margins of their own skips the pairs always within the margin: its
     # checksum still holds, so the reasons are read to refuse it
@@ -285,15 +353,30 @@ def read_pairs(path: Path, collision: CollisionModel, margin: float) -> PairRule
                       if why not in STRUCTURAL and not str(why).endswith("(grid proof)"))
     if unproven:
         raise StalePairs(f"{path}: the collision pair list skips pairs neither exempt by structure nor proven apart: "
-                         f"{'; '.join(unproven)}. Such pairs are measured now: run `envfactory collision-pairs "
-                         f"{robot}` to write the list again")
+                         f"{'; '.join(unproven)}. Such pairs are measured now")
     margins = {frozenset(entry[:2]): float(entry[2]) for entry in data.get("pair_margins", [])}
     odd = sorted(" and ".join(sorted(key)) for key, value in margins.items()
                  if key in skipped or not 0.0 <= value <= data.get("margin", margin))
     if odd:
         raise StalePairs(f"{path}: pair_margins gives {'; '.join(odd)} a margin below zero, above the list's "
-                         f"margin, or a margin while skipping them: run `envfactory collision-pairs {robot}`")
+                         f"margin, or a margin while skipping them")
     return PairRules(skipped, margins)
+
+
+def _unknown_entries(text: str, data: dict, collision: CollisionModel) -> list[tuple[int, str]]:
+    """(line, message) of every entry of the list that names a shape the robot lacks, in file order."""
+    names = [shape.name for shape in collision.shapes]
+    known = set(names)
+    found = []
+    for section in ("skipped", "pair_margins", "never_near"):
+        entries = data.get(section)
+        for entry in entries if isinstance(entries, list) else []:
+            shapes = [str(name) for name in entry[:2]] if isinstance(entry, list) else [str(entry)]
+            for name in (name for name in shapes if name not in known):
+                line = next((number for number, row in enumerate(text.splitlines(), 1)
+                             if name in row and row.lstrip().startswith("-")), 1)
+                found.append((line, f"{section} entry {entry} (line {line}): no shape {name!r}{suggest(name, names)}"))
+    return sorted(found)
 
 
 def pairs_file(spec: EnvSpec, asset_root: Path) -> Path | None:

@@ -8,6 +8,11 @@ env is), so the recorded actions are what a learner would output.
 Episodes are recorded by a small wrapper and handed to
 `minari.create_dataset_from_buffers`: Minari's own DataCollector needs jax
 (`minari[create]`) only to append steps, which this avoids.
+
+A dataset of an ID from a user's spec folder records that folder in its
+metadata (SPEC_FOLDER_KEY): a later process has not registered the ID, so
+minari's `dataset.recover_environment()` alone cannot make it there;
+`load_env(dataset)` registers the folder first, then recovers the env.
 """
 
 from __future__ import annotations
@@ -15,15 +20,21 @@ from __future__ import annotations
 import os
 import re
 import shutil
-from dataclasses import dataclass
+import warnings
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 
-from envfactory.episodes import iter_episodes
+from envfactory import registry
+from envfactory.episodes import EpisodeResult, iter_episodes
 from envfactory.experts import make_policy
 from envfactory.learn import extra
+from envfactory.schema.folders import folder_of
+from envfactory.version import __version__
+
+SPEC_FOLDER_KEY = "envfactory_spec_folder"  # dataset metadata: the user spec folder that declares its env ID
 
 
 @dataclass
@@ -74,9 +85,50 @@ def default_dataset_id(env_id: str) -> str:
     return f"envfactory/{name}/expert-v0"
 
 
+@dataclass
+class Recording:
+    """Whole episodes of the scripted expert on one env, ready for the dataset: the env's spec (with the
+    kwargs it was made with) and the expert's name describe it; `episodes` are EpisodeRecorder's dicts and
+    `results` the runner's, one per episode, in seed order."""
+
+    env_spec: gym.envs.registration.EnvSpec
+    expert: str
+    episodes: list[dict]
+    results: list[EpisodeResult]
+
+    @staticmethod
+    def merged(parts: list["Recording"]) -> "Recording":
+        """Recordings of disjoint seed ranges as one, in seed order whatever order they came in, each
+        episode numbered by its place in it: the recording of one process running every seed in turn."""
+        pairs = sorted((pair for part in parts for pair in zip(part.episodes, part.results)),
+                       key=lambda pair: pair[1].seed)
+        return Recording(parts[0].env_spec, parts[0].expert, [e for e, _ in pairs],
+                         [replace(r, index=index) for index, (_, r) in enumerate(pairs)])
+
+
+def record(env_id: str, seeds: range, env_kwargs: dict | None = None, on_episode=None) -> Recording:
+    """The expert's episodes on `seeds` (a range of step 1), each whole, on a fresh env. An episode depends
+    on its seed alone, so any split of the seeds across processes records the same episodes."""
+    env = EpisodeRecorder(gym.make(env_id, **(env_kwargs or {})))
+    try:
+        expert = make_policy("scripted", env)
+        results = []
+        for result in iter_episodes(env, expert, len(seeds), seeds.start, stop_on_success=False):
+            results.append(result)
+            if on_episode is not None:
+                on_episode(result)
+        return Recording(env.env.spec, env.unwrapped.blueprint.spec.task.expert.policy, env.episodes, results)
+    finally:
+        env.close()
+
+
 def collect(env_id: str, episodes: int, dataset_id: str | None = None, seed: int = 0,
             env_kwargs: dict | None = None, data_path: Path | None = None, overwrite: bool = False,
-            on_episode=None) -> Collected:
+            on_episode=None, recorder=record, author: str | None = None,
+            author_email: str | None = None) -> Collected:
+    """Record `episodes` expert episodes (seeds seed, seed + 1, ...) and write them as a Minari dataset.
+    `recorder` runs the episodes (`record`'s signature); envfactory.cluster passes one that spreads them
+    over Ray workers, and the dataset is the same."""
     extra.require(extra.COLLECT_MODULES, "envfactory collect")
     if data_path is not None:
         # minari reads its datasets folder from the environment, at every call
@@ -91,33 +143,83 @@ def collect(env_id: str, episodes: int, dataset_id: str | None = None, seed: int
         if not overwrite:
             raise FileExistsError(f"dataset {dataset_id} already exists ({folder}); pass --overwrite to replace it")
         shutil.rmtree(folder)
-    env = EpisodeRecorder(gym.make(env_id, **(env_kwargs or {})))
+    recording = recorder(env_id, range(seed, seed + episodes), env_kwargs, on_episode)
+    successes = sum(int(result.success) for result in recording.results)
+    buffers = [EpisodeBuffer(id=index, seed=e["seed"], observations=_stacked(e["observations"]),
+                             actions=e["actions"], rewards=e["rewards"], terminations=e["terminations"],
+                             truncations=e["truncations"],
+                             # per step, so a learner can tell a demonstration that ends successful
+                             infos={"is_success": np.array(e["successes"])})
+               for index, e in enumerate(recording.episodes)]
     try:
-        expert = make_policy("scripted", env)
-        successes = 0
-        for result in iter_episodes(env, expert, episodes, seed, stop_on_success=False):
-            successes += int(result.success)
-            if on_episode is not None:
-                on_episode(result)
-        buffers = [EpisodeBuffer(id=index, seed=e["seed"], observations=_stacked(e["observations"]),
-                                 actions=e["actions"], rewards=e["rewards"], terminations=e["terminations"],
-                                 truncations=e["truncations"],
-                                 # per step, so a learner can tell a demonstration that ends successful
-                                 infos={"is_success": np.array(e["successes"])})
-                   for index, e in enumerate(env.episodes)]
-        expert_name = env.unwrapped.blueprint.spec.task.expert.policy
-        try:
+        with warnings.catch_warnings():
+            for field, given in (("author", author), ("author_email", author_email)):
+                if given is None:  # who runs collect is theirs to say (--author): never guessed, left out
+                    warnings.filterwarnings("ignore", message=f"`{field}` is set to None", category=UserWarning)
             dataset = minari.create_dataset_from_buffers(
-                dataset_id, buffers, env=env.env.spec, algorithm_name=f"envfactory scripted expert ({expert_name})",
+                dataset_id, buffers, env=recording.env_spec, eval_env=recording.env_spec,  # evaluate where collected
+                author=author, author_email=author_email,
+                code_permalink=f"envfactory {__version__}, envfactory/learn/demonstrations.py (collect)",
+                algorithm_name=f"envfactory scripted expert ({recording.expert})",
                 description=f"{len(buffers)} episodes of the scripted expert on {env_id} with kwargs "
-                            f"{env_kwargs or {}}, seeds {seed}..{seed + len(buffers) - 1}; {successes} reach the goal, "
-                            f"{sum(e['successes'][-1] for e in env.episodes)} end successful (infos['is_success'] "
-                            f"per step).",
+                            f"{env_kwargs or {}}, seeds {seed}..{seed + len(buffers) - 1}, each run until the env "
+                            f"ends it (terminated or truncated); {successes} reach the goal, "
+                            f"{sum(e['successes'][-1] for e in recording.episodes)} end successful "
+                            f"(infos['is_success'] per step). Recover the env with "
+                            f"envfactory.learn.demonstrations.load_env(dataset).",
                 data_format="hdf5")
-        except BaseException:
-            shutil.rmtree(folder, ignore_errors=True)  # no half-written dataset blocks the next try
-            raise
-    finally:
-        env.close()
-    steps = sum(len(e["actions"]) for e in env.episodes)
-    return Collected(dataset_id, Path(dataset.spec.data_path), len(env.episodes), steps, successes)
+        spec_folder = _user_spec_folder(env_id)
+        if spec_folder is not None:
+            dataset.storage.update_metadata({SPEC_FOLDER_KEY: spec_folder})
+    except BaseException:
+        shutil.rmtree(folder, ignore_errors=True)  # no half-written dataset blocks the next try
+        raise
+    steps = sum(len(e["actions"]) for e in recording.episodes)
+    return Collected(dataset_id, Path(dataset.spec.data_path), len(recording.episodes), steps, successes)
+
+
+def _user_spec_folder(env_id: str) -> str | None:
+    """The spec folder declaring a user ID, absolute; None for a built-in ID (every process registers those)."""
+    record = registry.record(env_id)
+    if record.source == registry.BUILTIN_SOURCE:
+        return None
+    return str(folder_of(record.family.path).resolve())
+
+
+class UnrecoverableEnv(LookupError):
+    """A dataset's env ID is not registered and its spec folder cannot register it."""
+
+
+def register_dataset_env(dataset) -> str:
+    """Make the dataset's env ID known in this process, registering the spec folder `collect` recorded for a
+    user ID (lazily, as ENVFACTORY_SPEC_PATH would); the ID."""
+    env_id = dataset.env_spec.id
+    if env_id in registry.records():
+        return env_id
+    folder = dataset.storage.metadata.get(SPEC_FOLDER_KEY)
+    where = f"dataset {dataset.id}: its env {env_id}"
+    if folder is None:
+        raise UnrecoverableEnv(f"{where} is not registered and the dataset records no spec folder; register the "
+                               f"folder that declares it (envfactory.register_specs(PATH), `envfactory register "
+                               f"PATH` or {registry.SPEC_PATH_VARIABLE}) and load it again")
+    if not Path(folder).is_dir():
+        raise UnrecoverableEnv(f"{where} comes from the spec folder {folder}, which no longer exists; register the "
+                               f"folder where it is now (envfactory.register_specs(PATH)) and load it again")
+    _, problems = registry.register_folder(folder)
+    if env_id not in registry.records():
+        found = "; ".join(registry.one_line(problem) for problem in problems) or "no family declares it"
+        raise UnrecoverableEnv(f"{where} is not registered by its spec folder {folder}: {found}")
+    return env_id
+
+
+def load_env(dataset, eval_env: bool = False, **make_kwargs) -> gym.Env:
+    """The env a dataset was collected on (`dataset`: a MinariDataset or its ID), as minari's
+    `dataset.recover_environment(eval_env, **make_kwargs)` makes it, in any process: a user ID's spec folder,
+    recorded by `collect`, is registered first."""
+    extra.require(extra.COLLECT_MODULES, "load_env")
+    import minari
+
+    if isinstance(dataset, str):
+        dataset = minari.load_dataset(dataset)
+    register_dataset_env(dataset)
+    return dataset.recover_environment(eval_env=eval_env, **make_kwargs)

@@ -10,12 +10,14 @@ line's `name=value` overrides (dotted names reach into nested blocks:
 Keys the trainer reads itself (everything else goes to the algorithm's
 constructor): `n_timesteps`, `env_kwargs`, `her` (HER replay-buffer kwargs,
 used on goal envs only), `normalize` (observations scaled by running statistics,
-SB3's VecNormalize), `eval_every`, `eval_episodes`.
+SB3's VecNormalize), `eval_every`, `eval_episodes`, `demos` (the behaviour-cloning
+term of a run given demonstrations: bc.py).
 """
 
 from __future__ import annotations
 
 import copy
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -26,11 +28,27 @@ from envfactory.registry import BUILTIN_SOURCE
 from envfactory.schema.folders import builtin_root
 
 ALGORITHMS = ("sac", "td3", "tqc")
-TRAINER_KEYS = ("n_timesteps", "env_kwargs", "her", "normalize", "eval_every", "eval_episodes")
+TRAINER_KEYS = ("n_timesteps", "env_kwargs", "her", "normalize", "eval_every", "eval_episodes", "demos")
 
 
 class HyperparameterError(ValueError):
     pass
+
+
+# YAML 1.2's float: PyYAML follows YAML 1.1, which reads `3e-4` (no dot) as text, and SB3 would fail deep
+# inside on the string
+_FLOAT_TEXT = re.compile(r"[-+]?(\.[0-9]+|[0-9]+(\.[0-9]*)?)([eE][-+]?[0-9]+)")
+
+
+def _numbers(value):
+    """`value` with every float written YAML-1.2 style (`3e-4`) read as the number it is."""
+    if isinstance(value, str) and _FLOAT_TEXT.fullmatch(value):
+        return float(value)
+    if isinstance(value, dict):
+        return {k: _numbers(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_numbers(v) for v in value]
+    return value
 
 
 @dataclass
@@ -66,7 +84,7 @@ def _read(path: Path) -> dict:
     if not isinstance(data, dict) or any(not isinstance(v, dict) for v in data.values()):
         raise HyperparameterError(f"{path}: must map keys (default, a family or an env ID) to blocks of "
                                   f"hyperparameters")
-    return data
+    return _numbers(data)
 
 
 def merge(base: dict, update: dict) -> dict:
@@ -98,7 +116,7 @@ def parse_overrides(items: list[str]) -> dict:
             target = target.setdefault(parent, {})
             if not isinstance(target, dict):
                 raise HyperparameterError(f"hyperparameter {item!r}: {parent} is set to a value and a block")
-        target[leaf] = value
+        target[leaf] = _numbers(value)
     return block
 
 

@@ -1,129 +1,76 @@
-"""Train SAC, TD3 or TQC (Stable-Baselines3 / sb3-contrib) on an ID, HER on goal envs.
+"""Train SAC, TD3 or TQC (Stable-Baselines3 / sb3-contrib) on an ID, HER on goal envs, optionally from
+demonstrations (a Minari dataset of `envfactory collect`); continue a stopped run.
 
-The run folder gets the saved model (`model.zip`), what it was trained on
-(`model.json`: ID, algorithm, env kwargs, hyperparameters), and the learning
-curve (`curve.csv`, `curve.png`): the success rate of deterministic episodes
-on a separate env every `eval_every` steps, on the same evaluation goals each time.
-With `normalize` the policy sees observations scaled by running statistics
-(SB3's VecNormalize), saved beside the model (`vecnormalize.pkl`) for replay.
+A new run only ever takes a free folder (runs.py), after everything that can refuse its settings has been
+checked. The run folder gets the model (`model.zip`, models.py), the record of everything that shaped the run
+(`model.json`, runs.py), the replay buffer and the learning curve (loop.py). `resume` continues a run from
+those files, with the settings it was started with.
 """
 
 from __future__ import annotations
 
-import importlib
-import inspect
-import json
-import time
-from dataclasses import dataclass
+import shlex
+import warnings
 from pathlib import Path
 from typing import Callable
 
-from envfactory.episodes import run_episodes
 from envfactory.learn import extra
-from envfactory.learn.curve import CurveWriter, Evaluation, plot
-from envfactory.learn.hyperparams import HyperparameterError, Hyperparameters, load
+from envfactory.learn.bc import CloningSettings
+from envfactory.learn.curve import CurveWriter, Evaluation
+from envfactory.learn.demo_replay import check_matches, cloning_buffer, fill, open_demonstrations
+from envfactory.learn.hyperparams import Hyperparameters, load
+from envfactory.learn.loop import BUFFER_FILE, CSV_FILE, PNG_FILE, WALL_PNG_FILE, Part, TrainResult, learn
+from envfactory.learn.models import (MODEL_FILE, NORMALIZER_FILE, algorithm_class, load_policy, make_model,
+                                     read_meta)
+from envfactory.learn.runs import RECORD_FILE, RunFolderError, RunRecord, claim
 
-ALGORITHM_CLASSES = {"sac": ("stable_baselines3", "SAC"), "td3": ("stable_baselines3", "TD3"),
-                     "tqc": ("sb3_contrib", "TQC")}
-EVAL_SEED = 10_000  # evaluation episode i resets with EVAL_SEED + i: the same goals at every evaluation
-MODEL_FILE, META_FILE, CSV_FILE, PNG_FILE = "model.zip", "model.json", "curve.csv", "curve.png"
-NORMALIZER_FILE = "vecnormalize.pkl"
-
-
-def algorithm_class(algo: str):
-    module, name = ALGORITHM_CLASSES[algo]
-    return getattr(importlib.import_module(module), name)
-
-
-class ModelPolicy:
-    """A saved model as the callable policy the episode runner takes; with a normalizer (VecNormalize),
-    observations are scaled as they were in training."""
-
-    def __init__(self, model, normalizer=None):
-        self.model = model
-        self.normalizer = normalizer
-
-    def reset(self) -> None:
-        pass
-
-    def __call__(self, observation):
-        if self.normalizer is not None:
-            observation = self.normalizer.normalize_obs(observation)
-        action, _ = self.model.predict(observation, deterministic=True)
-        return action
+META_FILE = RECORD_FILE
+# what the CLI and `run --policy` take from here
+__all__ = ["train", "resume", "load_policy", "read_meta", "TrainResult", "MODEL_FILE", "META_FILE", "CSV_FILE",
+           "PNG_FILE", "WALL_PNG_FILE", "BUFFER_FILE", "NORMALIZER_FILE"]
+# SB3 warns when a loaded HER buffer ends inside an episode. A saved run always does (it stops at a step count,
+# not at an episode's end), and a resumed run starts a new episode, so closing that one as truncated is right.
+TRUNCATED_EPISODE_WARNING = r"The last trajectory in the replay buffer will be truncated"
 
 
-def evaluate(env, policy, episodes: int) -> tuple[float, float, float]:
-    """Success rate, mean return and mean length of `episodes` episodes on the fixed evaluation seeds."""
-
-    results = run_episodes(env, policy, episodes, seed=EVAL_SEED)
-    n = len(results)
-    return (sum(r.success for r in results) / n, sum(r.episode_return for r in results) / n,
-            sum(r.length for r in results) / n)
+def _recorded_kwargs(kwargs: dict) -> dict:
+    """The constructor kwargs as model.json shows them (classes by name)."""
+    return {k: (v.__name__ if isinstance(v, type) else v) for k, v in kwargs.items()}
 
 
-@dataclass
-class TrainResult:
-    folder: Path
-    evaluations: list[Evaluation]
-
-
-def _algorithm_kwargs(cls, hyper: Hyperparameters, env) -> dict:
-    kwargs = hyper.algorithm_kwargs()
-    accepted = set(inspect.signature(cls.__init__).parameters)
-    unknown = sorted(set(kwargs) - accepted - {"noise_std"})
-    if unknown:
-        raise HyperparameterError(f"{hyper.algo}: unknown hyperparameter(s) {', '.join(unknown)} (from "
-                                  f"{'; '.join(hyper.sources)}); {cls.__name__} takes "
-                                  f"{', '.join(sorted(accepted - {'self', 'env', 'policy'}))}")
-    noise_std = kwargs.pop("noise_std", None)
-    if noise_std is not None:
-        import numpy as np
-        from stable_baselines3.common.noise import NormalActionNoise
-
-        size = env.action_space.shape[0]
-        kwargs["action_noise"] = NormalActionNoise(np.zeros(size), float(noise_std) * np.ones(size))
-    return kwargs
-
-
-def make_model(env_id: str, hyper: Hyperparameters, env, seed: int, limit: int | None):
-    """The algorithm on `env` (a gymnasium env, or a VecEnv around one); `limit` is the episode limit."""
-    from stable_baselines3 import HerReplayBuffer
-
-    cls = algorithm_class(hyper.algo)
-    kwargs = _algorithm_kwargs(cls, hyper, env)
-    goal_env = hasattr(env.observation_space, "spaces") and "desired_goal" in env.observation_space.spaces
-    if goal_env:
-        if limit and kwargs.get("learning_starts", 100) <= limit:
-            # HER samples goals from finished episodes only: SB3 would fail at the first update
-            raise HyperparameterError(f"{hyper.algo}: learning_starts={kwargs.get('learning_starts', 100)} must "
-                                      f"exceed the episode limit of {env_id} ({limit} steps) with HER (from "
-                                      f"{'; '.join(hyper.sources)})")
-        kwargs["replay_buffer_class"] = HerReplayBuffer
-        kwargs["replay_buffer_kwargs"] = dict(hyper.trainer("her") or {})
-    policy = "MultiInputPolicy" if hasattr(env.observation_space, "spaces") else "MlpPolicy"
-    return cls(policy, env, seed=seed, verbose=0, **kwargs)
+def _command(env_id: str, algo: str, seed: int, steps: int, overrides, cli_kwargs: dict, eval_every: int,
+             eval_episodes: int, demos: str | None) -> str:
+    """The `envfactory train` command that repeats the run (the settings it resolves to are recorded too)."""
+    words = ["envfactory", "train", env_id, "--algo", algo, "--seed", str(seed), "--steps", str(steps),
+             "--eval-every", str(eval_every), "--eval-episodes", str(eval_episodes)]
+    words += [w for item in overrides for w in ("-p", item)]
+    words += [w for k, v in cli_kwargs.items() for w in ("-k", f"{k}={v}")]
+    words += ["--demos", demos] if demos else []
+    return shlex.join(words)
 
 
 def train(env_id: str, folder: Path, algo: str = "sac", seed: int = 0, steps: int | None = None,
           overrides: tuple[str, ...] = (), env_kwargs: dict | None = None, eval_every: int | None = None,
-          eval_episodes: int | None = None, progress_bar: bool = True,
+          eval_episodes: int | None = None, demos: str | None = None, progress_bar: bool = True,
           on_evaluation: Callable[[Evaluation], None] | None = None) -> TrainResult:
+    """A new run in `folder`, which must be free (runs.fresh_folder picks one)."""
     extra.require(extra.TRAIN_MODULES, "envfactory train")
     extra.require(extra.PLOT_MODULES, "the learning-curve plot")
     import gymnasium as gym
     import torch
-    from stable_baselines3.common.callbacks import BaseCallback
 
     hyper = load(algo, env_id, overrides)
     steps = int(steps or hyper.trainer("n_timesteps", 30_000))
     eval_every = int(eval_every or hyper.trainer("eval_every", 5_000))
     eval_episodes = int(eval_episodes or hyper.trainer("eval_episodes", 50))
     kwargs = {**(hyper.trainer("env_kwargs") or {}), **(env_kwargs or {})}
+    cloning = CloningSettings.from_hyperparameters(hyper) if demos else None
+    demonstrations = open_demonstrations(demos) if demos else None
     torch.set_num_threads(1)  # small networks: more threads only contend on a shared CPU
-    folder.mkdir(parents=True, exist_ok=True)
     env, eval_env = gym.make(env_id, **kwargs), gym.make(env_id, **kwargs)
     try:
+        if demonstrations is not None:
+            check_matches(demonstrations, env_id, kwargs, env)
         env.reset(seed=seed)
         limit = env.spec.max_episode_steps if env.spec is not None else None
         normalizer = None
@@ -133,61 +80,97 @@ def train(env_id: str, folder: Path, algo: str = "sac", seed: int = 0, steps: in
             # goal coordinates vary by centimetres around offsets of a metre: unscaled, the networks
             # barely see the 2 cm that decide success (README, "Learning benchmark")
             normalizer = VecNormalize(DummyVecEnv([lambda: env]), norm_obs=True, norm_reward=False, clip_obs=10.0)
-        model = make_model(env_id, hyper, normalizer or env, seed, limit)
-        (folder / META_FILE).write_text(json.dumps(
-            {"env_id": env_id, "algo": hyper.algo, "seed": seed, "steps": steps, "env_kwargs": kwargs,
-             "hyperparameters": hyper.values, "sources": hyper.sources}, indent=2, default=str))
-        writer = CurveWriter(folder / CSV_FILE)
-        policy, start = ModelPolicy(model, normalizer), time.monotonic()
-
-        def record(timesteps: int) -> None:
-            success, mean_return, length = evaluate(eval_env, policy, eval_episodes)
-            row = Evaluation(timesteps, success, mean_return, length, eval_episodes, time.monotonic() - start)
-            writer.add(row)
-            save(model, normalizer, folder)  # a run stopped later keeps the model of its last evaluation
-            if on_evaluation is not None:
-                on_evaluation(row)
-
-        class EvaluateEvery(BaseCallback):
-            def _on_step(self) -> bool:
-                if self.num_timesteps % eval_every == 0:
-                    record(self.num_timesteps)
-                return True
-
-        model.learn(steps, callback=EvaluateEvery(), progress_bar=progress_bar)
-        if steps % eval_every:
-            record(steps)
-        save(model, normalizer, folder)
+        model, constructor_kwargs = make_model(env_id, hyper, normalizer or env, seed, limit, cloning)
+        demo_summary = None
+        if demonstrations is not None:
+            _attach_demonstrations(model, demonstrations, seed_replay=True)
+            demo_summary = {**demonstrations.summary(), "cloning": cloning.as_dict()}
+        created = claim(folder)  # last, after everything that can refuse the settings
+        record = RunRecord(folder, {
+            "env_id": env_id, "algo": hyper.algo, "seed": seed, "steps": steps, "eval_every": eval_every,
+            "eval_episodes": eval_episodes, "env_kwargs": kwargs, "kwargs": dict(env_kwargs or {}),
+            "overrides": list(overrides), "hyperparameters": hyper.values, "sources": hyper.sources,
+            "algorithm_kwargs": _recorded_kwargs(constructor_kwargs), "normalize": normalizer is not None,
+            "demos": demo_summary,
+            "command": _command(env_id, hyper.algo, seed, steps, overrides, dict(env_kwargs or {}), eval_every,
+                                eval_episodes, demos),
+            "timesteps": 0, "trained_s": 0.0, "tensorboard": None, "parts": []})
+        run = Part(folder, record, model, normalizer, eval_env, steps, eval_every, eval_episodes,
+                   CurveWriter(folder / CSV_FILE), resumed=False, created=created)
+        return learn(run, progress_bar, on_evaluation)
     finally:
         env.close()
         eval_env.close()
-    plot({f"{hyper.algo.upper()} seed {seed}": writer.rows}, folder / PNG_FILE, f"{env_id} ({hyper.algo.upper()})")
-    return TrainResult(folder, writer.rows)
 
 
-def save(model, normalizer, folder: Path) -> None:
-    model.save(folder / MODEL_FILE)
-    if normalizer is not None:
-        normalizer.save(str(folder / NORMALIZER_FILE))
+def resume(folder: Path, steps: int | None = None, progress_bar: bool = True,
+           on_evaluation: Callable[[Evaluation], None] | None = None) -> TrainResult:
+    """Continue the run in `folder` up to `steps` in all (default: the run's own target), with its model,
+    replay buffer, observation statistics, demonstrations and curve; its settings stay as recorded."""
+    extra.require(extra.TRAIN_MODULES, "envfactory train --resume")
+    extra.require(extra.PLOT_MODULES, "the learning-curve plot")
+    import gymnasium as gym
+    import torch
+
+    record = RunRecord.read(folder)
+    data = record.data
+    for name in (MODEL_FILE, BUFFER_FILE) + ((NORMALIZER_FILE,) if data.get("normalize") else ()):
+        if not (folder / name).is_file():
+            why = (" (a run saves it when it ends, is stopped with Ctrl-C or SIGTERM, or fails after its first "
+                   "evaluation; this one was killed before it could)") if name == BUFFER_FILE else ""
+            raise RunFolderError(f"{folder}: no {name}, so the run cannot continue{why}")
+    target = int(steps or data.get("steps") or 0)
+    done = int(data.get("timesteps") or 0)
+    if data.get("replay_buffer_timesteps") != done:
+        raise RunFolderError(f"{folder}: its {BUFFER_FILE} was saved at {data.get('replay_buffer_timesteps')} steps "
+                             f"but its model at {done} (the run was killed before it could save the buffer), so "
+                             f"the run cannot continue as it was")
+    if target <= done:
+        raise RunFolderError(f"{folder}: the run is at {done} steps already; pass --steps above {done} to go on")
+    hyper = Hyperparameters(data["algo"], data["hyperparameters"], data.get("sources", []))
+    torch.set_num_threads(1)
+    env_id, kwargs = data["env_id"], data["env_kwargs"]
+    env, eval_env = gym.make(env_id, **kwargs), gym.make(env_id, **kwargs)
+    try:
+        demonstrations = open_demonstrations(data["demos"]["path"]) if data.get("demos") else None
+        if demonstrations is not None:
+            _same_dataset(demonstrations, data["demos"], folder)
+        normalizer = None
+        if data.get("normalize"):
+            from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+            normalizer = VecNormalize.load(str(folder / NORMALIZER_FILE), DummyVecEnv([lambda: env]))
+        cls = algorithm_class(hyper.algo, cloning=demonstrations is not None)
+        model = cls.load(folder / MODEL_FILE, env=normalizer or env, device="cpu")
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message=TRUNCATED_EPISODE_WARNING, category=UserWarning)
+            model.load_replay_buffer(folder / BUFFER_FILE)
+        if demonstrations is not None:
+            _attach_demonstrations(model, demonstrations, seed_replay=False)  # the saved buffer holds them
+        # a stream of its own per part, reproducible from the seed and the step it resumes at
+        model.set_random_seed(int(data["seed"]) + model.num_timesteps)
+        data["steps"] = target
+        run = Part(folder, record, model, normalizer, eval_env, target, int(data["eval_every"]),
+                   int(data["eval_episodes"]), CurveWriter(folder / CSV_FILE, resume=True), resumed=True)
+        return learn(run, progress_bar, on_evaluation)
+    finally:
+        env.close()
+        eval_env.close()
 
 
-def read_meta(path: Path) -> dict:
-    """What a saved model was trained on (model.json beside model.zip), or {} when it is not there."""
-    meta_path = path.with_suffix(".json")
-    return json.loads(meta_path.read_text()) if meta_path.is_file() else {}
+def _attach_demonstrations(model, demonstrations, seed_replay: bool) -> None:
+    """Demonstrations into the replay buffer (a new run's) and into the cloning term's own buffer."""
+    if seed_replay:
+        fill(model.replay_buffer, demonstrations, model.policy.scale_action)
+    if model.bc_weight > 0:
+        model.attach_demonstrations(cloning_buffer(demonstrations, model.observation_space, model.action_space,
+                                                   model.policy.scale_action, model.device))
 
 
-def load_policy(path: Path, env, algo: str | None = None) -> ModelPolicy:
-    """A saved model, bound to `env` (HER models need the env; SB3 checks the spaces match)."""
-    extra.require(extra.TRAIN_MODULES, "a --policy model")
-    algo = (algo or read_meta(path).get("algo") or "").lower()
-    if algo not in ALGORITHM_CLASSES:
-        raise ValueError(f"{path}: which algorithm trained it? no {path.with_suffix('.json').name} beside it; "
-                         f"pass --algo ({', '.join(ALGORITHM_CLASSES)})")
-    normalizer = None
-    if (path.parent / NORMALIZER_FILE).is_file():
-        from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
-
-        normalizer = VecNormalize.load(str(path.parent / NORMALIZER_FILE), DummyVecEnv([lambda: env]))
-        normalizer.training = False  # replay reads the statistics, never updates them
-    return ModelPolicy(algorithm_class(algo).load(path, env=env, device="cpu"), normalizer)
+def _same_dataset(demonstrations, recorded: dict, folder: Path) -> None:
+    found = demonstrations.summary()
+    changed = [k for k in ("dataset_id", "episodes", "transitions") if found[k] != recorded.get(k)]
+    if changed:
+        raise RunFolderError(f"{folder}: the run learned from {recorded.get('path')} ({recorded.get('episodes')} "
+                             f"episodes, {recorded.get('transitions')} transitions), which now differs in "
+                             f"{', '.join(changed)}")

@@ -19,14 +19,16 @@ from omegaconf.errors import OmegaConfBaseException
 from pydantic import ValidationError
 
 from envfactory.schema.errors import Problem, SpecError, suggest
-from envfactory.schema.folders import folder_of
+from envfactory.schema.folders import builtin_root, folder_of
 from envfactory.schema.models import EnvSpec
 from envfactory.schema.numbers import non_finite_paths
-from envfactory.schema.sources import Findings, SourceMap, parse_yaml
+from envfactory.schema.sources import Findings, SourceMap, load_plain, parse_yaml
 from envfactory.schema.tree import leaves
 from envfactory.schema.validation import validation_problems
 
 MISSING = "???"
+# Hydra's own packages a defaults entry may name: the including file's root, and the config's root
+HYDRA_PACKAGES = ("_here_", "_global_")
 
 
 @dataclass(frozen=True)
@@ -68,13 +70,32 @@ def _defaults_sources(family: FamilyFile, node: yaml.Node | None, sources: Sourc
         found = _find(relative.lstrip("/"), family)
         if found is None:
             what = group.strip("/").split("/")[-1]
-            choices = _options(group.strip("/"), family) if option is not None else []
+            choices = _options(group.strip("/"), family) if option is not None else \
+                [f"{group.rsplit('/', 1)[0]}/{name}" for name in _options(group.strip("/").rpartition("/")[0], family,
+                                                                          shared=True)]
             label = f"{what} {option!r}" if option is not None else f"config {group!r}"
             problems.append(
                 Problem("defaults", f"no {label} found{suggest(option or group, choices)}", str(family.path), line)
             )
             continue
-        sources.record_file(found, "" if package in (None, "_here_", "_global_") else package)
+        top = (package or "").split(".", 1)[0]
+        if top and not top.startswith("_") and top not in EnvSpec.model_fields:
+            # Hydra would merge the file under a key no spec has: every value of it lost, reported as missing
+            problems.append(Problem("defaults", f"package {package!r} of {group}{f': {option}' if option else ''} "
+                                                f"names no part of a spec{suggest(top, EnvSpec.model_fields)}; "
+                                                f"valid: {', '.join(EnvSpec.model_fields)} or {' or '.join(HYDRA_PACKAGES)}",
+                                    str(family.path), line))
+            continue
+        if package is not None and package.startswith("_") and package not in HYDRA_PACKAGES:
+            problems.append(Problem("defaults", f"package {package!r} of {group}: unknown{suggest(package, HYDRA_PACKAGES)}"
+                                                f"; valid: a part of a spec ({', '.join(EnvSpec.model_fields)}) or "
+                                                f"{' or '.join(HYDRA_PACKAGES)}", str(family.path), line))
+            continue
+        if package is None or package in HYDRA_PACKAGES:
+            sources.record_file(found, "")
+        else:
+            sources.record_choice(package, found, family.path, line)
+            sources.record_file(found, package)
     return problems
 
 
@@ -110,12 +131,13 @@ def _find(relative: str, family: FamilyFile) -> Path | None:
     return None
 
 
-def _options(group: str, family: FamilyFile) -> list[str]:
+def _options(group: str, family: FamilyFile, shared: bool = False) -> list[str]:
+    """The configs a group offers; with `shared`, the underscored shared files too (a config path names those)."""
     names = set()
     for root in (family.path.parent, *family.search_roots):
         folder = root / group
         if folder.is_dir():
-            names |= {p.stem for p in folder.glob("*.yaml") if not p.stem.startswith("_")}
+            names |= {p.stem for p in folder.glob("*.yaml") if shared or not p.stem.startswith("_")}
     return sorted(names)
 
 
@@ -152,6 +174,9 @@ def _compose_cached(family: FamilyFile, overrides: tuple[str, ...]) -> Composed:
     try:
         config = _hydra_compose(family, overrides)
     except Exception as exc:  # hydra raises several unrelated types
+        unknown = _unknown_override_keys(family, overrides) if overrides else []
+        if unknown:
+            raise SpecError(unknown, family.name) from None
         message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         where = f"override {list(overrides)}" if overrides else str(family.path)
         raise SpecError([Problem("", f"composition failed: {message}", where)], family.name) from None
@@ -159,6 +184,37 @@ def _compose_cached(family: FamilyFile, overrides: tuple[str, ...]) -> Composed:
         key = override.split("=", 1)[0].lstrip("+~")
         sources.note(key, f"override {override!r}")
     return Composed(config=OmegaConf.to_container(config, resolve=False), sources=sources)
+
+
+def _unknown_override_keys(family: FamilyFile, overrides: tuple[str, ...]) -> list[Problem]:
+    """Each override whose key the spec lacks, with the nearest key at the level where the path left the
+    spec (Hydra says only "Could not override"). Keys prefixed '+' add a key and are not checked."""
+    config = _compose_cached(family, ()).config
+    aliases = {**config.get("kwargs", {}), **config.get("task", {}).get("kwargs", {})}
+    problems = []
+    for override in overrides:
+        key, sep, _ = override.partition("=")
+        if not sep or key.startswith("+"):
+            continue
+        node: Any = config
+        walked: list[str] = []
+        for part in key.lstrip("~").split("."):
+            if isinstance(node, dict) and part in node:
+                node, walked = node[part], walked + [part]
+                continue
+            if isinstance(node, list) and part.isdigit() and int(part) < len(node):
+                node, walked = node[int(part)], walked + [part]
+                continue
+            where = ".".join(walked)
+            keys = [f"{where}.{name}" if where else name for name in node] if isinstance(node, dict) else []
+            if not walked:
+                keys += list(aliases)  # a bare name may be a misspelled kwarg
+            wrong = f"{where}.{part}" if where else part
+            problems.append(Problem(key, f"no key {part!r} {f'under {where!r}' if where else 'at the top'} of the "
+                                         f"spec{suggest(wrong, keys)}: an override sets a key the spec has (a '+' before "
+                                         f"the key adds a new one)", f"override {override!r}"))
+            break
+    return problems
 
 
 # ------------------------------------------------------------------ kwargs
@@ -308,8 +364,38 @@ def validate_config(config: dict, sources: SourceMap, family: FamilyFile) -> Loa
         spec = EnvSpec.model_validate(resolved)
     except ValidationError as exc:
         found.problems += [p for p in validation_problems(exc, sources, EnvSpec) if p.path not in skip]
+    if found:
+        found.problems = _placed(found.problems, family)
     found.raise_if_any(family.name)
     return LoadedSpec(spec, sources, family)
+
+
+SHARED_DEFAULTS = "specs/_defaults"  # the built-in file of settings every family shares (scene, env, sim, kwargs)
+
+
+def _placed(problems: list[Problem], family: FamilyFile) -> list[Problem]:
+    """Problems at values no file wrote placed at the family's defaults list, which should have brought them in;
+    a key the shared defaults set, in a family whose list lacks them, says to add that line."""
+    if all(problem.file for problem in problems):
+        return problems
+    node = parse_yaml(family.path)
+    line = next((key.start_mark.line + 1 for key, _ in getattr(node, "value", ()) if key.value == "defaults"), 1) \
+        if isinstance(node, yaml.MappingNode) else 1
+    includes_shared = any(group.strip("/") == SHARED_DEFAULTS for group, _, _, _ in _defaults_entries(node))
+    shared = load_plain(builtin_root() / f"{SHARED_DEFAULTS}.yaml")
+    placed = []
+    for problem in problems:
+        if problem.file:
+            placed.append(problem)
+            continue
+        top = problem.path.split(".", 1)[0]
+        if top in shared and not includes_shared:
+            why = (f"; no file of this defaults list sets {top!r}: the shared defaults do, and the list lacks "
+                   f"them: add '- /{SHARED_DEFAULTS}@_here_' to it")
+        else:
+            why = f"; no file of this defaults list writes {problem.path!r}"
+        placed.append(Problem(problem.path, problem.message + why, str(family.path), line))
+    return placed
 
 
 def _delete_path(config: dict, dotted: str) -> None:

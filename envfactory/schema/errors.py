@@ -31,12 +31,18 @@ class SpecError(ValueError):
         super().__init__(header + ":\n" + "\n".join(f"  {p}" for p in self.problems))
 
 
+def nearest(name: str, valid: Iterable[str]) -> str | None:
+    """The valid name nearest to `name`, if one is near enough to be what was meant."""
+    close = difflib.get_close_matches(name, sorted(set(valid)), n=1, cutoff=0.6)
+    return close[0] if close else None
+
+
 def suggest(name: str, valid: Iterable[str]) -> str:
     """' (did you mean 'x'?)' for the nearest valid name, or the valid names."""
     valid = sorted(set(valid))
-    close = difflib.get_close_matches(name, valid, n=1, cutoff=0.6)
+    close = nearest(name, valid)
     if close:
-        return f" (did you mean {close[0]!r}?)"
+        return f" (did you mean {close!r}?)"
     if valid and len(valid) <= 30:
         return f" (valid: {', '.join(valid)})"
     return ""

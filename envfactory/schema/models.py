@@ -69,7 +69,11 @@ class EnvSpec(Model):
     def _gripper_needed(self) -> "EnvSpec":
         uses_gripper = self.task.gripper.in_action or self.task.gripper.at_reset != "unchanged"
         if uses_gripper and self.robot.gripper is None:
-            raise located("task.gripper", f"task {self.task.name!r} uses a gripper but robot {self.robot.name!r} declares none")
+            # placed at the robot: the robot was chosen without one, the task is as it should be
+            use = "in its action" if self.task.gripper.in_action else f"at reset ({self.task.gripper.at_reset})"
+            raise located("robot.gripper", f"task {self.task.name!r} drives a gripper ({use}, task.gripper) but robot "
+                                           f"{self.robot.name!r} declares none: choose a robot with a gripper, add a "
+                                           f"'gripper:' block to the robot's YAML, or use a task without one")
         at_reset = self.task.gripper.at_reset
         if isinstance(at_reset, float) and not self.robot.gripper.low <= at_reset <= self.robot.gripper.high:
             raise located("task.gripper.at_reset", f"task.gripper.at_reset {at_reset} lies outside the gripper's range "

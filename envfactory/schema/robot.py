@@ -10,6 +10,7 @@ from envfactory.schema.base import Model, Position, Rgba, Rpy, in_unit_range, lo
 from envfactory.schema.errors import suggest
 from envfactory.schema.numbers import Friction, Length, NonNegative, Positive, Real
 from envfactory.schema.ros import RosSpec
+from envfactory.schema.units import out_of_range_hint
 
 # The joint-delta action box of an arm joint that declares none: symmetric, ±π per
 # unit action before delta_coeff scales it (the reference pages' UR5e convention).
@@ -81,6 +82,20 @@ class ArmJoint(Model):
             raise located("upper", f"lower ({self.lower}) must be below upper ({self.upper})")
         if isinstance(self.delta, tuple) and not self.delta[0] < 0 < self.delta[1]:
             raise located("delta", f"delta {list(self.delta)} must contain 0 strictly inside (zero is 'hold still')")
+        # A delta row bounds one step from where the joint is: no step can be longer than the whole range,
+        # and a row that allows one makes most of the action space overshoot the limits (clipped and
+        # penalised as out of bounds)
+        span = self.upper - self.lower
+        widest = max(abs(bound) for bound in self.delta_box)
+        if widest > span + 1e-9:
+            written = f"±{self.delta:g}" if isinstance(self.delta, float) else str(list(self.delta))
+            if "delta" not in self.model_fields_set:
+                written = f"{written} (the default: this joint declares none)"
+            example = f"[{self.lower:g}, {self.upper:g}] (the range itself, the seeds' convention)" \
+                if self.lower < 0 < self.upper else f"{span:.3g}"
+            raise located("delta", f"delta {written} rad allows a step of {widest:g} rad, larger than the joint's "
+                                   f"whole range [{self.lower:g}, {self.upper:g}] ({span:.3g} rad); valid: steps "
+                                   f"within ±{span:.3g}, e.g. delta {example}")
         return self
 
     @property
@@ -255,7 +270,8 @@ class RobotSpec(Model):
         for index, (joint, value) in enumerate(zip(self.arm_joints, self.home)):
             if not joint.lower <= value <= joint.upper:
                 raise located(f"home.{index}", f"home value {value} of {joint.name} is outside "
-                                               f"[{joint.lower}, {joint.upper}]")
+                                               f"[{joint.lower}, {joint.upper}]"
+                                               f"{out_of_range_hint('home', value, joint.lower, joint.upper)}")
         names = [joint.name for joint in self.arm_joints]
         if len(set(names)) != len(names):
             raise located("arm_joints", f"arm_joints repeat a joint: {names}")

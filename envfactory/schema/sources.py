@@ -25,6 +25,14 @@ class SourceMap:
     locations: dict[str, tuple[str, int]] = field(default_factory=dict)
     # path -> (origin, line): "gym.make kwarg x", or the registration entry's file and line
     notes: dict[str, tuple[str, int | None]] = field(default_factory=dict)
+    # package (robot, task) -> the file the family's defaults list chose for it: a value that file does not
+    # write is placed at the defaults line that chose it, and the message names the file
+    chosen: dict[str, tuple[str, tuple[str, int]]] = field(default_factory=dict)
+
+    def record_choice(self, package: str, file: Path, family: Path, line: int) -> None:
+        """The defaults line of `family` that merges `file` into `package`."""
+        self.chosen[package] = (str(file), (str(family), line))
+        self.locations[package] = (str(family), line)
 
     def record_file(self, path: Path, package: str) -> yaml.Node | None:
         node = parse_yaml(path)
@@ -85,7 +93,19 @@ class SourceMap:
 
     def problem(self, path: str, message: str) -> Problem:
         shell = self.locate(path)
+        package = path.split(".", 1)[0]
+        if path != package and package in self.chosen and self._placed_at_choice(path, package):
+            message += f" (not written in {self.chosen[package][0]}; this defaults line chose that file)"
         return Problem(path, message, file=shell.file, line=shell.line)
+
+    def _placed_at_choice(self, path: str, package: str) -> bool:
+        """Whether `path` is placed at the defaults line choosing its package: nothing below it was written."""
+        probe = path
+        while probe != package:
+            if probe in self.notes or probe in self.locations:
+                return False
+            probe = probe.rsplit(".", 1)[0]
+        return package not in self.notes and self.locations.get(package) == self.chosen[package][1]
 
 
 class Findings:
@@ -99,6 +119,13 @@ class Findings:
 
     def add(self, path: str, message: str) -> None:
         self.problems.append(self.sources.problem(path, message))
+
+    def where(self, path: str) -> str:
+        """'path (file:line)': how a message names a second value it involves, the first being its own."""
+        shell = self.sources.locate(path)
+        if shell.file is None:
+            return path
+        return f"{path} ({shell.file}{f':{shell.line}' if shell.line is not None else ''})"
 
     def __bool__(self) -> bool:
         return bool(self.problems)

@@ -10,6 +10,10 @@ from pydantic import BaseModel, ValidationError
 from envfactory.schema.base import split_located
 from envfactory.schema.errors import Problem, suggest
 from envfactory.schema.sources import SourceMap
+from envfactory.schema.units import kind_of, unit_hint
+
+# pydantic's range errors and the context key of the bound each one broke
+RANGE_ERRORS = {"less_than_equal": "le", "less_than": "lt", "greater_than_equal": "ge", "greater_than": "gt"}
 
 
 def _fields_at(model: type[BaseModel], loc: tuple) -> list[str]:
@@ -47,6 +51,16 @@ def validation_problems(exc: ValidationError, sources: SourceMap, model: type[Ba
         elif error["type"] == "missing":
             message = "missing value"
         elif "input" in error and not below and not isinstance(error["input"], (dict, list)):
-            message += f" (got {error['input']!r})"
+            message += f" (got {error['input']!r}{_range_hint(error, path)})"
         problems.append(sources.problem(path, message))
     return problems
+
+
+def _range_hint(error: dict, path: str) -> str:
+    """A range error's unit hint (degrees for radians, centimetres for metres), or ''."""
+    bound_key = RANGE_ERRORS.get(error["type"])
+    value, bound = error.get("input"), (error.get("ctx") or {}).get(bound_key)
+    if bound_key is None or isinstance(value, bool) or not isinstance(value, (int, float)) \
+            or not isinstance(bound, (int, float)):
+        return ""
+    return unit_hint(float(value), float(bound), kind_of(path))

@@ -33,8 +33,9 @@ def params_doc(model: type[BaseModel] | None) -> str:
 
 
 def _summary(function) -> str:
+    """The docstring's first paragraph on one line (a first sentence may wrap over several lines)."""
     doc = (function.__doc__ or "").strip()
-    return doc.splitlines()[0] if doc else ""
+    return " ".join(doc.split("\n\n")[0].split())
 
 
 def observation_rows() -> Iterator[tuple[str, ...]]:

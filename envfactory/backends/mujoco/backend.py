@@ -8,6 +8,7 @@ on the path the safety check proved. The servos follow that profile substep by s
 
 from __future__ import annotations
 
+import time
 import warnings
 
 import mujoco
@@ -93,6 +94,7 @@ class MujocoBackend:
         self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
         self._sim_time = 0.0
         self._skip_rest = spec.sim.mujoco.skip_rest
+        self._realtime = spec.env.timing.realtime
         self.skipped_cycles = 0  # cycles the rest shortcut did not simulate
         self._settled = False
         camera = spec.scene.camera
@@ -154,6 +156,15 @@ class MujocoBackend:
         self._arm = Profile(here, here, self._sim_time, 0.0)
 
     def advance(self, seconds: float) -> None:
+        """Simulate `seconds`; in realtime mode, also let that long pass on the wall clock, so that an episode
+        takes as long as on the real arm (the engine still simulates the cycle at once: nothing moves between
+        steps, unlike PyBullet's realtime thread)."""
+        deadline = time.perf_counter() + seconds
+        self._simulate(seconds)
+        if self._realtime:
+            time.sleep(max(0.0, deadline - time.perf_counter()))
+
+    def _simulate(self, seconds: float) -> None:
         """Simulate `seconds`: the controls of every substep are laid out first (the servo targets along the
         profiles, led by kv/kp times the profile's velocity so that the servo is kp (q_ref - q) + kv
         (qdot_ref - qdot); the profile's acceleration times the arm's inertia fed forward, as a trajectory

@@ -10,7 +10,7 @@ import numpy as np
 import pinocchio as pin
 import pybullet as p
 
-from envfactory.backends.base import BackendError, CameraFrame, JointReading, ObjectReading
+from envfactory.backends.base import BackendError, CameraFrame, JointReading, ObjectReading, window_impossible
 from envfactory.backends.pybullet import scene
 from envfactory.backends.pybullet.fast_physics import (
     FastCycles,
@@ -43,6 +43,11 @@ class PyBulletBackend:
         self._position_gain = spec.sim.motor_position_gain
         self.realtime = spec.env.timing.realtime
         mode = p.GUI if (spec.env.gui or render_mode == "human") and not headless else p.DIRECT
+        if mode == p.GUI and window_impossible():
+            asked = "render_mode='human'" if render_mode == "human" else "gui=True (env.gui)"
+            raise BackendError(f"{asked} opens PyBullet's window, and this machine has no display (DISPLAY is "
+                               "unset); use render_mode='rgb_array' for frames, or run where there is a display (a "
+                               "desktop session, ssh -X, or xvfb-run)")
         try:
             self.client = p.connect(mode)
         except p.error as exc:
