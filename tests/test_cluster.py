@@ -134,7 +134,7 @@ def test_an_error_in_the_work_names_the_id_and_the_seeds():
 
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
-    """Two tiny SAC trials of the Reach goal env on two workers: their group folder."""
+    """Two tiny SAC trials of the Reach goal env as Ray Tune trials on two workers: their group folder."""
     group = tmp_path_factory.mktemp("trials") / "group"
     _ok("train", GOAL_REACH, "--seeds", "0,1", "--steps", "240", "--eval-every", "120", "--eval-episodes", "2",
         "--out", group, "--workers", "2", "--no-progress", *TINY)
@@ -152,6 +152,11 @@ def test_trials_write_their_run_folders_a_summary_and_the_curves(trained):
         assert (trained / f"seed{seed}" / "model.zip").is_file()
     for name in (trials.CURVES_FILE, trials.WALL_CURVES_FILE):
         assert (trained / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # each ran as a Ray Tune trial and reported its evaluations to Tune as they happened (Tune's own record)
+    for seed in (0, 1):
+        reported = _rows(trained / "tune" / "trials" / f"seed{seed}" / "progress.csv")
+        assert [(int(r["timesteps"]), float(r["success_rate"])) for r in reported] == \
+            [(int(r["timesteps"]), float(r["success_rate"])) for r in _rows(trained / f"seed{seed}" / "curve.csv")]
 
 
 @needs_train
@@ -164,28 +169,40 @@ def test_a_trained_model_acts_alike_on_the_workers(trained, tmp_path):
     assert _rows(spread) == _rows(here) and len(_rows(here)) == 4
 
 
-def test_rllib_trains_a_few_iterations_on_an_id_by_name():
+def test_rllib_trains_a_few_iterations_on_a_goal_id_by_name():
+    """PPO on two env runners, on a Reach goal ID flattened for RLlib's default model; the kwargs in env_config
+    reach the runners' envs."""
     from ray.rllib.algorithms.ppo import PPOConfig
 
     from envfactory.cluster import rllib
 
-    assert REACH in rllib.register([REACH])
-    config = (PPOConfig().environment(REACH, env_config={"ee_action_type": True})
-              .env_runners(num_env_runners=1, rollout_fragment_length=100)
+    assert GOAL_REACH in rllib.register([GOAL_REACH])
+    config = (PPOConfig().environment(GOAL_REACH, env_config={"ee_action_type": True, "flatten_observation": True})
+              .env_runners(num_env_runners=2, rollout_fragment_length=50)
               .training(train_batch_size_per_learner=200, minibatch_size=100, num_epochs=1)
               .rl_module(model_config={"fcnet_hiddens": [16, 16]}))
     algo = config.build_algo()
     try:
         sampled = [algo.train()["env_runners"]["num_env_steps_sampled_lifetime"] for _ in range(2)]
-        spaces = algo.env_runner_group.foreach_env_runner(lambda runner: runner.env.single_action_space.shape,
-                                                          local_env_runner=False)
+        spaces = algo.env_runner_group.foreach_env_runner(
+            lambda runner: (runner.env.single_action_space.shape, runner.env.single_observation_space.shape),
+            local_env_runner=False)
     finally:
         algo.stop()
-    assert sampled == [200, 400]
-    ee_mode = gym.make(REACH, ee_action_type=True)
-    ee_mode.close()
-    # the kwargs in env_config reached the runner's env: EE mode has fewer action rows than joint mode
-    assert spaces == [ee_mode.action_space.shape] != [gym.spec(REACH).make().action_space.shape]
+    assert sampled[0] >= 200 and sampled[1] >= sampled[0] + 200
+    made = gym.make(GOAL_REACH, ee_action_type=True)
+    flat = gym.wrappers.FlattenObservation(made)
+    expected = (made.action_space.shape, flat.observation_space.shape)
+    made.close()
+    # EE mode has fewer action rows than joint mode: the kwargs reached both runners
+    assert spaces == [expected, expected] and made.action_space.shape != gym.spec(GOAL_REACH).make().action_space.shape
+
+
+def test_the_creator_refuses_a_flatten_option_that_is_no_switch():
+    from envfactory.cluster import rllib
+
+    with pytest.raises(ValueError, match="flatten_observation='yes' must be true or false"):
+        rllib.EnvCreator(GOAL_REACH, Workspace.for_ids([GOAL_REACH]))({"flatten_observation": "yes"})
 
 
 def test_an_rllib_env_creator_makes_a_user_id_in_a_worker(user_folder):

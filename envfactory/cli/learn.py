@@ -66,7 +66,7 @@ def train(
 ):
     """Train SAC, TD3 or TQC on an ID (HER on goal envs), optionally from demonstrations; save the model, the
     replay buffer and the success-rate curve. --resume continues a stopped run. --seeds (and --sweep) train
-    several runs, with --workers as Ray tasks."""
+    several runs, with --workers as Ray Tune trials."""
 
     _require({**extra.TRAIN_MODULES, **extra.PLOT_MODULES}, "envfactory train")
     if seeds is not None or sweep:

@@ -2,7 +2,7 @@
 on a Ray cluster shares: the --workers and --address options and the lazy import of the cluster wing.
 
 Without --workers or --address everything runs in this process and Ray is never imported; with them the
-episodes (or trials) run as Ray tasks, and the results are the same, episode by episode."""
+episodes run as Ray tasks (trials as Ray Tune trials), and the results are the same, episode by episode."""
 
 from __future__ import annotations
 
@@ -169,7 +169,7 @@ def train_trials(env_id: str, algo: str, seeds: list[int], sweep_items: list[str
                  overrides: tuple[str, ...], steps: int | None, env_kwargs: dict, eval_every: int | None,
                  eval_episodes: int | None, demos: str | None, workers: int | None, address: str | None,
                  progress: bool) -> None:
-    """`envfactory train ID --seeds ... [--sweep ...]`: every trial, here or as Ray tasks, then the summary."""
+    """`envfactory train ID --seeds ... [--sweep ...]`: every trial, here or as Ray Tune trials, then the summary."""
     try:
         sweep = trial_runs.parse_sweep(sweep_items)
         asked = out or Path("runs") / f"{env_id}-{algo.lower()}-seeds{'-'.join(map(str, seeds))}"
@@ -188,17 +188,11 @@ def train_trials(env_id: str, algo: str, seeds: list[int], sweep_items: list[str
             outcomes = trial_runs.run_here(planned, lambda _: bar.update())
     else:
         pool = cluster_module("pool", "train --seeds with --workers/--address")
+        tuning = cluster_module("tuning", "train --seeds with --workers/--address")
         with pool.connected(size, address):
-            outcomes = pool.map_calls(trial_runs.run_trial, planned, [t.label for t in planned],
-                                      pool.cluster_cpus(size), lambda label, reason: _failed_trial(planned, label, reason),
-                                      progress)
+            outcomes = tuning.run_trials(planned, pool.cluster_cpus(size), progress)
     rows = trial_runs.write_summary(group, outcomes, f"{env_id} ({algo.upper()}), {len(planned)} trials")
     _print_trials(rows, group)
-
-
-def _failed_trial(planned: list, label: str, reason: str):
-    trial = next(t for t in planned if t.label == label)
-    return trial_runs.TrialOutcome(trial, error=reason)
 
 
 def _percent(value) -> str:

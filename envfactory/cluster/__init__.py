@@ -1,7 +1,7 @@
-"""Jobs and envs on a Ray cluster: episodes of `collect` and `evaluate` as Ray tasks, training trials one per
-task, every ID as an RLlib env.
+"""Jobs and envs on a Ray cluster: episodes of `collect` and `evaluate` as Ray tasks, training trials as Ray
+Tune trials, every ID as an RLlib env.
 
-The one wing that knows Ray. Its modules that use Ray (`pool`, `trials`, `rllib`) import it at their top, and
+The one wing that knows Ray. Its modules that use Ray (`pool`, `tuning`, `rllib`) import it at their top, and
 nothing outside the wing imports them statically: the commands load them with `load` below, only when asked
 for workers, so that every command works without Ray and the CLI does not pay for importing it. The modules
 without Ray (`bundles`, `work`) describe the work and run it, in one process or in a worker alike: the same

@@ -17,7 +17,7 @@ import contextlib
 import logging
 import os
 from dataclasses import dataclass
-from typing import Any, Callable, Iterator
+from typing import Callable, Iterator
 
 import ray
 from ray.exceptions import RayError, RayTaskError
@@ -80,11 +80,6 @@ def _episodes(work: EpisodeWork, seeds: range):
     return _told(work, seeds)
 
 
-@ray.remote(max_retries=0)
-def _call(function: Callable, argument: Any):
-    return _told(function, argument)
-
-
 @dataclass
 class _Task:
     label: str  # what the task does, for an error message
@@ -92,10 +87,10 @@ class _Task:
     weight: int  # its share of the progress bar
 
 
-def _gather(submit: Callable[[int], ray.ObjectRef], tasks: list[_Task], window: int, bar: tqdm, retries: int,
-            on_error: Callable[[_Task, str], Any] | None = None) -> list[list]:
+def _gather(submit: Callable[[int], ray.ObjectRef], tasks: list[_Task], window: int, bar: tqdm,
+            retries: int) -> list[list]:
     """Run tasks with at most `window` in flight (so `--workers` bounds a shared cluster too), in any order;
-    each task's result under its slot. A failure raises ClusterError unless `on_error` gives a result."""
+    each task's result under its slot. A failure raises ClusterError naming the task."""
     results: list[list] = [[] for _ in range(max((t.slot for t in tasks), default=-1) + 1)]
     pending: dict[ray.ObjectRef, _Task] = {}
     queue = list(range(len(tasks)))
@@ -110,9 +105,7 @@ def _gather(submit: Callable[[int], ray.ObjectRef], tasks: list[_Task], window: 
                 try:
                     results[task.slot].append(ray.get(ref))
                 except RayError as exc:
-                    if on_error is None:
-                        raise ClusterError(f"{task.label}: {_reason(exc, retries)}") from None
-                    results[task.slot].append(on_error(task, _reason(exc, retries)))
+                    raise ClusterError(f"{task.label}: {_reason(exc, retries)}") from None
                 bar.update(task.weight)
     finally:
         for ref in pending:  # an error or Ctrl-C: stop what is still running
@@ -155,14 +148,3 @@ def recorder(workers: int, progress: bool = True) -> Callable:
         return recording
 
     return record_on_cluster
-
-
-def map_calls(function: Callable, arguments: list, labels: list[str], workers: int,
-              on_error: Callable[[str, str], Any], progress: bool = True, unit: str = "trial") -> list:
-    """function(argument) for each argument as one task each, never retried (a trial that died has written
-    part of its run folder); `on_error(label, reason)` gives the result of one that failed, so the others go on."""
-    tasks = [_Task(label, slot, 1) for slot, label in enumerate(labels)]
-    with tqdm(total=len(tasks), unit=unit, disable=not progress, desc=f"{unit}s") as bar:
-        parts = _gather(lambda index: _call.remote(function, arguments[index]), tasks, workers, bar, 0,
-                        lambda task, reason: on_error(task.label, reason))
-    return [part[0] for part in parts]

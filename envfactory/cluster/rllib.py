@@ -6,7 +6,8 @@
 
     ray.init()
     rllib.register()  # after registering your own spec folders, if any
-    config = (PPOConfig().environment("UR5eReacherSim-v0", env_config={"ee_action_type": True})
+    config = (PPOConfig().environment("UR5eReacherGoalSim-v0",
+                                      env_config={"ee_action_type": True, "flatten_observation": True})
               .env_runners(num_env_runners=4))
     algo = config.build_algo()
     algo.train()
@@ -15,6 +16,10 @@ RLlib sends each env creator to its env runners (pickled into the cluster's regi
 machine makes the env: an ID from a user spec folder carries a copy of that folder (bundles.py) and registers
 it in the runner before the first make; the runner needs nothing from the head's working folder or
 environment variables.
+
+`env_config` holds the ID's gym.make kwargs, plus one option of the creator: `flatten_observation: True`
+flattens a goal ID's Dict observation into one Box (gymnasium's FlattenObservation), as RLlib's default
+models take Box observations.
 """
 
 from __future__ import annotations
@@ -29,6 +34,7 @@ from envfactory.cluster.work import Workspace
 
 # keys RLlib itself puts into env_config (a vector env's size), which are no kwargs of the env
 RLLIB_CONFIG_KEYS = ("num_envs",)
+FLATTEN = "flatten_observation"  # the creator's own option (module docstring)
 
 
 @dataclass(frozen=True)
@@ -40,8 +46,13 @@ class EnvCreator:
 
     def __call__(self, env_config) -> gym.Env:
         self.workspace.enter([self.env_id])
-        kwargs = {name: value for name, value in dict(env_config or {}).items() if name not in RLLIB_CONFIG_KEYS}
-        return gym.make(self.env_id, **kwargs)
+        config = dict(env_config or {})
+        flatten = config.pop(FLATTEN, False)
+        if not isinstance(flatten, bool):
+            raise ValueError(f"{self.env_id}: env_config {FLATTEN}={flatten!r} must be true or false")
+        kwargs = {name: value for name, value in config.items() if name not in RLLIB_CONFIG_KEYS}
+        env = gym.make(self.env_id, **kwargs)
+        return gym.wrappers.FlattenObservation(env) if flatten else env
 
 
 def register(env_ids: list[str] | None = None) -> list[str]:

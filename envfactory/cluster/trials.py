@@ -1,5 +1,5 @@
 """Several training runs of one ID: one per seed, times each setting of a sweep, run one after another in this
-process or one per Ray task. Each trial is an ordinary `envfactory train` run with its own run folder (model,
+process or one per Ray Tune trial (tuning.py). Each trial is an ordinary `envfactory train` run with its own run folder (model,
 record, curve) inside the group folder; the group gets a summary table and the curves of all of them.
 
 A trial writes its folder where it runs. On one machine that is the group folder itself; on a cluster of
@@ -116,7 +116,7 @@ def open_group(group: Path, trials: list[Trial]) -> None:
     (group / MARKER_FILE).write_text(trials[0].token)
 
 
-def run_trial(trial: Trial) -> TrialOutcome:
+def run_trial(trial: Trial, on_evaluation: Callable[[Evaluation], None] | None = None) -> TrialOutcome:
     """One trial, in this process: a train run in its folder."""
     folder = Path(trial.folder)
     marker = folder.parent / MARKER_FILE
@@ -132,7 +132,7 @@ def run_trial(trial: Trial) -> TrialOutcome:
     result = train(trial.env_id, folder, algo=trial.algo, seed=trial.seed, steps=trial.steps,
                    overrides=(*trial.overrides, *trial.setting), env_kwargs=trial.env_kwargs,
                    eval_every=trial.eval_every, eval_episodes=trial.eval_episodes, demos=trial.demos,
-                   progress_bar=False)
+                   progress_bar=False, on_evaluation=on_evaluation)
     return TrialOutcome(trial, result.evaluations)
 
 
