@@ -22,6 +22,7 @@ from rich.markup import escape
 
 from envfactory import registry
 from envfactory.cli.lookup import MissingSpecFolder, register_spec_folders, unknown_id
+from envfactory.learn.extra import TRAIN_MODULES, MissingExtra, require
 from envfactory.schema.errors import SpecError
 
 
@@ -62,6 +63,21 @@ def _fail(message: str, code: int = 1) -> None:
     # the message is plain text: brackets in it ([train], list values) are not markup
     errors.print(f"[bold red]error:[/] {escape(message)}", highlight=False, markup=True, soft_wrap=True)
     raise typer.Exit(code)
+
+
+def model_file(text: str, choices: str) -> Path:
+    """A --policy value that names a model saved by `envfactory train` (`choices`: the words it could be
+    instead), checked before anything is made; the [train] extra is needed to load it."""
+    path = Path(text)
+    if path.suffix.lower() != ".zip":
+        _fail(f"--policy {text!r}: use {choices} or a model file (.zip) saved by `envfactory train`")
+    if not path.is_file():
+        _fail(f"--policy {path}: no such file")
+    try:
+        require(TRAIN_MODULES, "--policy MODEL.zip")
+    except MissingExtra as exc:
+        _fail(str(exc))
+    return path
 
 
 @app.callback()

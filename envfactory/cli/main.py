@@ -15,7 +15,8 @@ from rich.table import Table
 from typer.core import TyperCommand
 
 # first of the package: importing cli.app drops PyBullet's load-time banner, before anything below loads PyBullet
-from envfactory.cli.app import KWARG_HELP, _check_output, _fail, _known, _parse_kwargs, app, command, console, errors
+from envfactory.cli.app import (KWARG_HELP, _check_output, _fail, _known, _parse_kwargs, app, command, console,
+                                errors, model_file)
 from envfactory import factory, registry, user_config
 from envfactory.backends.base import BackendError
 from envfactory.cli import learn as _learn_commands  # noqa: F401  (registers its commands)
@@ -26,7 +27,6 @@ from envfactory.compiler.scene_checks import height_summary
 from envfactory.describe import render_description
 from envfactory.episodes import iter_episodes, success_rate
 from envfactory.experts import make_policy
-from envfactory.learn.extra import TRAIN_MODULES, MissingExtra, require
 from envfactory.learn.trainer import load_policy, read_meta
 from envfactory.schema.compose import load_env_spec
 from envfactory.schema.errors import SpecError
@@ -312,16 +312,7 @@ def run(
 def _saved_policy(path_text: str) -> tuple[Path, dict]:
     """A model file saved by `envfactory train` and the env kwargs it was trained with."""
 
-    path = Path(path_text)
-    if path.suffix.lower() != ".zip":
-        _fail(f"--policy {path_text!r}: use 'scripted', 'random' or a model file (.zip) saved by `envfactory train`")
-    if not path.is_file():
-        _fail(f"--policy {path}: no such file")
-    try:
-        require(TRAIN_MODULES, "--policy MODEL.zip")
-    except MissingExtra as exc:
-        _fail(str(exc))
-
+    path = model_file(path_text, "'scripted', 'random'")
     return path, dict(read_meta(path).get("env_kwargs", {}))
 
 

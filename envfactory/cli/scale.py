@@ -17,12 +17,12 @@ from rich.table import Table
 from tqdm import tqdm
 
 from envfactory import cluster, registry
-from envfactory.cli.app import KWARG_HELP, _check_output, _fail, _known, _parse_kwargs, command, console
+from envfactory.cli.app import KWARG_HELP, _check_output, _fail, _known, _parse_kwargs, command, console, model_file
 from envfactory.cluster import trials as trial_runs
 from envfactory.cluster.bundles import FolderCopyError
 from envfactory.cluster.work import Evaluation, PolicySource, Workspace, run_here
 from envfactory.episodes import EpisodeResult, success_rate
-from envfactory.learn.extra import TRAIN_MODULES, MissingExtra, require
+from envfactory.learn.extra import MissingExtra
 from envfactory.learn.hyperparams import HyperparameterError
 from envfactory.learn.runs import fresh_folder
 
@@ -65,15 +65,7 @@ def simulated_only(env_id: str, command_name: str) -> None:
 def _policy_source(policy: str, algo: str | None) -> PolicySource:
     if policy == "scripted":
         return PolicySource()
-    path = Path(policy)
-    if path.suffix.lower() != ".zip":
-        _fail(f"--policy {policy!r}: use 'scripted' or a model file (.zip) saved by `envfactory train`")
-    if not path.is_file():
-        _fail(f"--policy {path}: no such file")
-    try:
-        require(TRAIN_MODULES, "--policy MODEL.zip")
-    except MissingExtra as exc:
-        _fail(str(exc))
+    path = model_file(policy, "'scripted'")
     return PolicySource.saved_model(path, algo)
 
 
