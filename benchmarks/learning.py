@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import shlex
 import sys
@@ -43,6 +44,7 @@ from envfactory.learn.hyperparams import load
 from envfactory.learn.runs import RunFolderError, RunRecord
 from envfactory.learn.loop import EVAL_SEED
 from envfactory.learn.trainer import CSV_FILE, resume, train
+from report import RUN_HEADINGS, machine, revision  # beside this script
 
 SUITES = {
     "reach": dict(ids=["UR5eReacherGoalSim-v0", "VX300SReacherGoalSim-v0"], steps=30_000, every=5_000,
@@ -129,7 +131,11 @@ def table(results: dict, steps: list[int]) -> str:
 
 def goal_table(results: dict, steps: list[int], goal: float) -> str:
     """When each run first reaches `goal`, in env steps and wall-clock time, and its success at a few steps."""
-    marks = [steps[len(steps) * quarter // 4 - 1] for quarter in range(1, 5)] if len(steps) >= 4 else steps
+    # the evaluation steps some run has reached, at most eight of them spread evenly
+    reached_steps = max((rows[-1].timesteps for rows in results.values() if rows), default=steps[-1])
+    shown = [s for s in steps if s <= reached_steps] or steps[:1]
+    marks = [shown[round(i * (len(shown) - 1) / 7)] for i in range(8)] if len(shown) > 8 else shown
+    marks = sorted(set(marks))
     lines = ["| ID | demonstrations | seed | first ≥ {:.0%} at (steps) | (wall-clock) | ".format(goal)
              + " | ".join(step_label(s) for s in marks) + " | best | steps done |",
              "|---|---|---|---|---|" + "---|" * len(marks) + "---|---|"]
@@ -171,11 +177,14 @@ def docs_page(results: dict, steps: list[int], args, command: str) -> str:
         except RunFolderError:
             pass
     date = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    facts = [f"`{command}`", "curves of the runs in " + str(args.out) + (" so far (--report-only)" if args.report_only
+                                                                           else ""),
+             f"{date} (the page; each run's own dates are in its model.json)", machine(),
+             f"{os.getloadavg()[0]:.2f} when the page was written", platform.python_version(), revision()]
     lines = [
-        "# Learning benchmark: Push from demonstrations", "",
-        f"Written by `benchmarks/learning.py` on {date} ({platform.node() or 'this machine'}, "
-        f"{platform.machine()}, Python {platform.python_version()}).", "",
-        "The command:", "", "```bash", command, "```", "",
+        "<!-- written by benchmarks/learning.py: run the command below again to refresh it -->",
+        "# learning.py: Manipulation from demonstrations", "",
+        "| Run | |", "|---|---|", *[f"| {name} | {value} |" for name, value in zip(RUN_HEADINGS, facts)], "",
         "Each run is `envfactory train` with the shipped hyperparameters "
         f"(`specs/train/{args.algo}.yaml`), evaluated every {args.every:,} steps on {episodes} deterministic "
         f"episodes on the same goals each time (seeds {EVAL_SEED}…{EVAL_SEED + episodes - 1}). With demonstrations, the scripted expert's episodes "
@@ -226,6 +235,8 @@ def main() -> None:
 
     results = {(env_id, variant, seed): run_one(env_id, variant, seed, args)
                for env_id in args.ids for variant in args.variants for seed in args.seeds}
+    if args.report_only:  # a run never started is no row of the page
+        results = {key: rows for key, rows in results.items() if rows}
     steps = list(range(args.every, args.steps + 1, args.every))
     settings = {env_id: load(args.algo, env_id, args.hyperparameter).values for env_id in args.ids}
     markdown = table(results, steps) if args.variants == ["plain"] else goal_table(results, steps, GOAL)

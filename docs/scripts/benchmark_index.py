@@ -48,7 +48,7 @@ def index_page(pages: Path, benchmarks: Path) -> str:
     blocks = [intro, table]
     missing = [f"- `python benchmarks/{name} --markdown docs/benchmarks/{Path(name).stem}.md`: "
                f"{md.prose(scripts[name][0])}"
-               for name, (_, reports) in scripts.items() if reports and name not in covered]
+               for name, (_, reports) in scripts.items() if reports and name not in covered and name != LEARNING[0]]
     if LEARNING[0] in scripts and LEARNING[0] not in covered:
         missing.append(f"- `benchmarks/{LEARNING[0]}` writes {LEARNING[1]} here: {md.prose(scripts[LEARNING[0]][0])}")
     if missing:
