@@ -76,3 +76,19 @@ def test_observations_stay_inside_the_declared_space(env_id, make):
 def test_observations_stay_inside_the_declared_space_10k(env_id, ee, make):
     env = make(env_id, ee_action_type=ee)
     assert drive(env, steps=10_000, seed=1) >= 9_995
+
+
+def test_a_clipped_column_is_logged_once_and_flagged_at_every_step(monkeypatch, caplog):
+    """The backstop names a clipped column in info at every step, and in the log once per env."""
+    import gymnasium as gym
+
+    env = gym.make("VX300SReacherSim-v0")
+    observations = env.unwrapped.observations
+    computed = observations.compute
+    monkeypatch.setattr(observations, "compute", lambda state: (computed(state)[0], ["3 (ee_rpy[0])=9.9"]))
+    with caplog.at_level("WARNING", logger="envfactory"):
+        infos = [env.reset(seed=0)[1]] + [env.step(env.action_space.sample() * 0)[-1] for _ in range(3)]
+    env.close()
+    assert all(info["observation_clipped"] == ["3 (ee_rpy[0])=9.9"] for info in infos)
+    logged = [record.getMessage() for record in caplog.records if "outside its declared bounds" in record.getMessage()]
+    assert len(logged) == 1 and "ee_rpy[0]" in logged[0]

@@ -79,6 +79,7 @@ class RobotEnv(gym.Env):
         self._goal_failed = False
         self._state: EnvState | None = None
         self._clipped: list[str] = []  # observation columns the last observation had to clip
+        self._clip_logged: set[str] = set()  # columns whose clipping this env has logged (info flags each step)
 
         self.backend = backend_factory(blueprint.backend)(spec, geometry.urdf, self.task_frame, render_mode,
                                                           **backend_options)
@@ -127,9 +128,14 @@ class RobotEnv(gym.Env):
 
     def _vector(self, state: EnvState) -> np.ndarray:
         vector, self._clipped = self.observations.compute(state)
-        if self._clipped:
+        # logged once per column and env: a column that keeps leaving its bounds would otherwise flood a
+        # training run's output; info['observation_clipped'] still names it at every step
+        first = [item for item in self._clipped if item.partition("=")[0] not in self._clip_logged]
+        if first:
+            self._clip_logged.update(item.partition("=")[0] for item in first)
             log.warning("%s: observation outside its declared bounds, clipped and flagged in "
-                        "info['observation_clipped']: %s", self.blueprint.env_id, ", ".join(self._clipped))
+                        "info['observation_clipped'] (logged once per column): %s", self.blueprint.env_id,
+                        ", ".join(first))
         return vector if self._vector_scale is None else self._vector_scale.to_unit(vector).astype(np.float32)
 
     def _observe(self, state: EnvState):
