@@ -159,10 +159,12 @@ class MujocoBackend:
         """Simulate `seconds`; in realtime mode, also let that long pass on the wall clock, so that an episode
         takes as long as on the real arm (the engine still simulates the cycle at once: nothing moves between
         steps, unlike PyBullet's realtime thread)."""
+        if not self._realtime:
+            self._simulate(seconds)
+            return
         deadline = time.perf_counter() + seconds
         self._simulate(seconds)
-        if self._realtime:
-            time.sleep(max(0.0, deadline - time.perf_counter()))
+        time.sleep(max(0.0, deadline - time.perf_counter()))
 
     def _simulate(self, seconds: float) -> None:
         """Simulate `seconds`: the controls of every substep are laid out first (the servo targets along the
