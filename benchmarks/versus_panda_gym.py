@@ -235,8 +235,9 @@ def work(env_id: str, steps: int, policy: str, seed: int, kwargs: dict) -> dict:
     counts = getattr(unwrapped.backend, "cycle_counts", None) if not env_id.startswith("Panda") else None
     played = None
     if counts is not None:  # how the fast fidelity played the cycles (all runs, resets' included)
-        total = max(1, counts.kinematic + counts.at_rest + counts.dynamic)
-        played = "/".join(f"{100 * n / total:.0f}" for n in (counts.kinematic, counts.at_rest, counts.dynamic))
+        kinds = (counts.kinematic, counts.at_rest, counts.carried, counts.dynamic)
+        total = max(1, sum(kinds))
+        played = "/".join(f"{100 * n / total:.0f}" for n in kinds)
     env.close()
     per_step = stepping / steps
     return {
@@ -310,7 +311,7 @@ COLUMNS = [("steps/s", "steps_per_s", "{:,.0f}"), ("÷ panda-gym", "ratio", "{:.
            ("substeps/step", "substeps", "{:.1f}"), ("sim s / wall s", "sim_s_per_wall_s", "{:,.0f}"),
            ("reset ms", "reset_ms", "{:.2f}"), ("make s", "make_s", "{:.2f}"), ("import s", "import_s", "{:.2f}"),
            ("peak MB", "peak_mb", "{:.0f}"), ("success", "success", "{}"), ("touching %", "touching", "{:.0f}"),
-           ("cycles kinematic/at rest/dynamic %", "played", "{}")]
+           ("cycles kinematic/at rest/carried/dynamic %", "played", "{}")]
 
 
 def cells(row: dict) -> list[str]:

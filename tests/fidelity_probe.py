@@ -25,6 +25,11 @@ import pybullet as p
 from envfactory.experts import make_policy
 from envfactory.geometry.kinematics import quaternion_to_matrix
 
+# the tolerances of the fast fidelity against full dynamics (design.md, budgets)
+EE_TOLERANCE = 1e-3
+OBJECT_TOLERANCE = 2e-3
+ANGLE_TOLERANCE = np.radians(2.0)
+
 
 @dataclass
 class SceneReading:
@@ -74,10 +79,9 @@ def read_scene(env) -> SceneReading:
     gripper = float(reading.position[u._gripper_in_states]) if u._gripper_in_states is not None else 0.0
     ee, _ = u.kinematics.ee_pose(q_arm, gripper)
     objects = {}
-    for name in u.blueprint.spec.task.objects:
-        if name in u.backend.objects:
-            obj = u.backend.read_object(name)
-            objects[name] = (obj.position.copy(), quaternion_to_matrix(obj.quaternion))
+    for name in u.blueprint.spec.task.objects:  # spawned by every reset, on either engine
+        obj = u.backend.read_object(name)
+        objects[name] = (obj.position.copy(), quaternion_to_matrix(obj.quaternion))
     return SceneReading(q_arm.copy(), gripper, ee.copy(), objects)
 
 
@@ -180,3 +184,13 @@ def expert_success(env_id: str, fidelity: str, seeds, **kwargs) -> list[bool]:
         return out
     finally:
         env.close()
+
+
+def assert_within(gaps, what: str) -> None:
+    assert gaps.ee, f"{what}: no step was measured"
+    assert max(gaps.ee) <= EE_TOLERANCE, f"{what}: EE {1e3 * max(gaps.ee):.3f} mm from full dynamics"
+    if gaps.object_position:
+        assert max(gaps.object_position) <= OBJECT_TOLERANCE, \
+            f"{what}: object {1e3 * max(gaps.object_position):.3f} mm from full dynamics"
+        assert max(gaps.object_angle) <= ANGLE_TOLERANCE, \
+            f"{what}: object turned {np.degrees(max(gaps.object_angle)):.3f}° from full dynamics"

@@ -12,24 +12,12 @@ import gymnasium as gym
 import numpy as np
 import pybullet as p
 import pytest
-from fidelity_probe import PairedSteps, expert_success, paired_episode, read_scene, trajectory_gaps
+from fidelity_probe import PairedSteps, assert_within, expert_success, paired_episode, read_scene, trajectory_gaps
 
 import envfactory
+from envfactory.geometry.object_clearance import NEAR_CONTACT
 
 SIM_IDS = sorted(i for i, r in envfactory.records().items() if r.backend == "pybullet" and "Goal" not in i)
-EE_TOLERANCE = 1e-3
-OBJECT_TOLERANCE = 2e-3
-ANGLE_TOLERANCE = np.radians(2.0)
-
-
-def assert_within(gaps, what: str) -> None:
-    assert gaps.ee, f"{what}: no step was measured"
-    assert max(gaps.ee) <= EE_TOLERANCE, f"{what}: EE {1e3 * max(gaps.ee):.3f} mm from full dynamics"
-    if gaps.object_position:
-        assert max(gaps.object_position) <= OBJECT_TOLERANCE, \
-            f"{what}: object {1e3 * max(gaps.object_position):.3f} mm from full dynamics"
-        assert max(gaps.object_angle) <= ANGLE_TOLERANCE, \
-            f"{what}: object turned {np.degrees(max(gaps.object_angle)):.3f}° from full dynamics"
 
 
 def test_full_fidelity_is_the_reference_dynamics():
@@ -152,8 +140,6 @@ def test_motions_proven_clear_of_the_cube_are_clear_in_pybullet(env_id):
     """The kinematic path's proof against PyBullet's own distance queries: random motions around the
     cube; every motion the proof accepts keeps each moving link NEAR_CONTACT from the cube at 40
     poses along its straight joint-space line, the gripper anywhere in its range."""
-    from envfactory.backends.pybullet.fast_physics import NEAR_CONTACT
-
     env = gym.make(env_id)
     try:
         env.reset(seed=0)

@@ -36,7 +36,7 @@ def test_every_sim_id_makes_resets_and_steps_on_mujoco(env_id):
 
 
 def _free_motions(env, seed: int, steps: int):
-    """Accepted random steps: per step, the largest distance of any arm joint from the straight joint-space
+    """Accepted random steps (`env` made with full fidelity, so every cycle is one rollout): per step, the largest distance of any arm joint from the straight joint-space
     segment between where the step started and its target, over every substep the engine simulated."""
     unwrapped = env.unwrapped
     backend = unwrapped.backend
@@ -62,7 +62,7 @@ def _free_motions(env, seed: int, steps: int):
 def test_the_arm_stays_on_the_proven_line(env_id):
     """Out of contact every joint stays within 1 mrad of the commanded joint-space line at every substep
     (PyBullet's per-joint motors, each at its own speed, leave it: the joints arrive at different times)."""
-    env = gym.make(env_id, engine="mujoco")
+    env = gym.make(env_id, engine="mujoco", physics_fidelity="full")
     try:
         deviations = list(_free_motions(env, seed=0, steps=25))
     finally:
@@ -110,22 +110,24 @@ def test_engine_is_refused_on_a_real_id():
         gym.make("UR5eReacherReal-v0", engine="mujoco")
 
 
-def _hold_still(skip_rest: bool, steps: int = 8):
-    env = gym.make("VX300SPushSim-v0", engine="mujoco", overrides=[f"sim.mujoco.skip_rest={str(skip_rest).lower()}"])
+def _hold_still(fidelity: str, steps: int = 8):
+    env = gym.make("VX300SPushSim-v0", engine="mujoco", physics_fidelity=fidelity)
     unwrapped = env.unwrapped
     try:
         env.reset(seed=0)
         for _ in range(steps):
             env.step(unwrapped.actions.hold_action(unwrapped.state))
         state = unwrapped.state
-        return unwrapped.backend.skipped_cycles, state.joint_positions.copy(), state.objects["cube"].position.copy()
+        counts = unwrapped.backend.cycle_counts
+        skipped = 0 if counts is None else counts.at_rest + counts.kinematic  # cycles without a substep
+        return skipped, state.joint_positions.copy(), state.objects["cube"].position.copy()
     finally:
         env.close()
 
 
 def test_a_scene_at_rest_costs_no_substeps_and_ends_where_full_dynamics_does():
-    skipped, joints, cube = _hold_still(skip_rest=True)
-    reference_skipped, reference_joints, reference_cube = _hold_still(skip_rest=False)
+    skipped, joints, cube = _hold_still("fast")
+    reference_skipped, reference_joints, reference_cube = _hold_still("full")
     assert skipped == 7 and reference_skipped == 0  # the first cycle after a reset settles the scene
     assert np.max(np.abs(joints - reference_joints)) < 1e-4
     assert np.linalg.norm(cube - reference_cube) < 5e-5
@@ -142,11 +144,11 @@ def _moving_robot_geoms(model) -> list[int]:
 def _closest_approach(env_id: str, seed: int, steps: int, saturated: bool = False) -> tuple[float, int]:
     """The smallest distance MuJoCo measures between a moving robot geom and a scene obstacle, over every
     substep of every accepted step (MuJoCo's own distance queries judge, not the safety check's coal), and
-    how many steps were accepted. Random actions, or `saturated`: every row on a bound, held for a few steps,
+    how many steps were accepted (full fidelity: every cycle is one rollout whose substeps are read). Random actions, or `saturated`: every row on a bound, held for a few steps,
     as a saturated policy drives the arm into the table's edge and its own links."""
     import mujoco
 
-    env = gym.make(env_id, engine="mujoco")
+    env = gym.make(env_id, engine="mujoco", physics_fidelity="full")
     unwrapped = env.unwrapped
     model, backend = unwrapped.backend.model, unwrapped.backend
     scratch = mujoco.MjData(model)

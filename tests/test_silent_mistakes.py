@@ -182,7 +182,7 @@ def test_delta_wider_than_the_joints_range(tmp_path):
 
 def test_physics_rate_too_low(tmp_path):
     folder = user_folder(tmp_path, "ur5e_pnp", edits=[
-        ("specs/ur5e_pnp.yaml", "registration:", "sim: {physics_hz: 1}\nregistration:")])
+        ("specs/ur5e_pnp.yaml", "sim:\n", "sim:\n  physics_hz: 1\n")])
     message = refusal(folder)
     family = folder / "specs" / "ur5e_pnp.yaml"
     assert f"{family}:{line_of(family, 'physics_hz')}: sim.physics_hz: physics rate 1 Hz is too low to simulate this " \

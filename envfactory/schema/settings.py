@@ -151,9 +151,12 @@ class MujocoSettings(Model):
     # stays within 0.5 mrad
     physics_hz: Positive = Field(default=480.0, le=100_000)
     solver_iterations: int = Field(default=50, ge=1, le=10_000)
-    # a cycle whose scene is at rest and whose command keeps it there is not simulated (false: every cycle is,
-    # the reference the shortcut is measured against in tests/test_mujoco.py)
-    skip_rest: bool = True
+    # MuJoCo's soft contacts let a squeezed cube creep out of the pads (~1 mm/s in a UR5e carry, until it
+    # drops); the no-slip pass removes that creep (tests/test_mujoco.py measures a held cube's slip)
+    noslip_iterations: int = Field(default=3, ge=0, le=1_000)
+    # with sim.fidelity fast, a cube held in a grasp that did not slip rides with the hand while the carry is
+    # proven clear (envfactory/backends/mujoco/held.py); false: every carry is simulated (the reference)
+    carry_held: bool = True
 
 
 class SimSettings(Model):
@@ -168,7 +171,8 @@ class SimSettings(Model):
     motor_position_gain: float = Field(default=1.0, gt=0.0, le=1.0)
     # full: every step simulates the whole action cycle (the reference). fast: a motion proven clear
     # of every movable object is played kinematically and a scene at rest is not stepped
-    # (envfactory/backends/pybullet/fast_physics.py); its distance to full is measured in tests/test_fidelity.py
+    # (envfactory/backends/pybullet/fast_physics.py, envfactory/backends/mujoco/shortcuts.py); its distance
+    # to full is measured in tests/test_fidelity.py and tests/test_mujoco_fidelity.py
     fidelity: Literal["fast", "full"] = "fast"
     mujoco: MujocoSettings = MujocoSettings()
 

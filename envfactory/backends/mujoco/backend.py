@@ -16,15 +16,18 @@ import numpy as np
 from mujoco import rollout
 
 from envfactory.backends.base import BackendError, CameraFrame, JointReading, ObjectReading
-from envfactory.backends.mujoco.model import CAMERA, build
+from envfactory.backends.mujoco import shortcuts
+from envfactory.backends.mujoco.held import Carry
+from envfactory.backends.mujoco.model import CAMERA, ROBOT_PREFIX, build
+from envfactory.backends.rest import CycleCounts
 from envfactory.geometry.frames import TaskFrame
+from envfactory.geometry.object_clearance import NEAR_CONTACT, ObjectClearance
+from envfactory.geometry.obstacles import scene_obstacles
 from envfactory.schema.models import CameraSpec, EnvSpec
 
 STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
 CONTROL = int(mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_QFRC_APPLIED)  # what each substep's row sets
-# A cycle is skipped when no joint or object moves faster than this (rad/s, m/s) and every arm joint is within
-# REST_GAP of its commanded target: over a 0.5 s cycle such a scene drifts less than 0.05 mm.
-REST_SPEED = 1e-4
+# A joint within this of its commanded target (rad, or m for a finger) has reached it
 REST_GAP = 1e-6
 _render_failure: str | None = None  # why this process cannot render, once a try has shown it
 RENDER_HELP = ("MuJoCo renders through OpenGL: set MUJOCO_GL=egl (needs libEGL and a GPU driver) or "
@@ -93,10 +96,18 @@ class MujocoBackend:
         self._gripper: Profile | None = None
         self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
         self._sim_time = 0.0
-        self._skip_rest = spec.sim.mujoco.skip_rest
         self._realtime = spec.env.timing.realtime
-        self.skipped_cycles = 0  # cycles the rest shortcut did not simulate
+        self._fast = spec.sim.fidelity == "fast"
+        self._clearance: ObjectClearance | None = None  # once attach_geometry gives the safety check's shapes
+        self._object_radii = np.array([obj.size * np.sqrt(3) / 2 for obj in spec.task.objects.values()])
+        self._object_bodies = [self.handles.object_body[name] for name in spec.task.objects]
+        self.counts = CycleCounts()
         self._settled = False
+        self._carry: Carry | None = None
+        if self._fast and spec.sim.mujoco.carry_held and spec.robot.gripper is not None and spec.task.objects:
+            pads = {self.model.body(ROBOT_PREFIX + link).id for link in spec.robot.gripper.pads.links}
+            radii = dict(zip(spec.task.objects, self._object_radii))
+            self._carry = Carry(self.model, self.handles, pads, scene_obstacles(spec), radii)
         camera = spec.scene.camera
         if spec.env.observation.camera_images and camera is not None:
             self._renderer(camera.width, camera.height)  # images are part of every observation: fail at make
@@ -104,7 +115,15 @@ class MujocoBackend:
     # ---------------------------------------------------------------- protocol
 
     def attach_geometry(self, collision) -> None:
-        """Every cycle is simulated in full: nothing to play without dynamics."""
+        """The safety check's collision model: with `sim.fidelity: fast` it proves motions clear of the
+        objects, so those cycles are played without dynamics (shortcuts.py)."""
+        if self._fast:
+            self._clearance = ObjectClearance(collision)
+
+    @property
+    def cycle_counts(self) -> CycleCounts | None:
+        """How the fast fidelity played its cycles (None under full dynamics)."""
+        return self.counts if self._fast else None
 
     def reset(self, q_arm, gripper, objects) -> None:
         model, data, handles = self.model, self.data, self.handles
@@ -126,11 +145,14 @@ class MujocoBackend:
         self._arm = self._gripper = None
         self._sim_time = 0.0
         self._settled = False
+        if self._carry is not None:
+            self._carry.reset()
 
-    def _place_gripper(self, value: float) -> None:
-        self.data.qpos[self.handles.gripper_qpos] = value
-        for address, gain in self.handles.followers:
-            self.data.qpos[address] = gain * value
+    def _place_gripper(self, value: float, speed: float = 0.0) -> None:
+        data, handles = self.data, self.handles
+        data.qpos[handles.gripper_qpos], data.qvel[handles.gripper_dof] = value, speed
+        for address, dof, gain in handles.followers:
+            data.qpos[address], data.qvel[dof] = gain * value, gain * speed
 
     def command_joints(self, q_arm_target, duration: float) -> None:
         start = self.data.qpos[self.handles.arm_qpos].copy()
@@ -167,17 +189,53 @@ class MujocoBackend:
         time.sleep(max(0.0, deadline - time.perf_counter()))
 
     def _simulate(self, seconds: float) -> None:
-        """Simulate `seconds`: the controls of every substep are laid out first (the servo targets along the
-        profiles, led by kv/kp times the profile's velocity so that the servo is kp (q_ref - q) + kv
-        (qdot_ref - qdot); the profile's acceleration times the arm's inertia fed forward, as a trajectory
-        controller does), then MuJoCo plays them all in one call."""
-        model, data, handles = self.model, self.data, self.handles
+        """Let one cycle of `seconds` pass: in full, or (sim.fidelity fast) without the substeps that cannot
+        change what the cycle ends with (shortcuts.py)."""
         steps = max(1, round(seconds / self.dt))
-        if self._skip_rest and self._at_rest():
-            self._sim_time += steps * self.dt  # nothing moves, nothing is asked to: no dynamics to pay for
-            self.skipped_cycles += 1
-            return
-        times = self._sim_time + self.dt * np.arange(1, steps + 1)
+        end = self._sim_time + steps * self.dt
+        q_start = self.data.qpos[self.handles.arm_qpos].copy()
+        if self._fast and self._at_rest():
+            self.counts.at_rest += 1
+        elif self._fast and self._carried(end):
+            self.counts.carried += 1
+        else:
+            if self._fast and self._kinematic(end):
+                self.counts.kinematic += 1
+            else:
+                self.counts.dynamic += 1
+                self.counts.substeps += self._dynamic(steps)
+                self._settled = True
+            if self._carry is not None:
+                arm = self._arm
+                self._carry.measure(self.data, q_start, q_start if arm is None else arm.end,
+                                    0.0 if arm is None else arm.length)
+        data = self.data
+        data.time = self._sim_time = end
+
+    def _dynamic(self, steps: int) -> int:
+        """The substeps of the commanded motion, then (fast) chunks until everything rests twice in a row."""
+        motion_end = max((profile.t0 + profile.length for profile in (self._arm, self._gripper)
+                          if profile is not None and np.max(np.abs(profile.end - profile.start)) > REST_GAP),
+                         default=0.0)  # a hold has nothing to play out: the rest test decides at once
+        done = steps if not self._fast else min(steps, max(1, int(np.ceil((motion_end - self._sim_time) / self.dt))))
+        self._play_substeps(0, done)
+        resting = False
+        while done < steps:
+            chunk = min(shortcuts.REST_CHECK_EVERY, steps - done)
+            self._play_substeps(done, chunk)
+            done += chunk
+            was_resting, resting = resting, self._scene_at_rest()
+            if resting and was_resting:
+                break  # what is left of the cycle would hold still
+        return done
+
+    def _play_substeps(self, first: int, steps: int) -> None:
+        """Simulate substeps first+1 … first+steps of the cycle: the controls of every substep are laid out
+        first (the servo targets along the profiles, led by kv/kp times the profile's velocity so that the
+        servo is kp (q_ref - q) + kv (qdot_ref - qdot); the profile's acceleration times the arm's inertia fed
+        forward, as a trajectory controller does), then MuJoCo plays them all in one call."""
+        model, data, handles = self.model, self.data, self.handles
+        times = self._sim_time + self.dt * np.arange(first + 1, first + steps + 1)
         controls = self._controls
         if controls.shape[0] < steps:
             controls = self._controls = np.zeros((steps, model.nu + model.nv))
@@ -200,12 +258,10 @@ class MujocoBackend:
         mujoco.mj_setState(model, data, self._states[0, -1], STATE)
         data.ctrl[:] = controls[-1, :model.nu]
         mujoco.mj_forward(model, data)
-        self._sim_time += steps * self.dt
-        self._settled = True
 
     def _at_rest(self) -> bool:
         """Whether a cycle would change nothing: every body at rest and every command already reached."""
-        if not self._settled or np.max(np.abs(self.data.qvel), initial=0.0) > REST_SPEED:
+        if not self._settled or not self._scene_at_rest():
             return False  # a scene just placed is not at rest before its contacts have carried its weight
         here = self.data.qpos
         if self._arm is not None and np.max(np.abs(self._arm.end - here[self.handles.arm_qpos])) > REST_GAP:
@@ -214,6 +270,69 @@ class MujocoBackend:
         if gripper is not None and self._sim_time < gripper.t0 + gripper.length and \
                 abs(gripper.end[0] - gripper.start[0]) > REST_GAP:
             return False  # still on its way (one stopped short of its target squeezes something: that is rest)
+        return True
+
+    def _scene_at_rest(self) -> bool:
+        handles = self.handles
+        return shortcuts.objects_at_rest(self.data, handles.object_dof) and \
+            shortcuts.robot_at_rest(self.data, handles.arm_dof, handles.gripper_dof)
+
+    def _carried(self, end: float) -> bool:
+        """Carry a held object with the hand, without dynamics, if the carry is proven clear (held.py)."""
+        data, handles, arm, gripper = self.data, self.handles, self._arm, self._gripper
+        if self._carry is None or not self._settled or gripper is None or self._sim_time < gripper.t0 + gripper.length:
+            return False  # nothing can be held while the gripper is still on its way
+        if arm is None or arm.t0 + arm.length > end - shortcuts.SETTLE_TIME or \
+                not shortcuts.robot_at_rest(data, handles.arm_dof, None):
+            return False
+        name = self._carry.held(data)
+        if name is None:
+            return False
+        q_from = data.qpos[handles.arm_qpos].copy()
+        plan = self._carry.plan(data, name, q_from, arm.end, arm.length)
+        if plan is None:
+            return False
+        position, rotation = plan
+        data.qpos[handles.arm_qpos] = arm.end
+        data.qvel[handles.arm_dof] = 0.0
+        data.ctrl[handles.arm_actuators] = arm.end
+        address, dof = handles.object_qpos[name], handles.object_dof[name]
+        quaternion = np.zeros(4)
+        mujoco.mju_mat2Quat(quaternion, rotation.reshape(-1))
+        data.qpos[address:address + 7] = [*position, *quaternion]
+        data.qvel[dof:dof + 6] = 0.0
+        mujoco.mj_forward(self.model, data)
+        return True
+
+    def _kinematic(self, end: float) -> bool:
+        """Play the cycle without dynamics if the motion is proven clear of every object (shortcuts.py)."""
+        data, handles, arm, gripper = self.data, self.handles, self._arm, self._gripper
+        if self._clearance is None or not self._settled or \
+                not shortcuts.objects_at_rest(data, handles.object_dof) or \
+                not shortcuts.robot_at_rest(data, handles.arm_dof, None):
+            return False  # a gripper on its way is no obstacle: its drive's profile says where it will be
+        if arm is not None and arm.t0 + arm.length > end - shortcuts.SETTLE_TIME:
+            return False  # the servos would still be on their way when the observation is read
+        q_from = data.qpos[handles.arm_qpos].copy()
+        q_to = q_from if arm is None else arm.end
+        g_from = g_to = 0.0
+        g_speed = 0.0
+        if gripper is not None:
+            g_from = float(data.qpos[handles.gripper_qpos])
+            position, velocity, _ = gripper.at(end)
+            g_to, g_speed = float(position[0]), float(velocity[0])
+        if self._object_bodies:
+            centers = data.xpos[self._object_bodies]
+            if not self._clearance.motion_is_clear(q_from, g_from, q_to, g_to, centers, self._object_radii,
+                                                   NEAR_CONTACT):
+                return False
+        data.qpos[handles.arm_qpos] = q_to
+        data.qvel[handles.arm_dof] = 0.0
+        data.ctrl[handles.arm_actuators] = q_to
+        if gripper is not None:
+            self._place_gripper(g_to, g_speed)
+            data.ctrl[handles.gripper_actuator] = g_to
+        mujoco.mj_forward(self.model, data)
         return True
 
     def read_joints(self) -> JointReading:

@@ -9,7 +9,11 @@ Choices where MuJoCo and PyBullet differ, each a setting of the model built here
   the position servos track the commanded profile instead of sagging under load;
 - the robot does not collide with itself (the safety check keeps its links apart; the gripper's linkage
   overlaps by design, as in PyBullet), only with the scene and the objects;
-- friction: elliptic cones with impratio 10, so a grasped cube does not creep out of the pads.
+- friction: elliptic cones with impratio 10 and a no-slip pass, so a grasped cube does not creep out of the pads;
+- two surfaces in contact rub with the product of their coefficients, as in PyBullet (MuJoCo's own rule takes
+  the larger: a cube of friction 0.6 would grip the table at 0.6, not 0.3, and tip over under a push where it
+  slides in PyBullet), so every contact of an object is an explicit pair carrying the product; a surface the
+  specs give no friction has PyBullet's default, SURFACE_FRICTION.
 """
 
 from __future__ import annotations
@@ -34,6 +38,10 @@ SERVO_STIFFNESS_ERROR = 0.01  # rad (or m): the position error at which a servo 
 # behind a gearbox); it is what keeps a stiff servo on a light link stable at the engine's timestep.
 ARMATURE_PER_EFFORT = 1e-3  # kg m^2 per N m (kg per N on a slide)
 MARKER_RGBA = (0.1, 0.8, 0.2, 0.6)
+SURFACE_FRICTION = (0.5, 0.0, 0.0)
+# A joint the specs do not drive (the VX300S's gripper motor horn) is held by PyBullet's default velocity motors;
+# here a damper stops it, or the arm's swings would spin it on forever and the scene would never be at rest.
+UNDRIVEN_DAMPING = 0.01  # N m s / rad  # lateral, spinning, rolling of the table, obstacles and robot links
 CAMERA = "scene_camera"
 
 
@@ -47,9 +55,11 @@ class Handles:
     state_qpos: np.ndarray  # the /joint_states entries, in order
     state_dof: np.ndarray
     gripper_qpos: int | None
+    gripper_dof: int | None
     gripper_actuator: int | None
-    followers: tuple[tuple[int, float], ...]  # (qpos address, gain) of each mimic follower
+    followers: tuple[tuple[int, int, float], ...]  # (qpos address, dof address, gain) of each mimic follower
     object_qpos: dict[str, int]  # freejoint qpos address of each object
+    object_dof: dict[str, int]  # its first dof address
     object_body: dict[str, int]
     marker_mocap: int
 
@@ -61,6 +71,12 @@ def _wxyz(rotation: np.ndarray) -> list[float]:
 
 def _friction_condim(lateral: float, spinning: float, rolling: float) -> int:
     return 6 if rolling > 0 else 4 if spinning > 0 else 3
+
+
+def _pair_friction(one: tuple[float, float, float], other: tuple[float, float, float]) -> list[float]:
+    """MuJoCo's five pair coefficients (two tangential, spinning, two rolling) of two surfaces in contact."""
+    lateral, spinning, rolling = (a * b for a, b in zip(one, other))
+    return [lateral, lateral, spinning, rolling, rolling]
 
 
 def _camera_axes(camera: CameraSpec) -> list[float]:
@@ -81,10 +97,14 @@ def build(spec: EnvSpec, urdf_path: Path) -> tuple[mujoco.MjModel, Handles]:
     world.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
     world.option.impratio = 10.0
     world.option.iterations = spec.sim.mujoco.solver_iterations
+    world.option.noslip_iterations = spec.sim.mujoco.noslip_iterations
+    surfaces: dict[str, tuple[float, float, float]] = {}  # every geom an object can touch, and its friction
     for obstacle in scene_obstacles(spec):
-        world.worldbody.add_geom(name=f"obstacle:{obstacle.name}", type=mujoco.mjtGeom.mjGEOM_BOX,
+        name = f"obstacle:{obstacle.name}"
+        world.worldbody.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX,
                                  size=list(obstacle.half_extents), pos=list(obstacle.center),
                                  rgba=list(obstacle.rgba), contype=WORLD_TYPE, conaffinity=WORLD_AFFINITY)
+        surfaces[name] = SURFACE_FRICTION
 
     robot = mujoco.MjSpec.from_file(str(urdf_path))
     for equality in list(robot.equalities):
@@ -95,16 +115,24 @@ def build(spec: EnvSpec, urdf_path: Path) -> tuple[mujoco.MjModel, Handles]:
     pads = set(robot_spec.gripper.pads.links) if robot_spec.gripper is not None else set()
     for body in mount.find_all(mujoco.mjtObj.mjOBJ_BODY):
         body.gravcomp = 1.0
-        for geom in body.geoms:
+        for index, geom in enumerate(body.geoms):
+            if geom.contype == 0 and geom.conaffinity == 0:
+                continue  # a visual geom
             geom.contype, geom.conaffinity = ROBOT_TYPE, ROBOT_AFFINITY
+            geom.name = geom.name or f"{body.name}#{index}"
+            surfaces[geom.name] = SURFACE_FRICTION
             if body.name.removeprefix(ROBOT_PREFIX) in pads:
                 contact = robot_spec.gripper.pads
-                geom.friction = [contact.lateral_friction, contact.spinning_friction, contact.rolling_friction]
-                geom.condim = _friction_condim(contact.lateral_friction, contact.spinning_friction,
-                                               contact.rolling_friction)
+                surfaces[geom.name] = (contact.lateral_friction, contact.spinning_friction, contact.rolling_friction)
 
     for joint, effort in zip(robot_spec.arm_joints, robot_spec.arm_efforts):
         _servo(world, joint.name, effort)
+    driven = {ROBOT_PREFIX + joint.name for joint in robot_spec.arm_joints}
+    if robot_spec.gripper is not None:
+        driven |= {ROBOT_PREFIX + name for name in (robot_spec.gripper.joint, *robot_spec.gripper.mimic)}
+    for joint in mount.find_all(mujoco.mjtObj.mjOBJ_JOINT):
+        if joint.name not in driven:
+            joint.damping = [UNDRIVEN_DAMPING, 0.0, 0.0]
     gripper = robot_spec.gripper
     if gripper is not None:
         _servo(world, gripper.joint, gripper.force)
@@ -115,10 +143,15 @@ def build(spec: EnvSpec, urdf_path: Path) -> tuple[mujoco.MjModel, Handles]:
     for index, (name, obj) in enumerate(spec.task.objects.items()):
         body = world.worldbody.add_body(name=f"object:{name}", pos=[0.0, 0.0, -10.0 - index])
         body.add_freejoint(name=f"object:{name}")
-        body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[obj.size / 2] * 3, mass=obj.mass, rgba=list(obj.rgba),
-                      friction=[obj.friction, obj.spinning_friction, obj.rolling_friction],
-                      condim=_friction_condim(obj.friction, obj.spinning_friction, obj.rolling_friction),
-                      contype=WORLD_TYPE, conaffinity=WORLD_AFFINITY)
+        # no contact of its own: each is an explicit pair below, with the product of the two frictions
+        body.add_geom(name=f"object:{name}", type=mujoco.mjtGeom.mjGEOM_BOX, size=[obj.size / 2] * 3,
+                      mass=obj.mass, rgba=list(obj.rgba), contype=0, conaffinity=0)
+        friction = (obj.friction, obj.spinning_friction, obj.rolling_friction)
+        for other, other_friction in surfaces.items():
+            coefficients = _pair_friction(friction, other_friction)
+            world.add_pair(geomname1=f"object:{name}", geomname2=other, friction=coefficients,
+                           condim=_friction_condim(*coefficients[1:4]))
+        surfaces[f"object:{name}"] = friction
     marker = world.worldbody.add_body(name="goal_marker", mocap=True, pos=[0.0, 0.0, -10.0])
     marker.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.025, 0, 0], rgba=list(MARKER_RGBA), contype=0,
                     conaffinity=0, group=3)
@@ -155,10 +188,12 @@ def _handles(model: mujoco.MjModel, spec: EnvSpec) -> Handles:
         state_qpos=np.array([joint(e.urdf_joint).qposadr[0] for e in robot.joint_states]),
         state_dof=np.array([joint(e.urdf_joint).dofadr[0] for e in robot.joint_states]),
         gripper_qpos=None if gripper is None else int(joint(gripper.joint).qposadr[0]),
+        gripper_dof=None if gripper is None else int(joint(gripper.joint).dofadr[0]),
         gripper_actuator=None if gripper is None else model.actuator(f"servo:{gripper.joint}").id,
-        followers=() if gripper is None else tuple((int(joint(name).qposadr[0]), gain)
+        followers=() if gripper is None else tuple((int(joint(name).qposadr[0]), int(joint(name).dofadr[0]), gain)
                                                    for name, gain in gripper.mimic.items()),
         object_qpos={name: int(model.joint(f"object:{name}").qposadr[0]) for name in spec.task.objects},
+        object_dof={name: int(model.joint(f"object:{name}").dofadr[0]) for name in spec.task.objects},
         object_body={name: model.body(f"object:{name}").id for name in spec.task.objects},
         marker_mocap=int(model.body("goal_marker").mocapid[0]),
     )

@@ -12,14 +12,9 @@ import pybullet as p
 
 from envfactory.backends.base import BackendError, CameraFrame, JointReading, ObjectReading, window_impossible
 from envfactory.backends.pybullet import scene
-from envfactory.backends.pybullet.fast_physics import (
-    FastCycles,
-    GripperResponse,
-    ObjectClearance,
-    Rig,
-    record_gripper_response,
-)
+from envfactory.backends.pybullet.fast_physics import FastCycles, GripperResponse, Rig, record_gripper_response
 from envfactory.geometry.frames import TaskFrame, base_rotation
+from envfactory.geometry.object_clearance import ObjectClearance
 from envfactory.geometry.obstacles import scene_obstacles
 from envfactory.schema.models import CameraSpec, EnvSpec
 

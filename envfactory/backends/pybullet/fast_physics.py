@@ -28,20 +28,9 @@ from typing import Callable
 import numpy as np
 import pybullet as p
 
-from envfactory.geometry.collision import CollisionModel, capsule_sphere_gaps
+from envfactory.backends.rest import GRIPPER_REST, JOINT_REST, OBJECT_REST, OBJECT_SPIN_REST, CycleCounts
+from envfactory.geometry.object_clearance import NEAR_CONTACT, ObjectClearance
 
-# Closer than this to a movable object, a motion gets full dynamics. Bullet builds contact points
-# within its 2 cm breaking threshold but pushes only on a gap closed within one substep (a few mm
-# at the arm's top speed); 1 cm keeps every kinematic motion clear of that.
-NEAR_CONTACT = 0.01
-# At rest: joint speeds (rad/s, m/s for a finger), an object's linear (m/s) and angular (rad/s) speed.
-# Under gravity an unsupported body gains 9.81 m/s² × dt (0.04 m/s at 240 Hz) in one substep.
-JOINT_REST = 1e-3
-# A gripper squeezing the cube creeps on below JOINT_REST for many cycles (measured ~1.4e-4 rad/s in
-# a UR5e PnP carry): it counts as at rest only ten times slower, so the squeeze keeps its dynamics.
-GRIPPER_REST = 1e-4
-OBJECT_REST = 1e-3
-OBJECT_SPIN_REST = 1e-2
 # After `action_speed` the position motors close the rest of a motion by a factor e about every 9
 # substeps (measured at 240 Hz: 1e-2 rad short at 0.2 s, 5e-6 rad at 0.5 s). A cycle with fewer
 # substeps than this after the motion ends is not over when the observation is read: it gets dynamics.
@@ -54,16 +43,6 @@ REST_CHECK_EVERY = 4
 # A fresh object placed on the table settles below OBJECT_REST within ~16 substeps at 240 Hz
 # (its contact resolves a 0.2 mm sink); one still moving after this many gets the full cycle.
 PROBE_SUBSTEPS = 24
-
-
-@dataclass
-class CycleCounts:
-    """How the cycles were played: the benchmark and the fidelity test read these."""
-
-    kinematic: int = 0
-    at_rest: int = 0
-    dynamic: int = 0
-    substeps: int = 0
 
 
 class GripperResponse:
@@ -118,67 +97,6 @@ def record_gripper_response(client: int, body: int, joint: int, open_value: floa
     closing_sign = np.sign(closed_value - open_value)
     closing, opening = curves if closing_sign > 0 else curves[::-1]
     return GripperResponse(closing, opening, dt)
-
-
-class ObjectClearance:
-    """Lower bounds on the gap between the arm's moving collision shapes and a sphere, over a motion.
-
-    The shapes are the safety check's own (the capsule fitted around each URDF collision shape,
-    and its lever arms per coordinate), posed by its compiled forward kinematics."""
-
-    # the finest piece of a motion the proof looks at: finer pieces would cost more than the substeps
-    MIN_PIECE = 1.0 / 8
-
-    def __init__(self, collision: CollisionModel):
-        kinematics = collision.kinematics
-        self.collision = collision
-        self.moving = collision.moving_shapes
-        self.radius = collision.radius[self.moving]
-        self.lever = collision.lever[self.moving]
-        self.arm = len(kinematics.robot.arm_joints)
-        self.base_in_world = np.asarray(kinematics.robot.mount, float)
-
-    def gaps(self, q_arm: np.ndarray, gripper: float, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
-        """(shapes, spheres) lower bounds on the gap at one pose; sphere centres in the world frame."""
-        # the safety check's own compiled frames and capsules: one forward kinematics for both
-        self.collision.pose(q_arm, gripper)
-        ends = self.collision.capsule_ends()[self.moving]
-        # base frame: the mount is a translation
-        return capsule_sphere_gaps(ends, self.radius, centers - self.base_in_world, radii)
-
-    def motion_is_clear(self, q_from, gripper_from, q_to, gripper_to, centers, radii, margin: float) -> bool:
-        """Whether every moving shape stays `margin` from every sphere while the arm moves along the
-        straight joint-space line from q_from to q_to (the motors' path: every joint lands on its
-        target at the same time) and the gripper anywhere between its two values. Pieces of the line
-        whose two end bounds cannot prove it are halved, down to MIN_PIECE."""
-        q_from, q_to = np.asarray(q_from, float), np.asarray(q_to, float)
-        arm_travel = (self.lever[:, :self.arm] @ np.abs(q_to - q_from))[:, None]
-        gripper_middle, reserve = gripper_from, np.zeros((len(self.radius), 1))
-        if self.lever.shape[1] > self.arm:
-            # every pose is judged over the gripper's whole range: its middle, less half its sweep
-            gripper_middle = (gripper_from + gripper_to) / 2
-            reserve = (self.lever[:, self.arm] * abs(gripper_to - gripper_from) / 2)[:, None]
-
-        def bound(fraction: float) -> np.ndarray:
-            return self.gaps(q_from + fraction * (q_to - q_from), gripper_middle, centers, radii) - reserve
-
-        start = bound(0.0)
-        if np.all(start - arm_travel >= margin):
-            return True
-        pieces = [(0.0, start, 1.0, bound(1.0))]
-        while pieces:
-            a, bound_a, b, bound_b = pieces.pop()
-            # a point that moved s from one end is at most travel - s from the other
-            if np.all(bound_a + bound_b - arm_travel * (b - a) >= 2 * margin):
-                continue
-            if b - a <= self.MIN_PIECE:
-                return False
-            middle = (a + b) / 2
-            bound_m = bound(middle)
-            if np.any(bound_m < margin):
-                return False
-            pieces += [(a, bound_a, middle, bound_m), (middle, bound_m, b, bound_b)]
-        return True
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,42 @@
+"""`sim.fidelity: fast` on MuJoCo: which cycles need no dynamics, and where such a cycle ends.
+
+A cycle is played one of four ways (the reference, `full`, always takes the last):
+- at rest: arm, gripper and objects are still and every command is reached: nothing to simulate;
+- kinematic: every object rests and the whole commanded motion of the arm's moving shapes and the gripper is
+  proven NEAR_CONTACT away from each object's bounding sphere (the proof PyBullet's fast fidelity uses,
+  envfactory/geometry/object_clearance.py): the arm is set on its target and the gripper where its drive
+  takes it, without a substep;
+- carried: an object held in a stable grasp rides with the hand while the motion is proven clear of every
+  other shape (held.py);
+- dynamic: the substeps of the commanded motion, then more in small chunks until arm, gripper and objects
+  are at rest twice in a row; the rest of the cycle would hold still, so it is not simulated.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from envfactory.backends.rest import GRIPPER_REST, JOINT_REST, OBJECT_REST, OBJECT_SPIN_REST
+
+# The servos follow the profile's quintic with a lag of a few substeps; a cycle played kinematically must
+# leave them this long after the profile ends, as the dynamic cycle would (the tracking test in
+# tests/test_mujoco.py measures what remains).
+SETTLE_TIME = 0.1
+# Once the commanded motion is over, the rest test runs every this many substeps.
+REST_CHECK_EVERY = 8
+
+
+def object_velocities(data, object_dofs: dict[str, int]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(linear, angular) velocity of each object's free joint."""
+    return [(data.qvel[dof:dof + 3], data.qvel[dof + 3:dof + 6]) for dof in object_dofs.values()]
+
+
+def objects_at_rest(data, object_dofs: dict[str, int]) -> bool:
+    return all(np.linalg.norm(linear) < OBJECT_REST and np.linalg.norm(angular) < OBJECT_SPIN_REST
+               for linear, angular in object_velocities(data, object_dofs))
+
+
+def robot_at_rest(data, arm_dof: np.ndarray, gripper_dof: int | None) -> bool:
+    if gripper_dof is not None and abs(data.qvel[gripper_dof]) >= GRIPPER_REST:
+        return False
+    return float(np.max(np.abs(data.qvel[arm_dof]), initial=0.0)) < JOINT_REST
