@@ -1,6 +1,8 @@
 """The fast fidelity against full dynamics: distributions of the gaps, per ID.
 
     python benchmarks/fidelity.py [--episodes 5] [--ids ID ...] [-k name=value ...] [--markdown [PATH]]
+    python benchmarks/fidelity.py --ids VX300SPnPSim-v0 -k engine=mujoco        # MuJoCo's fast fidelity
+    python benchmarks/fidelity.py --ids UR5ePnPSim-v0 -k engine=mujoco -k "overrides=[sim.mujoco.carry_held=true]"
 
 Per ID and policy (random actions, the scripted expert): paired steps (each cycle
 simulated in full and played fast from one saved state; see
@@ -22,7 +24,7 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the paired probe is a test helper
 
-from fidelity_probe import Gaps, expert_success, paired_episode, trajectory_gaps  # noqa: E402
+from fidelity_probe import Gaps, PairedSteps, expert_success, paired_episode, trajectory_gaps  # noqa: E402
 from report import Report, add_markdown_option  # noqa: E402
 
 import envfactory  # noqa: E402
@@ -38,8 +40,7 @@ def spread(values, scale: float) -> str:
 def row(env_id: str, what: str, gaps: Gaps) -> list[str]:
     kinds = Counter(gaps.kinds)
     total = max(1, sum(kinds.values()))
-    share = " ".join(f"{kind} {100 * kinds[kind] / total:.0f}%" for kind in ("kinematic", "at_rest", "dynamic")) \
-        if kinds else "—"
+    share = " ".join(f"{kind} {100 * kinds[kind] / total:.0f}%" for kind in PairedSteps.KINDS) if kinds else "—"
     return [env_id, what, str(len(gaps.ee)), spread(gaps.ee, 1e3), spread(gaps.joint, 1e3),
             spread(gaps.object_position, 1e3), spread(gaps.object_angle, 180 / np.pi), share]
 

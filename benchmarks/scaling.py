@@ -156,8 +156,8 @@ def main() -> None:
             pids = sorted({pid for pid, _, _ in ray.get([_probe.remote(env_id) for _ in range(2 * workers)])})
             memory = sorted(_rss_mb(pid) for pid in pids)
             worker_costs = {"startup": startup, "memory": memory[len(memory) // 2], "ray": _ray_processes_mb()}
-            costs.add(workers, f"{started:.1f}", f"{startup:.1f}", f"{again:.2f}", f"{memory[len(memory) // 2]:.0f}",
-                      f"{_ray_processes_mb():.0f}")
+            costs.add(workers, f"{started:.1f}", f"{startup:.1f}", f"{again:.2f}", f"{worker_costs['memory']:.0f}",
+                      f"{worker_costs['ray']:.0f}")  # one reading serves the table and the projection
         finally:
             ray.shutdown()
 

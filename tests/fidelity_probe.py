@@ -16,6 +16,7 @@ Used by tests/test_fidelity.py and benchmarks/fidelity.py.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 
 import gymnasium as gym
@@ -85,36 +86,88 @@ def read_scene(env) -> SceneReading:
     return SceneReading(q_arm.copy(), gripper, ee.copy(), objects)
 
 
+class _BulletSnapshot:
+    """PyBullet's whole state, and the switch between its fast player and full dynamics."""
+
+    def __init__(self, backend):
+        if getattr(backend, "_fast", None) is None:
+            raise ValueError("PairedSteps needs an env made with sim.fidelity fast")
+        self.backend, self.fast = backend, backend._fast
+
+    def save(self):
+        return p.saveState(physicsClientId=self.backend.client), self.backend._sim_time
+
+    def restore(self, saved) -> None:
+        state, self.backend._sim_time = saved
+        p.restoreState(state, physicsClientId=self.backend.client)
+        p.removeState(state, physicsClientId=self.backend.client)
+
+    def play_full(self, advance, seconds: float) -> None:
+        self.backend._fast = None
+        try:
+            advance(seconds)
+        finally:
+            self.backend._fast = self.fast
+
+
+class _MujocoSnapshot:
+    """MuJoCo's whole physics state with the backend's own (controls, clock, grasp record), and the switch."""
+
+    def __init__(self, backend):
+        import mujoco
+
+        if not backend._fast:
+            raise ValueError("PairedSteps needs an env made with sim.fidelity fast")
+        self.backend, self.mujoco = backend, mujoco
+        self.kind = mujoco.mjtState.mjSTATE_FULLPHYSICS
+
+    def save(self):
+        backend, mujoco = self.backend, self.mujoco
+        state = np.zeros(mujoco.mj_stateSize(backend.model, self.kind))
+        mujoco.mj_getState(backend.model, backend.data, state, self.kind)
+        carry = None if backend._carry is None else copy.deepcopy(backend._carry.__dict__)
+        return state, backend.data.ctrl.copy(), backend._sim_time, backend._settled, carry, copy.copy(backend.counts)
+
+    def restore(self, saved) -> None:
+        backend = self.backend
+        state, backend.data.ctrl[:], backend._sim_time, backend._settled, carry, backend.counts = saved
+        self.mujoco.mj_setState(backend.model, backend.data, state, self.kind)
+        if carry is not None:
+            backend._carry.__dict__.update(carry)
+        self.mujoco.mj_forward(backend.model, backend.data)
+
+    def play_full(self, advance, seconds: float) -> None:
+        self.backend._fast = False
+        try:
+            advance(seconds)
+        finally:
+            self.backend._fast = True
+
+
 class PairedSteps:
     """Wraps a fast env's backend so that every cycle is also simulated in full from the same state."""
+
+    KINDS = ("kinematic", "at_rest", "carried", "dynamic")
 
     def __init__(self, env):
         self.env = env
         self.backend = env.unwrapped.backend
-        if getattr(self.backend, "_fast", None) is None:
-            raise ValueError("PairedSteps needs an env made with sim.fidelity fast on the PyBullet backend")
+        self.snapshot = (_MujocoSnapshot if hasattr(self.backend, "model") else _BulletSnapshot)(self.backend)
         self.gaps = Gaps()
         self._advance = self.backend.advance
         self.backend.advance = self._paired_advance
 
     def _paired_advance(self, seconds: float) -> None:
-        backend, client = self.backend, self.backend.client
-        counts = backend._fast.counts
-        before = (counts.kinematic, counts.at_rest, counts.dynamic)
-        saved = p.saveState(physicsClientId=client)
-        fast, backend._fast = backend._fast, None
-        try:
-            self._advance(seconds)  # the reference: every substep
-            full = read_scene(self.env)
-        finally:
-            backend._fast = fast
-        p.restoreState(saved, physicsClientId=client)
-        p.removeState(saved, physicsClientId=client)
-        backend._sim_time -= round(seconds / backend.dt) * backend.dt
+        saved = self.snapshot.save()
+        self.snapshot.play_full(self._advance, seconds)  # the reference: every substep
+        full = read_scene(self.env)
+        self.snapshot.restore(saved)
+        counts = self.backend.cycle_counts
+        before = [getattr(counts, kind) for kind in self.KINDS]
         self._advance(seconds)
         self.gaps.add(read_scene(self.env), full)
-        after = (counts.kinematic, counts.at_rest, counts.dynamic)
-        self.gaps.kinds.append(("kinematic", "at_rest", "dynamic")[int(np.argmax(np.subtract(after, before)))])
+        after = [getattr(self.backend.cycle_counts, kind) for kind in self.KINDS]
+        self.gaps.kinds.append(self.KINDS[int(np.argmax(np.subtract(after, before)))])
 
     def close(self) -> None:
         self.backend.advance = self._advance

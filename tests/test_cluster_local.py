@@ -12,6 +12,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import pytest
 from typer.testing import CliRunner
@@ -20,6 +21,7 @@ from envfactory import cluster, registry
 from envfactory.cli.main import app
 from envfactory.cluster import bundles, trials
 from envfactory.cluster.work import Collection, Evaluation, Workspace, WorkspaceError, run_here, split
+from envfactory.experts import make_policy
 from envfactory.factory import unregister_folder
 from envfactory.learn import extra
 from envfactory.learn.hyperparams import HyperparameterError
@@ -88,6 +90,20 @@ def test_evaluation_ranges_merged_in_any_order_equal_one_run():
     assert work.merge([second, first]) == whole
     assert [r.index for r in whole] == list(range(6)) and [r.seed for r in whole] == list(range(3, 9))
     assert len({r.episode_return for r in whole}) > 1  # different goals: the seeds do reach the episodes
+    # and one run is what a bare gymnasium loop over the same seeds gives, the scripted expert acting
+    env = gym.make(REACH, ee_action_type=True)
+    try:
+        returns = []
+        for seed in range(3, 9):
+            observation, _ = env.reset(seed=seed)
+            policy, total, ended = make_policy("scripted", env), 0.0, False
+            while not ended:
+                observation, reward, terminated, truncated, _ = env.step(policy(observation))
+                total, ended = total + float(reward), terminated or truncated
+            returns.append(total)
+    finally:
+        env.close()
+    assert np.allclose([r.episode_return for r in whole], returns)
 
 
 @needs_minari

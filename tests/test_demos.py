@@ -215,3 +215,14 @@ def test_the_demos_block_is_checked(tmp_path, dataset):
                                  "-o", str(tmp_path / "run")])
     assert result.exit_code == 1 and "q_filter='maybe' must be true or false" in result.output
     assert not (tmp_path / "run").exists()
+
+
+def test_every_demonstration_action_goes_through_the_scaling_it_is_given(dataset):
+    """The shipped envs' action boxes are already [-1, 1], where SB3's scaling is the identity: a scaling that
+    is not shows that every action is passed through it, once."""
+    from envfactory.learn.demo_replay import open_demonstrations, transitions
+
+    demos = open_demonstrations(str(dataset))
+    expected = np.concatenate([0.5 * episode.actions for episode in demos.episodes])
+    actions = np.concatenate([item[2] for item in transitions(demos, lambda a: 0.5 * a)])
+    assert actions.shape == expected.shape and np.array_equal(actions, expected)

@@ -10,10 +10,9 @@ from typing import List, Optional
 
 import typer
 
-from envfactory import registry
 from envfactory.cli.app import KWARG_HELP, _fail, _known, _parse_kwargs, command, console, errors
 from envfactory.cli.scale import (SEEDS_HELP, SWEEP_HELP, address_option, cluster_module, cluster_size,
-                                  parse_seeds, train_trials, workers_option)
+                                  parse_seeds, simulated_only, train_trials, workers_option)
 from envfactory.learn import extra
 from envfactory.learn.demo_replay import DemonstrationError
 from envfactory.learn.demonstrations import collect as run_collection
@@ -182,8 +181,7 @@ def collect(
     _require(extra.COLLECT_MODULES, "envfactory collect")
 
     kwargs = _parse_kwargs(kwarg)
-    if registry.records()[env_id].backend != "pybullet":
-        _fail(f"{env_id}: collect runs simulated IDs only (it would drive the real arm for every episode)")
+    simulated_only(env_id, "collect")
     size = cluster_size(workers, address)
     pool = None if size is None else cluster_module("pool", "collect --workers/--address")
     try:

@@ -94,13 +94,13 @@ def evaluate(
         _check_output(out_csv, (".csv",))
     source = _policy_source(policy, algo)
     kwargs = {**source.trained_kwargs(), **_parse_kwargs(kwarg)}  # -k over the kwargs a model was trained with
-    try:
-        workspace = Workspace.for_ids(list(env_id))
+    size = cluster_size(workers, address)
+    try:  # the spec folders travel only to other processes: here the IDs are known already
+        workspace = Workspace() if size is None else Workspace.for_ids(list(env_id))
     except FolderCopyError as exc:
         _fail(str(exc))
     works = [Evaluation(name, kwargs, workspace, source) for name in env_id]
     seeds = range(seed, seed + episodes)
-    size = cluster_size(workers, address)
     if size is None:
         with tqdm(total=len(works) * episodes, unit="episode", disable=not progress, desc="episodes") as bar:
             results = [run_here(work, seeds, lambda _: bar.update()) for work in works]

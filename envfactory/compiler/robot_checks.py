@@ -15,7 +15,7 @@ import numpy as np
 import pinocchio as pin
 
 from envfactory.compiler.expert_points import expert_points
-from envfactory.geometry.collision_pairs import INPUTS, PADDING, StalePairs, pairs_file
+from envfactory.geometry.collision_pairs import INPUTS, PADDING, WHAT_CHANGED, StalePairs, pairs_file
 from envfactory.geometry.frames import nearest_top_down
 from envfactory.geometry.robot_model import RobotGeometry, robot_geometry
 from envfactory.geometry.urdf_assembly import AssemblyError, assemble
@@ -48,7 +48,8 @@ def check(spec: EnvSpec, asset_root: Path, found: Findings, family: Path | None 
     for path, message in _found[key]:
         if path == PAIRS_PATH:
             written = found.sources.locate("robot.safety.padding")
-            if INPUTS[PADDING] in message and written.file:  # the user's padding made the list stale: say where it is
+            # the padding found to have changed (not just listed among the inputs): say where the user wrote it
+            if INPUTS[PADDING] in message.partition(WHAT_CHANGED)[2] and written.file:
                 message += f" (written at {written.file}:{written.line})"
             message += f"; {_pairs_advice(spec, asset_root, family, env_id)}"
         found.add(path, message)

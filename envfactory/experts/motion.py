@@ -102,6 +102,13 @@ class Expert:
         """(param, message) for each param the robot or task contradicts; the compiler reports them."""
         return []
 
+    @classmethod
+    def working_points(cls, params, spec) -> list:
+        """The EE points (experts.points.ExpertPoint) this expert must reach for the task; the compiler checks
+        them against the workspace, the reach and the safety margin. None for an expert that works at the goal
+        itself, which the goal checks cover."""
+        return []
+
     def __init__(self, env, params):
         self.env = env
         self.params = params

@@ -11,13 +11,13 @@ import numpy as np
 from pydantic import Field
 
 from envfactory.experts.motion import Expert
+from envfactory.experts.points import APPROACH_WITHIN, PARAMS, ExpertPoint, approach_point, spawn_spots
 from envfactory.terms.library import TermParams
 
 
-# How near the EE must come to a point for the expert to go on; the compiler's reach checks
-# (compiler/expert_points.py) allow the same slack.
+# How near the EE must come to a point for the expert to go on; the compiler's reach checks allow the same
+# slack (working_points).
 GRASP_WITHIN = 0.006  # closes within this of the grasp point, m
-APPROACH_WITHIN = 0.03  # the approach height is reached within this, m
 LIFT_WITHIN = 0.01  # the carry height is reached within this, m
 
 
@@ -35,6 +35,30 @@ class PickPlaceParams(TermParams):
 
 class PickPlaceExpert(Expert):
     Params = PickPlaceParams
+
+    @classmethod
+    def working_points(cls, params, spec) -> list[ExpertPoint]:
+        """The grasp over every spawn spot, the lift straight up from the spawn, the place (the goal box's
+        corners raised by grasp_height, the object then within the goal's tolerance) and the approach."""
+        obj = spec.task.objects.get(params.object)
+        if obj is None:
+            return []
+        gripper = spec.robot.gripper
+        grip = (gripper.closed if params.grip is None else params.grip) if gripper is not None else 0.0
+        held = (gripper.open, grip) if gripper is not None else (0.0,)
+        points = [ExpertPoint("grasp", f"{PARAMS}.grasp_height", spawn_spots(obj) + [0, 0, params.grasp_height],
+                              params.grasp_height, held, GRASP_WITHIN)]
+        goal = spec.task.goal
+        if goal.achieved.partition(".")[0] == params.object:
+            low, high = (np.asarray(b, float) for b in goal.box)
+            corners = np.array([[x, y, z] for x in (low[0], high[0]) for y in (low[1], high[1])
+                                for z in (low[2], high[2])])
+            lifted = np.array([np.asarray(obj.spawn.position, float) + [0, 0, params.grasp_height + params.lift]])
+            points += [ExpertPoint("place", "task.goal.box", corners + [0, 0, params.grasp_height],
+                                   params.grasp_height, (grip,), goal.tolerance),
+                       ExpertPoint("lift", f"{PARAMS}.lift", lifted, params.grasp_height + params.lift, (grip,),
+                                   LIFT_WITHIN)]
+        return points + [approach_point(params, obj)]
 
     @classmethod
     def check(cls, params, spec) -> list[tuple[str, str]]:

@@ -10,11 +10,12 @@ import numpy as np
 from pydantic import Field
 
 from envfactory.experts.motion import Expert
+from envfactory.experts.points import PARAMS, ExpertPoint, approach_point
 from envfactory.terms.library import TermParams
 
 
-# The push starts once the EE is within this above the push height, m; the compiler's reach checks
-# (compiler/expert_points.py) allow the same slack.
+# The push starts once the EE is within this above the push height, m; the compiler's reach checks allow the
+# same slack (working_points).
 PUSH_WITHIN = 0.02
 
 
@@ -29,6 +30,22 @@ class PushParams(TermParams):
 
 class PushExpert(Expert):
     Params = PushParams
+
+    @classmethod
+    def working_points(cls, params, spec) -> list[ExpertPoint]:
+        """Behind the object on the line from its spawn to the goal box's centre, the pushing face at half the
+        object plus the paddle, at the push height; and above the object by the clearance, passing over it."""
+        obj = spec.task.objects.get(params.object)
+        if obj is None:
+            return []
+        spawn = np.asarray(obj.spawn.position, float)
+        goal = np.mean(np.asarray(spec.task.goal.box, float), axis=0)
+        direction = goal[:2] - spawn[:2]
+        direction = direction / np.linalg.norm(direction) if np.linalg.norm(direction) > 1e-9 else np.array([1.0, 0])
+        behind = spawn[:2] - direction * (obj.size / 2 + params.paddle)
+        push = ExpertPoint("push", f"{PARAMS}.height", np.array([[*behind, spawn[2] + params.height]]),
+                           params.height, (spec.gripper_assumed_at_reset,), PUSH_WITHIN, direction)
+        return [push, approach_point(params, obj)]
 
     def __call__(self, observation):
         env, p = self.env, self.params

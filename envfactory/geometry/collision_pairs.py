@@ -83,6 +83,7 @@ INPUTS = {"shapes": "collision shapes (the URDF's, and where they sit)",
           "padding": "padding (robot.safety.padding)",
           "margin": "margin (env.safety.surface_margin)"}
 SHAPES, JOINTS, LIMITS, GRIPPER, PADDING, MARGIN = INPUTS
+WHAT_CHANGED = "what changed: "  # a stale message names the inputs it found changed after this
 
 
 def _fingerprint_records(collision: CollisionModel, margin: float, padding: dict[str, float] | None = None,
@@ -327,7 +328,7 @@ def read_pairs(path: Path, collision: CollisionModel, margin: float) -> PairRule
     expected = fingerprint(collision, data.get("margin", margin) if isinstance(data, dict) else margin)
     if not isinstance(data, dict) or data.get("fingerprint") != expected:
         changed = stale_inputs(collision, data, data.get("margin", margin)) if isinstance(data, dict) else []
-        what = (f"what changed: {'; '.join(changed)}" if changed else
+        what = (f"{WHAT_CHANGED}{'; '.join(changed)}" if changed else
                 f"the list does not tell which of its inputs changed (it keeps no digest per input): it covers the "
                 f"{', '.join(INPUTS.values())}")
         raise StalePairs(f"{path}: the collision pair list is stale for robot {robot!r}: it was generated for "

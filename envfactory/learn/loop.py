@@ -40,7 +40,6 @@ def evaluate(env, policy, episodes: int) -> tuple[float, float, float]:
 class TrainResult:
     folder: Path
     evaluations: list[Evaluation]
-    timesteps: int
     replay_buffer_bytes: int = 0
 
 
@@ -157,10 +156,10 @@ def learn(run: Part, progress_bar: bool, on_evaluation) -> TrainResult:
             _stop(run, logger, checkpoint if evaluated else None, "failed", f"{type(exc).__name__}: {exc}")
         raise
     logger.close()
-    curve = {f"{model.__class__.__name__} seed {record.data['seed']}": run.writer.rows}
+    curve = {f"{record.data['algo'].upper()} seed {record.data['seed']}": run.writer.rows}
     for file, x in ((PNG_FILE, "timesteps"), (WALL_PNG_FILE, "wall_s")):
         plot(curve, folder / file, f"{record.data['env_id']} ({record.data['algo'].upper()})", x=x)
-    return TrainResult(folder, run.writer.rows, model.num_timesteps, (folder / BUFFER_FILE).stat().st_size)
+    return TrainResult(folder, run.writer.rows, (folder / BUFFER_FILE).stat().st_size)
 
 
 def _stop(run: Part, logger, checkpoint, status: str, error: str | None = None) -> None:

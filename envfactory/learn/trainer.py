@@ -18,7 +18,7 @@ from envfactory.learn import extra
 from envfactory.learn.bc import CloningSettings
 from envfactory.learn.curve import CurveWriter, Evaluation
 from envfactory.learn.demo_replay import check_matches, cloning_buffer, fill, open_demonstrations
-from envfactory.learn.hyperparams import Hyperparameters, load
+from envfactory.learn.hyperparams import load
 from envfactory.learn.loop import BUFFER_FILE, CSV_FILE, PNG_FILE, WALL_PNG_FILE, Part, TrainResult, learn
 from envfactory.learn.models import (MODEL_FILE, NORMALIZER_FILE, algorithm_class, load_policy, make_model,
                                      read_meta)
@@ -127,7 +127,6 @@ def resume(folder: Path, steps: int | None = None, progress_bar: bool = True,
                              f"the run cannot continue as it was")
     if target <= done:
         raise RunFolderError(f"{folder}: the run is at {done} steps already; pass --steps above {done} to go on")
-    hyper = Hyperparameters(data["algo"], data["hyperparameters"], data.get("sources", []))
     torch.set_num_threads(1)
     env_id, kwargs = data["env_id"], data["env_kwargs"]
     env, eval_env = gym.make(env_id, **kwargs), gym.make(env_id, **kwargs)
@@ -140,7 +139,7 @@ def resume(folder: Path, steps: int | None = None, progress_bar: bool = True,
             from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
             normalizer = VecNormalize.load(str(folder / NORMALIZER_FILE), DummyVecEnv([lambda: env]))
-        cls = algorithm_class(hyper.algo, cloning=demonstrations is not None)
+        cls = algorithm_class(data["algo"], cloning=demonstrations is not None)
         model = cls.load(folder / MODEL_FILE, env=normalizer or env, device="cpu")
         with warnings.catch_warnings():
             warnings.filterwarnings("ignore", message=TRUNCATED_EPISODE_WARNING, category=UserWarning)

@@ -190,7 +190,7 @@ def _unknown_override_keys(family: FamilyFile, overrides: tuple[str, ...]) -> li
     """Each override whose key the spec lacks, with the nearest key at the level where the path left the
     spec (Hydra says only "Could not override"). Keys prefixed '+' add a key and are not checked."""
     config = _compose_cached(family, ()).config
-    aliases = {**config.get("kwargs", {}), **config.get("task", {}).get("kwargs", {})}
+    aliases = kwarg_aliases(config)
     problems = []
     for override in overrides:
         key, sep, _ = override.partition("=")
@@ -220,11 +220,16 @@ def _unknown_override_keys(family: FamilyFile, overrides: tuple[str, ...]) -> li
 # ------------------------------------------------------------------ kwargs
 
 
+def kwarg_aliases(config: dict) -> dict[str, str]:
+    """Each gym.make kwarg's spec path: the shared defaults' aliases, then the task's own."""
+    return {**config.get("kwargs", {}), **config.get("task", {}).get("kwargs", {})}
+
+
 def apply_kwargs(config: dict, sources: SourceMap, kwargs: dict[str, Any], origin: str,
                  written_at: str | None = None) -> None:
     """Set each kwarg at the spec path its alias names. `written_at` is the dotted path of the
     mapping the kwargs were written in (a registration entry), so errors name its file and line."""
-    aliases = {**config.get("kwargs", {}), **config.get("task", {}).get("kwargs", {})}
+    aliases = kwarg_aliases(config)
     problems = []
     for name, value in kwargs.items():
         where = sources.locate(f"{written_at}.{name}") if written_at else Problem("", "", origin)
@@ -249,7 +254,7 @@ def _kwarg_overrides(family: FamilyFile, overrides: tuple[str, ...]) -> tuple[tu
     if not overrides:
         return overrides, {}
     config = _compose_cached(family, ()).config
-    aliases = {**config.get("kwargs", {}), **config.get("task", {}).get("kwargs", {})}
+    aliases = kwarg_aliases(config)
     hydra, kwargs = [], {}
     for override in overrides:
         key, sep, value = override.partition("=")

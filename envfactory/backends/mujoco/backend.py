@@ -21,7 +21,7 @@ from envfactory.backends.mujoco.held import Carry
 from envfactory.backends.mujoco.model import CAMERA, ROBOT_PREFIX, build
 from envfactory.backends.rest import CycleCounts
 from envfactory.geometry.frames import TaskFrame
-from envfactory.geometry.object_clearance import NEAR_CONTACT, ObjectClearance
+from envfactory.geometry.object_clearance import NEAR_CONTACT, ObjectClearance, bounding_radius
 from envfactory.geometry.obstacles import scene_obstacles
 from envfactory.schema.models import CameraSpec, EnvSpec
 
@@ -99,7 +99,7 @@ class MujocoBackend:
         self._realtime = spec.env.timing.realtime
         self._fast = spec.sim.fidelity == "fast"
         self._clearance: ObjectClearance | None = None  # once attach_geometry gives the safety check's shapes
-        self._object_radii = np.array([obj.size * np.sqrt(3) / 2 for obj in spec.task.objects.values()])
+        self._object_radii = np.array([bounding_radius(obj.size) for obj in spec.task.objects.values()])
         self._object_bodies = [self.handles.object_body[name] for name in spec.task.objects]
         self.counts = CycleCounts()
         self._settled = False
@@ -209,8 +209,7 @@ class MujocoBackend:
                 arm = self._arm
                 self._carry.measure(self.data, q_start, q_start if arm is None else arm.end,
                                     0.0 if arm is None else arm.length)
-        data = self.data
-        data.time = self._sim_time = end
+        self.data.time = self._sim_time = end
 
     def _dynamic(self, steps: int) -> int:
         """The substeps of the commanded motion, then (fast) chunks until everything rests twice in a row."""
@@ -277,25 +276,33 @@ class MujocoBackend:
         return shortcuts.objects_at_rest(self.data, handles.object_dof) and \
             shortcuts.robot_at_rest(self.data, handles.arm_dof, handles.gripper_dof)
 
+    def _arm_lands_unsimulated(self, end: float) -> bool:
+        """What every unsimulated motion needs: a scene seen settled, the arm still now, and its profile over
+        SETTLE_TIME before the cycle ends (else the servos would still be on their way at the reading)."""
+        arm = self._arm
+        return self._settled and shortcuts.robot_at_rest(self.data, self.handles.arm_dof, None) and \
+            (arm is None or arm.t0 + arm.length <= end - shortcuts.SETTLE_TIME)
+
+    def _land_arm(self, q_arm: np.ndarray) -> None:
+        data, handles = self.data, self.handles
+        data.qpos[handles.arm_qpos] = q_arm
+        data.qvel[handles.arm_dof] = 0.0
+        data.ctrl[handles.arm_actuators] = q_arm
+
     def _carried(self, end: float) -> bool:
         """Carry a held object with the hand, without dynamics, if the carry is proven clear (held.py)."""
         data, handles, arm, gripper = self.data, self.handles, self._arm, self._gripper
-        if self._carry is None or not self._settled or gripper is None or self._sim_time < gripper.t0 + gripper.length:
+        if self._carry is None or arm is None or gripper is None or self._sim_time < gripper.t0 + gripper.length:
             return False  # nothing can be held while the gripper is still on its way
-        if arm is None or arm.t0 + arm.length > end - shortcuts.SETTLE_TIME or \
-                not shortcuts.robot_at_rest(data, handles.arm_dof, None):
+        if not self._arm_lands_unsimulated(end):
             return False
         name = self._carry.held(data)
-        if name is None:
-            return False
-        q_from = data.qpos[handles.arm_qpos].copy()
-        plan = self._carry.plan(data, name, q_from, arm.end, arm.length)
+        plan = None if name is None else self._carry.plan(data, name, data.qpos[handles.arm_qpos].copy(), arm.end,
+                                                          arm.length)
         if plan is None:
             return False
         position, rotation = plan
-        data.qpos[handles.arm_qpos] = arm.end
-        data.qvel[handles.arm_dof] = 0.0
-        data.ctrl[handles.arm_actuators] = arm.end
+        self._land_arm(arm.end)
         address, dof = handles.object_qpos[name], handles.object_dof[name]
         quaternion = np.zeros(4)
         mujoco.mju_mat2Quat(quaternion, rotation.reshape(-1))
@@ -307,28 +314,21 @@ class MujocoBackend:
     def _kinematic(self, end: float) -> bool:
         """Play the cycle without dynamics if the motion is proven clear of every object (shortcuts.py)."""
         data, handles, arm, gripper = self.data, self.handles, self._arm, self._gripper
-        if self._clearance is None or not self._settled or \
-                not shortcuts.objects_at_rest(data, handles.object_dof) or \
-                not shortcuts.robot_at_rest(data, handles.arm_dof, None):
-            return False  # a gripper on its way is no obstacle: its drive's profile says where it will be
-        if arm is not None and arm.t0 + arm.length > end - shortcuts.SETTLE_TIME:
-            return False  # the servos would still be on their way when the observation is read
+        # a gripper on its way is no obstacle: its drive's profile says where it will be
+        if self._clearance is None or not shortcuts.objects_at_rest(data, handles.object_dof) or \
+                not self._arm_lands_unsimulated(end):
+            return False
         q_from = data.qpos[handles.arm_qpos].copy()
         q_to = q_from if arm is None else arm.end
-        g_from = g_to = 0.0
-        g_speed = 0.0
+        g_from = g_to = g_speed = 0.0
         if gripper is not None:
             g_from = float(data.qpos[handles.gripper_qpos])
             position, velocity, _ = gripper.at(end)
             g_to, g_speed = float(position[0]), float(velocity[0])
-        if self._object_bodies:
-            centers = data.xpos[self._object_bodies]
-            if not self._clearance.motion_is_clear(q_from, g_from, q_to, g_to, centers, self._object_radii,
-                                                   NEAR_CONTACT):
-                return False
-        data.qpos[handles.arm_qpos] = q_to
-        data.qvel[handles.arm_dof] = 0.0
-        data.ctrl[handles.arm_actuators] = q_to
+        if self._object_bodies and not self._clearance.motion_is_clear(
+                q_from, g_from, q_to, g_to, data.xpos[self._object_bodies], self._object_radii, NEAR_CONTACT):
+            return False
+        self._land_arm(q_to)
         if gripper is not None:
             self._place_gripper(g_to, g_speed)
             data.ctrl[handles.gripper_actuator] = g_to

@@ -41,12 +41,9 @@ def _pose(data, body: int) -> tuple[np.ndarray, np.ndarray]:
     return data.xpos[body].copy(), data.xmat[body].reshape(3, 3).copy()
 
 
-def box_gaps(point: np.ndarray, obstacles: list[Obstacle]) -> np.ndarray:
-    """Distance from a point to each axis-aligned obstacle box (0 inside)."""
-    centers = np.array([o.center for o in obstacles])
-    halves = np.array([o.half_extents for o in obstacles])
-    outside = np.maximum(np.abs(point - centers) - halves, 0.0)
-    return np.linalg.norm(outside, axis=1)
+def box_gaps(point: np.ndarray, centers: np.ndarray, halves: np.ndarray) -> np.ndarray:
+    """Distance from a point to each axis-aligned box (0 inside)."""
+    return np.linalg.norm(np.maximum(np.abs(point - centers) - halves, 0.0), axis=1)
 
 
 class Carry:
@@ -55,7 +52,8 @@ class Carry:
     def __init__(self, model, handles, pad_bodies: set[int], obstacles: list[Obstacle], radii: dict[str, float]):
         self.model, self.handles = model, handles
         self.pad_bodies = pad_bodies
-        self.obstacles = obstacles
+        self.box_centers = np.array([o.center for o in obstacles])
+        self.box_halves = np.array([o.half_extents for o in obstacles])
         self.radii = radii
         arm_joints = [int(model.dof_jntid[dof]) for dof in handles.arm_dof]
         self.arm_joints = arm_joints
@@ -130,7 +128,7 @@ class Carry:
                     continue
                 other = contact.geom2 if contact.geom1 == geom else contact.geom1
                 touching.add(int(self.model.geom_bodyid[other]))
-            if touching and touching <= self.pad_bodies and len(touching) == len(self.pad_bodies):
+            if touching == self.pad_bodies:
                 return name
         return None
 
@@ -155,7 +153,7 @@ class Carry:
         def gap(fraction: float) -> tuple[float, np.ndarray, np.ndarray]:
             hand_position, hand_rotation = self._hand_at(data, q_from + fraction * (q_to - q_from))
             point = hand_position + hand_rotation @ relative_position
-            gaps = list(box_gaps(point, self.obstacles) - radius)
+            gaps = list(box_gaps(point, self.box_centers, self.box_halves) - radius)
             gaps += [np.linalg.norm(point - other) - radius - other_radius for other, other_radius in others]
             return min(gaps), point, hand_rotation @ relative_rotation
 

@@ -73,10 +73,9 @@ def _friction_condim(lateral: float, spinning: float, rolling: float) -> int:
     return 6 if rolling > 0 else 4 if spinning > 0 else 3
 
 
-def _pair_friction(one: tuple[float, float, float], other: tuple[float, float, float]) -> list[float]:
-    """MuJoCo's five pair coefficients (two tangential, spinning, two rolling) of two surfaces in contact."""
-    lateral, spinning, rolling = (a * b for a, b in zip(one, other))
-    return [lateral, lateral, spinning, rolling, rolling]
+def _pair_friction(one: tuple[float, float, float], other: tuple[float, float, float]) -> tuple[float, ...]:
+    """Lateral, spinning and rolling friction of two surfaces in contact: the products, as PyBullet combines."""
+    return tuple(a * b for a, b in zip(one, other))
 
 
 def _camera_axes(camera: CameraSpec) -> list[float]:
@@ -148,9 +147,11 @@ def build(spec: EnvSpec, urdf_path: Path) -> tuple[mujoco.MjModel, Handles]:
                       mass=obj.mass, rgba=list(obj.rgba), contype=0, conaffinity=0)
         friction = (obj.friction, obj.spinning_friction, obj.rolling_friction)
         for other, other_friction in surfaces.items():
-            coefficients = _pair_friction(friction, other_friction)
-            world.add_pair(geomname1=f"object:{name}", geomname2=other, friction=coefficients,
-                           condim=_friction_condim(*coefficients[1:4]))
+            lateral, spinning, rolling = _pair_friction(friction, other_friction)
+            # MuJoCo's five: two tangential, spinning, two rolling
+            world.add_pair(geomname1=f"object:{name}", geomname2=other,
+                           friction=[lateral, lateral, spinning, rolling, rolling],
+                           condim=_friction_condim(lateral, spinning, rolling))
         surfaces[f"object:{name}"] = friction
     marker = world.worldbody.add_body(name="goal_marker", mocap=True, pos=[0.0, 0.0, -10.0])
     marker.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.025, 0, 0], rgba=list(MARKER_RGBA), contype=0,

@@ -14,7 +14,7 @@ from envfactory.backends.base import BackendError, CameraFrame, JointReading, Ob
 from envfactory.backends.pybullet import scene
 from envfactory.backends.pybullet.fast_physics import FastCycles, GripperResponse, Rig, record_gripper_response
 from envfactory.geometry.frames import TaskFrame, base_rotation
-from envfactory.geometry.object_clearance import ObjectClearance
+from envfactory.geometry.object_clearance import ObjectClearance, bounding_radius
 from envfactory.geometry.obstacles import scene_obstacles
 from envfactory.schema.models import CameraSpec, EnvSpec
 
@@ -203,7 +203,7 @@ class PyBulletBackend:
                                                       self.task_frame.to_world(position),
                                                       self.task_frame.quaternion_to_world(quaternion))
             # the bounding sphere of each (cubic) object, for the fast fidelity's clearance
-            self._object_radii = {body: self.spec.task.objects[name].size * np.sqrt(3) / 2
+            self._object_radii = {body: bounding_radius(self.spec.task.objects[name].size)
                                   for name, body in self.objects.items()}
             if self._fast is not None:
                 self._fast.reset(q_arm, gripper_value, has_objects=bool(self.objects))
