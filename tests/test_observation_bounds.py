@@ -92,3 +92,28 @@ def test_a_clipped_column_is_logged_once_and_flagged_at_every_step(monkeypatch, 
     assert all(info["observation_clipped"] == ["3 (ee_rpy[0])=9.9"] for info in infos)
     logged = [record.getMessage() for record in caplog.records if "outside its declared bounds" in record.getMessage()]
     assert len(logged) == 1 and "ee_rpy[0]" in logged[0]
+
+
+def test_each_clipped_column_is_logged_once_when_it_first_clips(monkeypatch, caplog):
+    """Once per column, not once per env: a second column that clips later is logged when it does."""
+    import gymnasium as gym
+
+    env = gym.make("VX300SReacherSim-v0")
+    observations = env.unwrapped.observations
+    computed = observations.compute
+    calls = []
+
+    def clipping(state):
+        calls.append(None)
+        columns = ["3 (ee_rpy[0])=9.9"] + (["4 (ee_rpy[1])=-9.9"] if len(calls) > 2 else [])
+        return computed(state)[0], columns
+
+    monkeypatch.setattr(observations, "compute", clipping)
+    with caplog.at_level("WARNING", logger="envfactory"):
+        env.reset(seed=0)
+        for _ in range(4):
+            env.step(env.action_space.sample() * 0)
+    env.close()
+    logged = [record.getMessage() for record in caplog.records if "outside its declared bounds" in record.getMessage()]
+    assert len(logged) == 2, logged
+    assert "ee_rpy[0]" in logged[0] and "ee_rpy[1]" in logged[1] and "ee_rpy[0]" not in logged[1]
