@@ -4,7 +4,9 @@ marker and the scene camera. Nothing is written per robot: every number comes fr
 
 Choices where MuJoCo and PyBullet differ, each a setting of the model built here:
 - mimic joints are equality constraints from the robot YAML's `gripper.mimic` (the URDF's own mimic tags,
-  which the import also turns into constraints, are dropped so that one source decides);
+  which the import also turns into constraints, are dropped so that one source decides), as stiff as the
+  timestep allows: at MuJoCo's default softness a squeezing Robotiq linkage gave way 0.21 rad, its pads
+  tilted 25° and held the cube on one point each, about which it swung on and on;
 - the arm's bodies are gravity-compensated, as UR's controller and xs_sdk compensate the arm's weight, so
   the position servos track the commanded profile instead of sagging under load;
 - the robot does not collide with itself (the safety check keeps its links apart; the gripper's linkage
@@ -38,10 +40,16 @@ SERVO_STIFFNESS_ERROR = 0.01  # rad (or m): the position error at which a servo 
 # behind a gearbox); it is what keeps a stiff servo on a light link stable at the engine's timestep.
 ARMATURE_PER_EFFORT = 1e-3  # kg m^2 per N m (kg per N on a slide)
 MARKER_RGBA = (0.1, 0.8, 0.2, 0.6)
-SURFACE_FRICTION = (0.5, 0.0, 0.0)
+SURFACE_FRICTION = (0.5, 0.0, 0.0)  # lateral, spinning, rolling of the table, obstacles and robot links
 # A joint the specs do not drive (the VX300S's gripper motor horn) is held by PyBullet's default velocity motors;
 # here a damper stops it, or the arm's swings would spin it on forever and the scene would never be at rest.
-UNDRIVEN_DAMPING = 0.01  # N m s / rad  # lateral, spinning, rolling of the table, obstacles and robot links
+UNDRIVEN_DAMPING = 0.01  # N m s / rad
+# The mimic constraints' time constant (s; never under two timesteps, below which MuJoCo's integration is
+# unstable) and impedance: with these a UR5e squeezing its cube keeps the linkage within 0.03 rad and the pads
+# flat on it; its expert's cube no longer swings in the hand, and closed hard on the cube (the hold of
+# tests/test_manipulation.py, on MuJoCo) it drifts 4 mm instead of 19.
+MIMIC_TIMECONST = 0.008
+MIMIC_IMPEDANCE = (0.99, 0.99, 0.001, 0.5, 2.0)
 CAMERA = "scene_camera"
 
 
@@ -137,7 +145,9 @@ def build(spec: EnvSpec, urdf_path: Path) -> tuple[mujoco.MjModel, Handles]:
         _servo(world, gripper.joint, gripper.force)
         for follower, gain in gripper.mimic.items():
             world.add_equality(type=mujoco.mjtEq.mjEQ_JOINT, name1=ROBOT_PREFIX + follower,
-                               name2=ROBOT_PREFIX + gripper.joint, data=[0.0, gain] + [0.0] * 10)
+                               name2=ROBOT_PREFIX + gripper.joint, data=[0.0, gain] + [0.0] * 10,
+                               solref=[max(MIMIC_TIMECONST, 2 * world.option.timestep), 1.0],
+                               solimp=list(MIMIC_IMPEDANCE))
 
     for index, (name, obj) in enumerate(spec.task.objects.items()):
         body = world.worldbody.add_body(name=f"object:{name}", pos=[0.0, 0.0, -10.0 - index])
