@@ -419,6 +419,10 @@ class CollisionModel:
         self.pair_padding = np.concatenate([self.padding[self.scene_shape],
                                             self.padding[self.self_a] + self.padding[self.self_b]])
         self._pin_pairs = np.concatenate([self._pin_pairs_scene, self._pin_pairs_self]).astype(int)
+        # the same as plain Python numbers: a query's own cost is a microsecond or two, numpy's scalar
+        # indexing around it would cost more
+        self._pin_pair_of = self._pin_pairs.tolist()
+        self._padding_of = self.pair_padding.tolist()
         self.gripper_sweep.index_pairs()
 
     @property
@@ -476,12 +480,13 @@ class CollisionModel:
 
     def exact(self, pairs: np.ndarray) -> np.ndarray:
         """coal's clearance of the given measured pairs at the current pose."""
+        return np.array([self.exact_one(pair) for pair in np.asarray(pairs).tolist()], dtype=float)
+
+    def exact_one(self, pair: int) -> float:
+        """coal's clearance of one measured pair at the current pose."""
         self._place_geometry()
-        out = np.empty(len(pairs))
-        for row, pair in enumerate(pairs):
-            result = pin.computeDistance(self.geometry, self.geometry_data, int(self._pin_pairs[pair]))
-            out[row] = result.min_distance - self.pair_padding[pair]
-        return out
+        result = pin.computeDistance(self.geometry, self.geometry_data, self._pin_pair_of[pair])
+        return result.min_distance - self._padding_of[pair]
 
     def all_exact(self) -> np.ndarray:
         return self.exact(np.arange(self.pair_count))

@@ -16,7 +16,7 @@ small to split: then the motion is refused. A doubt stops the arm.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -57,13 +57,17 @@ class Motion:
     reserve: np.ndarray  # per pair: how far the gripper's motion can close it from its middle value
     threshold: np.ndarray  # per pair: the clearance it must keep
     gripper_moves: bool = False
+    way: np.ndarray = field(init=False)  # q_to - q_from: asked for at every piece
 
     @property
     def gripper_middle(self) -> float:
         return (self.gripper_from + self.gripper_to) / 2
 
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "way", self.q_to - self.q_from)
+
     def arm_at(self, fraction: float) -> np.ndarray:
-        return self.q_from + fraction * (self.q_to - self.q_from)
+        return self.q_from + fraction * self.way
 
 
 class SafetyCheck:
@@ -243,7 +247,7 @@ class SafetyCheck:
         table first, unless told to measure with coal alone)."""
         if not motion.gripper_moves or motion.reserve[single[0]] == 0.0:  # the gripper cannot change it
             self.collision.pose(q_arm, motion.gripper_middle)
-            return float(self.collision.exact(single)[0])
+            return self.collision.exact_one(int(single[0]))
         sweep = self.collision.gripper_sweep
         if tabulated and sweep.sweepable(single)[0]:
             self.collision.pose(q_arm, motion.gripper_middle)

@@ -226,6 +226,9 @@ class MujocoBackend:
             was_resting, resting = resting, self._scene_at_rest()
             if resting and was_resting:
                 break  # what is left of the cycle would hold still
+        # the rest test reads only velocities, which the state holds: positions, contacts and frames are
+        # computed once, for the cycle's end
+        mujoco.mj_forward(self.model, self.data)
         return done
 
     def _play_substeps(self, first: int, steps: int) -> None:
@@ -244,9 +247,10 @@ class MujocoBackend:
         if self._arm is not None:
             position, velocity, acceleration = self._arm.at(times)
             controls[:, handles.arm_actuators] = position + self._lead * velocity
-            mujoco.mj_fullM(model, data, self._mass)
-            dofs = handles.arm_dof
-            controls[:, model.nu + dofs] = acceleration @ self._mass[np.ix_(dofs, dofs)].T
+            if times[0] < self._arm.t0 + self._arm.length:  # once the profile has ended nothing is fed forward
+                mujoco.mj_fullM(model, data, self._mass)
+                dofs = handles.arm_dof
+                controls[:, model.nu + dofs] = acceleration @ self._mass[np.ix_(dofs, dofs)].T
         if self._gripper is not None:
             controls[:, handles.gripper_actuator] = self._gripper.at(times)[0][:, 0]
         mujoco.mj_getState(model, data, self._state, STATE)
@@ -256,7 +260,6 @@ class MujocoBackend:
                               control_spec=CONTROL, skip_checks=True, nstep=steps, state=self._states)
         mujoco.mj_setState(model, data, self._states[0, -1], STATE)
         data.ctrl[:] = controls[-1, :model.nu]
-        mujoco.mj_forward(model, data)
 
     def _at_rest(self) -> bool:
         """Whether a cycle would change nothing: every body at rest and every command already reached."""
