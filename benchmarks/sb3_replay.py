@@ -30,9 +30,10 @@ def sb3_class(algo: str):
     return getattr(stable_baselines3, algo.upper())
 
 
-def replay(folder: Path, episodes: int, first_seed: int) -> tuple[dict, int]:
+def replay(folder: Path, episodes: int, first_seed: int, changed_kwargs: dict | None = None) -> tuple[dict, int]:
+    """The run's model in its own env (its recorded kwargs, with `changed_kwargs` over them): successes."""
     record = json.loads((folder / "model.json").read_text())
-    env = gym.make(record["env_id"], **record["env_kwargs"])
+    env = gym.make(record["env_id"], **{**record["env_kwargs"], **(changed_kwargs or {})})
     # the cloning term's settings are saved with the model; plain SB3 does not know them and needs none to act
     model = sb3_class(record["algo"]).load(folder / "model.zip", env=env, device="cpu")
     successes = 0
@@ -49,12 +50,18 @@ def replay(folder: Path, episodes: int, first_seed: int) -> tuple[dict, int]:
     return record, successes
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def replay_arguments(doc: str) -> argparse.ArgumentParser:
+    """The command line of a script that replays run folders: the folders, how many episodes from which seed."""
+    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
     parser.add_argument("folders", nargs="+", type=Path)
     parser.add_argument("--episodes", type=int, default=50)
     parser.add_argument("--first-seed", type=int, default=20_000)
     add_markdown_option(parser)
+    return parser
+
+
+def main() -> None:
+    parser = replay_arguments(__doc__)
     args = parser.parse_args()
     report = Report.start(parser, args, __doc__)
     table = report.table(["run", "ID", "algo", "seed", "trained steps", "episodes", "success (plain SB3)",

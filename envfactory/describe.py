@@ -101,6 +101,31 @@ def ros_table(compiled: Blueprint) -> Table:
     return table
 
 
+def _event_values(slot) -> str:
+    bound, unit = slot.bound, slot.term.unit
+    values = f"{bound.low:g} … {bound.high:g}{' ' + unit if unit else ''}, {bound.distribution.replace('_', '-')}"
+    return values if bound.target == "" else f"{bound.target}: {values}"
+
+
+def _when(slot) -> str:
+    if slot.every is None:
+        return "reset"
+    every = slot.every
+    return f"reset, every {every.steps} steps" if every.steps is not None else f"reset, every {every.seconds:g} s"
+
+
+def randomization_table(compiled: Blueprint) -> Table:
+    """The declared events (each with the absolute range it samples) and sensing terms."""
+    state = "on" if compiled.randomized else "off; randomize=True turns it on"
+    table = _table(f"Randomization ({state})", "Name", "Term", "Samples / does", "When")
+    for slot in compiled.events:
+        table.add_row(slot.name, slot.term.name, _event_values(slot), _when(slot))
+    for slot in compiled.sensing:
+        params = ", ".join(f"{key}={value}" for key, value in slot.params.model_dump().items() if value not in ([], 0.0))
+        table.add_row(slot.name, slot.term.name, params, "every step")
+    return table
+
+
 def task_lines(compiled: Blueprint) -> list[str]:
     """Objects, gripper use and the lift stage: what the reset sets up."""
     task, spec = compiled.spec.task, compiled.spec
@@ -244,6 +269,8 @@ def description_parts(compiled: Blueprint) -> list[Part]:
                                    f"(allow_real_robot_motion), joint states ≤ {real.joint_state_timeout_s:g} s old, "
                                    f"object poses ≤ {real.cube_pose_timeout_s:g} s old, "
                                    f"deadman {real.deadman_s:g} s\n"))
+    if compiled.events or compiled.sensing:
+        parts.append(Part("randomization", randomization_table(compiled)))
     parts += [Part("action", action_table(compiled)), Part("safety", safety_table(compiled)),
               Part("reward", reward_table(compiled))]
     active = [f"{t.name} ({t.term.name})" for t in compiled.terminations if t.active]

@@ -1,4 +1,5 @@
-"""What the env knows after a step: read once, then shared by every term."""
+"""What the env knows after a step, read once and shared by every term; and the physical changes that event
+terms ask of a simulator."""
 
 from __future__ import annotations
 
@@ -33,3 +34,15 @@ class EnvState:
     def position_of(self, name: str) -> np.ndarray:
         """`ee` or an object's name: the point a goal term measures from."""
         return self.ee_position if name == "ee" else self.objects[name].position
+
+
+@dataclass(frozen=True)
+class PhysicsChange:
+    """One sampled physical quantity (an event term's draw) for a simulator to set."""
+
+    quantity: str  # one of PHYSICS_QUANTITIES
+    target: str  # the object it belongs to; "" for the table, the arm or the gripper
+    value: float  # in the quantity's unit: kg, a friction coefficient, N m s/rad, N
+
+
+PHYSICS_QUANTITIES = ("object_mass", "object_friction", "table_friction", "arm_damping", "gripper_force")

@@ -48,6 +48,9 @@ ACCEPTED = [
     (r"task\.objects\.\w+\.(rgba\.\d|spawn\.offset\.\d|spawn\.position\.\d|friction|spinning_friction)", {"zero"},
      "a black, fixed-spawn, frictionless or centred object"),
     (r"workspace\.(min|max)\.\d", {"zero"}, "a workspace edge at 0 that still holds the goals"),
+    (r"task\.randomization\.events\.\w+\.params\.range\.\d", {"zero"},
+     "a sampled friction or damping that reaches zero"),
+    (r"task\.randomization\.sensing\.\w+\.params\.(std|bias_std|drift_std)", {"zero"}, "no noise of that kind"),
 ]
 
 

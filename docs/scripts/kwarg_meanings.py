@@ -32,6 +32,8 @@ MEANINGS: dict[str, str] = {
     "physics_fidelity": "`fast` simulates only the cycles whose outcome can depend on dynamics; `full` simulates "
                         "every substep of every cycle (the reference).",
     "engine": "Physics engine of a Sim ID: `pybullet` or `mujoco` (same robot, scene, objects and checks).",
+    "randomize": "Turn on the task's events (sampled physics) and sensing terms (noise, delays): Sim IDs only; "
+                 "see [Randomization](../concepts/randomization.md).",
     "allow_real_robot_motion": "Let a Real ID move the arm (the motion gate). Without it, commands are refused "
                                "before they are sent; ALLOW_REAL_ROBOT_MOTION=1 also opens it.",
     "rosbridge_host": "Host of the rosbridge websocket a Real ID connects to.",

@@ -160,24 +160,12 @@ def field_doc(dotted: str) -> str:
 
 # ------------------------------------------------------------------ terms.md
 
-TERM_TABLES = [  # as `envfactory terms` titles them (envfactory/cli/main.py)
-    ("Observation terms (task.observation)", ("Name", "Size", "Unit", "Params", "Goal-dependent", "Meaning"),
-     catalog.observation_rows),
-    ("Reward terms (task.reward.sparse / dense: {term, weight, params})", ("Name", "Params", "Reads info", "Meaning"),
-     catalog.reward_rows),
-    ("Termination terms (task.termination: {term, params, when})", ("Name", "Params", "Reads info", "Meaning"),
-     catalog.termination_rows),
-    ("Image terms (scene.camera.terms, with use_kinect)", ("Name", "Shape", "Dtype", "Meaning"), catalog.image_rows),
-    ("Experts (task.expert: {policy, params})", ("Name", "Params", "What it does"), catalog.expert_rows),
-]
-
-
 def terms_page() -> str:
-    blocks = [("Every observation, reward, termination and image term and every scripted expert that ships with "
-              "envfactory, with its params (`name: type = default (limits)`), size and unit: the tables "
+    blocks = [("Every observation, reward, termination, image, event and sensing term and every scripted expert "
+              "that ships with envfactory, with its params (`name: type = default (limits)`), size and unit: the tables "
               "`envfactory terms` prints. A spec names a term by its name; `envfactory terms MODULE` lists a "
               "module's own terms beside these.")]
-    for title, columns, rows in TERM_TABLES:
+    for title, columns, rows in catalog.TABLES:
         blocks += [f"## {md.escape(title)}",
                    md.grid(columns, ([md.code(name), *map(md.prose, rest)] for name, *rest in rows()))]
     return md.page("Terms and experts", *blocks)

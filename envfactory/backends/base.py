@@ -13,6 +13,7 @@ from typing import Protocol
 import numpy as np
 
 from envfactory.schema.models import CameraSpec
+from envfactory.state import PHYSICS_QUANTITIES, PhysicsChange  # noqa: F401  (the protocol's vocabulary)
 
 
 def window_impossible() -> bool:
@@ -98,6 +99,10 @@ class Backend(Protocol):
 
     def stop(self) -> None:
         """Hold the arm where it is. Always allowed: stopping is not motion."""
+
+    def apply_physics(self, change: PhysicsChange) -> None:
+        """Set one randomized physical quantity (events, envfactory/terms/events.py): simulators only; the
+        compiler refuses randomization on other backends."""
 
     def advance(self, seconds: float) -> None:
         """Let `seconds` pass: simulated time in sim, wall time on hardware."""

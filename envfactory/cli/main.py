@@ -208,7 +208,8 @@ def unregister(paths: List[Path] = typer.Argument(..., help="Folders recorded by
 @command()
 def terms(modules: List[str] = typer.Argument(None, help="Term modules to import first (as a spec's `terms:` "
                                                          "list names them, relative to the current folder)")):
-    """Every observation, reward, termination and image term and every expert, with params, size and unit."""
+    """Every observation, reward, termination, image, event and sensing term and every expert, with params, size
+    and unit."""
 
     plugins.load_entry_points()
     for name in modules or []:
@@ -216,22 +217,11 @@ def terms(modules: List[str] = typer.Argument(None, help="Term modules to import
             plugins.import_module(name, Path.cwd())
         except Exception as exc:
             _fail(f"cannot import term module {name!r}: {type(exc).__name__}: {exc}")
-    tables = [
-        ("Observation terms (task.observation)", ("Name", "Size", "Unit", "Params", "Goal-dependent", "Meaning"),
-         catalog.observation_rows()),
-        ("Reward terms (task.reward.sparse / dense: {term, weight, params})", ("Name", "Params", "Reads info",
-                                                                                "Meaning"), catalog.reward_rows()),
-        ("Termination terms (task.termination: {term, params, when})", ("Name", "Params", "Reads info", "Meaning"),
-         catalog.termination_rows()),
-        ("Image terms (scene.camera.terms, with use_kinect)", ("Name", "Shape", "Dtype", "Meaning"),
-         catalog.image_rows()),
-        ("Experts (task.expert: {policy, params})", ("Name", "Params", "What it does"), catalog.expert_rows()),
-    ]
-    for title, columns, rows in tables:
+    for title, columns, rows in catalog.TABLES:
         table = Table(title=title, title_justify="left")
         for index, column in enumerate(columns):
             table.add_column(column, no_wrap=index == 0)  # a term's name is what a spec types: never cut
-        for row in rows:
+        for row in rows():
             table.add_row(*row)
         console.print(table)
 

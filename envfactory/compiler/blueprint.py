@@ -17,7 +17,9 @@ from pydantic import BaseModel
 from envfactory.geometry.point_boxes import PointBoxes
 from envfactory.scaling import ActionScale
 from envfactory.schema.models import EnvSpec
-from envfactory.terms.library import Description, ImageTerm, ObservationTerm, RewardTerm, TerminationTerm
+from envfactory.schema.randomization import Every
+from envfactory.terms.library import (Description, EventTerm, ImageTerm, ObservationTerm, RewardTerm, SensingTerm,
+                                      TerminationTerm)
 from envfactory.terms.stages import NoStage, Stage
 
 
@@ -67,6 +69,23 @@ class TerminationSlot:
     params: BaseModel
     bound: Any
     active: bool  # whether this reward type ends episodes on it (`when:` in the task)
+
+
+@dataclass(frozen=True)
+class EventSlot:
+    name: str
+    term: EventTerm
+    params: BaseModel
+    bound: Any  # what it samples: envfactory.terms.events.SampledQuantity
+    every: Every | None  # sampled again at this interval; always at reset
+
+
+@dataclass(frozen=True)
+class SensingSlot:
+    name: str
+    term: SensingTerm
+    params: BaseModel
+    bound: Any  # what the term function receives to make each env's sensor
 
 
 @dataclass(frozen=True)
@@ -132,13 +151,14 @@ class Blueprint:
     images: tuple[ImageSlot, ...] = field(default=())  # use_kinect: camera terms, Dict keys beside the vector
     boxes: PointBoxes | None = None  # where the EE and each object can be: the goal env's achieved-goal bounds
     stage: Callable[[], Stage] = NoStage  # builds each env's task stage (e.g. lift before place)
+    events: tuple[EventSlot, ...] = field(default=())  # declared ones, applied only when randomized
+    sensing: tuple[SensingSlot, ...] = field(default=())
+    randomized: bool = False  # task.randomization.enabled (the randomize kwarg)
 
     @property
     def policy_observation(self) -> tuple[ObservationSlot, ...]:
         """The `observation` entry: goal envs drop every goal-dependent column."""
-        if not self.goal_env:
-            return self.observation
-        return _reindex(slot for slot in self.observation if not slot.goal_dependent)
+        return policy_slots(self.observation, self.goal_env)
 
     @property
     def observation_size(self) -> int:
@@ -175,6 +195,14 @@ class Blueprint:
             "robot": {"name": spec.robot.name, "mount": list(spec.robot.mount), "home": spec.robot.home,
                       "ee_frame": spec.robot.ee_frame, "task_frame": spec.robot.task_frame},
         }
+        if self.events or self.sensing:
+            data["randomization"] = {
+                "enabled": self.randomized,
+                "events": [{"name": e.name, "term": e.term.name, "params": e.params.model_dump(),
+                            "every": e.every.model_dump() if e.every else None} for e in self.events],
+                "sensing": [{"name": e.name, "term": e.term.name, "params": e.params.model_dump()}
+                            for e in self.sensing],
+            }
         return json.dumps(data, indent=2, sort_keys=True, default=_json_default)
 
 
@@ -198,6 +226,13 @@ def _slot_json(slot: ObservationSlot) -> dict:
         "low": slot.low,
         "high": slot.high,
     }
+
+
+def policy_slots(observation: tuple[ObservationSlot, ...], goal_env: bool) -> tuple[ObservationSlot, ...]:
+    """The slots of the observation vector the policy sees: a goal env's without the goal-dependent ones."""
+    if not goal_env:
+        return observation
+    return _reindex(slot for slot in observation if not slot.goal_dependent)
 
 
 def _reindex(slots) -> tuple[ObservationSlot, ...]:

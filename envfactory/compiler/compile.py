@@ -3,6 +3,8 @@ checks that need the robot model (`robot_checks`) and the scene (`scene_checks`)
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from pydantic import BaseModel, ValidationError
 
@@ -12,10 +14,13 @@ from envfactory.compiler.blueprint import (
     ActionLayout,
     ActionRow,
     Blueprint,
+    EventSlot,
     ImageSlot,
     ObservationSlot,
+    SensingSlot,
     TerminationSlot,
     WeightedTerm,
+    policy_slots,
 )
 from envfactory.compiler.scene_checks import check_expert_workspace, check_scene
 from envfactory.experts import EXPERTS
@@ -25,7 +30,8 @@ from envfactory.schema.sources import Findings
 from envfactory.schema.validation import validation_problems
 from envfactory.schema.errors import suggest
 from envfactory.schema.models import EnvSpec
-from envfactory.terms import IMAGES, OBSERVATIONS, REWARDS, TERMINATIONS, Layout, plugins
+from envfactory.terms import EVENTS, IMAGES, OBSERVATIONS, REWARDS, SENSING, TERMINATIONS, Layout, plugins
+from envfactory.terms.library import UnknownReference
 from envfactory.terms.rewards import step_info_keys
 from envfactory.terms.stages import stage_factory
 
@@ -75,11 +81,13 @@ def _lookup(table: dict, name: str, path: str, kind: str, found: Findings):
     return term
 
 
-def _bind(term, layout: Layout, params, path: str, found: Findings):
+def _bind(term, layout: Layout, params, path: str, found: Findings, inert: tuple[type[Exception], ...] = ()):
+    """What the term's function receives; None (the problem found, unless it is of a kind declared inert)."""
     try:
         return term.bind(layout, params)
     except ValueError as exc:
-        found.add(path, str(exc))
+        if not isinstance(exc, inert):
+            found.add(path, str(exc))
         return None
 
 
@@ -105,8 +113,10 @@ def _observation(spec: EnvSpec, layout: Layout, found: Findings):
     return tuple(slots)
 
 
-def _resolved_terms(refs: dict, table: dict, path: str, kind: str, layout: Layout, found: Findings):
-    """(name, ref, term, params, bound) of every ref whose term, params and binding check out."""
+def _resolved_terms(refs: dict, table: dict, path: str, kind: str, layout: Layout, found: Findings,
+                    inert: tuple[type[Exception], ...] = ()):
+    """(name, ref, term, params, bound) of every ref whose term, params and binding check out (a binding
+    problem of an `inert` kind leaves the ref out without a finding)."""
     for name, ref in refs.items():
         term = _lookup(table, ref.term, f"{path}.{name}.term", kind, found)
         if term is None:
@@ -114,7 +124,7 @@ def _resolved_terms(refs: dict, table: dict, path: str, kind: str, layout: Layou
         params = _params(term.params, ref.params, f"{path}.{name}.params", found)
         if params is None:
             continue
-        bound = _bind(term, layout, params, f"{path}.{name}", found)
+        bound = _bind(term, layout, params, f"{path}.{name}", found, inert)
         if bound is not None:
             yield name, ref, term, params, bound
 
@@ -130,6 +140,32 @@ def _terminations(spec: EnvSpec, layout: Layout, found: Findings):
                  for name, ref, term, params, bound in _resolved_terms(spec.task.termination, TERMINATIONS,
                                                                       "task.termination", "termination", layout,
                                                                       found))
+
+
+def _randomization(spec: EnvSpec, layout: Layout, observation, goal_env: bool, env_id: str, backend: str,
+                   found: Findings) -> tuple[tuple[EventSlot, ...], tuple[SensingSlot, ...]]:
+    """The declared events and sensing terms. Their names, params and ranges are checked whether or not this ID
+    turns them on (a typo is caught before anyone does); what they refer to in the task (an object, an
+    observation term, a gripper) only when on: a user's task built on a shipped one may lay out its own
+    observation, and a declaration left off is inert (left out of the blueprint; `describe` shows the rest)."""
+    declared = spec.task.randomization
+    path = "task.randomization"
+    inert = () if declared.enabled else (UnknownReference,)
+    events = tuple(EventSlot(name, term, params, bound, ref.every)
+                   for name, ref, term, params, bound in _resolved_terms(declared.events, EVENTS, f"{path}.events",
+                                                                        "event", layout, found, inert))
+    sensed = replace(layout, observation_slots=policy_slots(observation, goal_env))
+    sensing = tuple(SensingSlot(name, term, params, bound)
+                    for name, ref, term, params, bound in _resolved_terms(declared.sensing, SENSING,
+                                                                         f"{path}.sensing", "sensing", sensed, found,
+                                                                         inert))
+    if declared.enabled and backend not in SIMULATORS:
+        found.add(f"{path}.enabled", f"{env_id} runs on backend {backend!r}: events set a simulator's physics and "
+                                     f"sensing terms imitate a real arm's sensing, so neither applies to a real arm "
+                                     f"(randomize Sim IDs only)")
+    elif declared.enabled and not (events or sensing) and not found:
+        found.add(f"{path}.enabled", "randomization is on but declares no events and no sensing terms")
+    return events, sensing
 
 
 def _check_info_keys(spec: EnvSpec, rewards, terminations, found: Findings) -> None:
@@ -260,6 +296,7 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
     images = _images(spec, found)
     backend = _engine(spec, env_id, backend, found)
     _check_backend(spec, env_id, backend, found)
+    events, sensing = _randomization(spec, layout, observation, goal_env, env_id, backend, found)
     if backend in SIMULATORS:
         sim_checks.check_physics_rate(spec, backend, found)
         sim_checks.check_display(spec, backend, found)
@@ -284,4 +321,7 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
         images=images,
         boxes=layout.boxes,
         stage=stage_factory(spec.task.goal),
+        events=events,
+        sensing=sensing,
+        randomized=spec.task.randomization.enabled,
     )

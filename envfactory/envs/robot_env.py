@@ -20,6 +20,7 @@ from envfactory.envs.actions import ActionAdapter
 from envfactory.envs.goals import GoalSampler
 from envfactory.envs.managers import ImageManager, ObservationManager, RewardManager
 from envfactory.envs.objects import ObjectSpawner, ObjectTracker
+from envfactory.envs.randomization import Randomizer
 from envfactory.geometry.frames import TaskFrame
 from envfactory.geometry.object_press import ObjectPressGuard
 from envfactory.geometry.robot_model import robot_geometry
@@ -84,6 +85,9 @@ class RobotEnv(gym.Env):
         self.backend = backend_factory(blueprint.backend)(spec, geometry.urdf, self.task_frame, render_mode,
                                                           **backend_options)
         self.backend.attach_geometry(self.safety.collision)
+        self.randomizer = Randomizer(blueprint, self.backend, self._timing.action_cycle_time) \
+            if blueprint.randomized else None
+        self._sensing_starts = False  # the next observation is an episode's first: the sensors start from it
 
     # ------------------------------------------------------------ spaces
 
@@ -128,6 +132,13 @@ class RobotEnv(gym.Env):
 
     def _vector(self, state: EnvState) -> np.ndarray:
         vector, self._clipped = self.observations.compute(state)
+        if self.randomizer is not None:
+            if self._sensing_starts:
+                self.randomizer.start_sensing(vector, state.previous_action)
+                self._sensing_starts = False
+            # what the sensors make of it stays in the observation space (noise near a bound meets the bound)
+            vector = np.clip(self.randomizer.observe(vector), self.observations.low,
+                             self.observations.high).astype(np.float32)
         # logged once per column and env: a column that keeps leaving its bounds would otherwise flood a
         # training run's output; info['observation_clipped'] still names it at every step
         first = [item for item in self._clipped if item.partition("=")[0] not in self._clip_logged]
@@ -171,6 +182,9 @@ class RobotEnv(gym.Env):
         if options and "goal" in options:
             self._goal = np.asarray(options["goal"], float).reshape(3)
             self._goal_failed = False
+        if self.randomizer is not None:
+            self.randomizer.reset(self.np_random)  # drawn after spawn and goal: those match an unrandomized env's
+            self._sensing_starts = True
         self.backend.mark_goal(self._goal)
         self._state = self._read_state(np.zeros(self.action_space.shape, dtype=np.float32))
         self._state.previous_action = self.actions.hold_action(self._state)
@@ -185,6 +199,8 @@ class RobotEnv(gym.Env):
             raise RuntimeError("call reset() before step()")
         state = self._state
         action = self._checked_action(action)
+        if self.randomizer is not None:
+            action = self.randomizer.act(action)  # a delayed action is judged and played when it lands
         command = self.actions.translate(action, state)
         rejection = command.rejection
         if not rejection:
@@ -204,6 +220,8 @@ class RobotEnv(gym.Env):
                     self.backend.command_gripper(command.gripper)
             self.backend.advance(self._timing.action_cycle_time)
             self._state = self._read_state(previous)
+            if self.randomizer is not None:
+                self.randomizer.after_step()
         except EpisodeAbort as exc:
             # stale or malformed readings, an arm that does not follow: the backend stopped it; the episode ends
             log.warning("%s: episode aborted: %s", self.blueprint.env_id, exc)
@@ -248,6 +266,8 @@ class RobotEnv(gym.Env):
                     is_success=distance < self.blueprint.spec.task.goal.tolerance)
         info.update(self.stage.info(self._goal))
         info.update(self.rewards.measure(state))
+        if self.randomizer is not None:
+            info["randomization"] = dict(self.randomizer.values)
         return info
 
     def render(self):

@@ -20,6 +20,7 @@ PEDESTAL_PLATE = 0.02
 PEDESTAL_LEG_HALF_WIDTH = 0.02
 
 TABLE_RGBA = (0.55, 0.42, 0.30, 1.0)
+TABLE_TOP = "table top"  # the obstacle objects rest on
 COLUMN_RGBA = (0.2, 0.2, 0.2, 1.0)
 FLOOR_RGBA = (0.85, 0.85, 0.85, 1.0)
 
@@ -52,7 +53,7 @@ def table_obstacles(table: TableSpec) -> list[Obstacle]:
     half_x, half_y = table.size[0] / 2, table.size[1] / 2
     column_height = table.top_z - table.thickness
     return [
-        Obstacle("table top", (x, y, table.top_z - table.thickness / 2), (half_x, half_y, table.thickness / 2),
+        Obstacle(TABLE_TOP, (x, y, table.top_z - table.thickness / 2), (half_x, half_y, table.thickness / 2),
                  TABLE_RGBA),
         Obstacle("table column", (x, y, column_height / 2),
                  (TABLE_COLUMN_HALF_WIDTH, TABLE_COLUMN_HALF_WIDTH, column_height / 2), COLUMN_RGBA),
@@ -88,7 +89,7 @@ def guarded_obstacles(spec: EnvSpec) -> list[Obstacle]:
     """The obstacles the safety check keeps the arm clear of: the scene's, with the table top widened by
     the spec's footprint margin."""
     widened = spec.env.safety.table_footprint_margin
-    return [o.widened(widened) if o.name == "table top" else o for o in scene_obstacles(spec)]
+    return [o.widened(widened) if o.name == TABLE_TOP else o for o in scene_obstacles(spec)]
 
 
 def table_bounds_xy(table: TableSpec, frame) -> tuple[np.ndarray, np.ndarray]:

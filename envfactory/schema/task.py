@@ -8,6 +8,7 @@ from pydantic import Field, field_validator, model_validator
 
 from envfactory.schema.base import Model, Position, Rgba, in_unit_range, located
 from envfactory.schema.numbers import Friction, NonNegative, Positive, Real
+from envfactory.schema.randomization import RandomizationSpec
 
 
 class TermRef(Model):
@@ -123,6 +124,8 @@ class TaskSpec(Model):
     reward: RewardSets
     termination: dict[str, TerminationRef] = {}
     expert: ExpertRef | None = None
+    # sim-to-real: sampled physics, sensing and timing (off unless randomization.enabled, the randomize kwarg)
+    randomization: RandomizationSpec = RandomizationSpec()
     kwargs: dict[str, str] = {}
 
     @field_validator("observation", mode="before")

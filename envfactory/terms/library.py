@@ -16,6 +16,10 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict
 
 
+class UnknownReference(ValueError):
+    """A term's params name something the task or robot lacks (an object, an observation term, a gripper)."""
+
+
 class TermParams(BaseModel):
     """Params of a term or an expert: unknown keys are errors."""
 
@@ -35,6 +39,7 @@ class Layout:
     action_low: np.ndarray
     action_high: np.ndarray
     boxes: Any = None  # envfactory.geometry.point_boxes.PointBoxes: where the EE and each object can be
+    observation_slots: tuple = ()  # the compiled observation layout, for sensing terms (after it is laid out)
 
 
 @dataclass(frozen=True)
@@ -146,11 +151,38 @@ class TerminationTerm(GoalTerm):
     kind = "termination"
 
 
+@dataclass(frozen=True)
+class EventTerm(RegisteredTerm):
+    """Samples one physical quantity for the backend to set: fn(rng, bound params) -> PhysicsChange."""
+
+    kind = "event"
+    name: str
+    fn: Callable
+    params: type[BaseModel]
+    bind: Callable[[Layout, Any], Any]  # checks the range against the spec and resolves it to absolute values
+    unit: str = ""
+
+
+@dataclass(frozen=True)
+class SensingTerm(RegisteredTerm):
+    """Makes one env's sensor (envfactory.terms.sensing.Sensor): fn(bound params) -> Sensor."""
+
+    kind = "sensing"
+    name: str
+    fn: Callable
+    params: type[BaseModel]
+    bind: Callable[[Layout, Any], Any] = unchanged
+    unit: str = ""
+
+
 OBSERVATIONS: dict[str, ObservationTerm] = {}
 IMAGES: dict[str, ImageTerm] = {}
 REWARDS: dict[str, RewardTerm] = {}
 TERMINATIONS: dict[str, TerminationTerm] = {}
-_TABLES = {"observation": OBSERVATIONS, "image": IMAGES, "reward": REWARDS, "termination": TERMINATIONS}
+EVENTS: dict[str, EventTerm] = {}
+SENSING: dict[str, SensingTerm] = {}
+_TABLES = {"observation": OBSERVATIONS, "image": IMAGES, "reward": REWARDS, "termination": TERMINATIONS,
+           "event": EVENTS, "sensing": SENSING}
 
 
 def term_decorator(term_class: type[RegisteredTerm], **spec) -> Callable:
@@ -186,6 +218,16 @@ def reward_term(**spec) -> Callable:
 def termination_term(**spec) -> Callable:
     """Registers the decorated function as a TerminationTerm; `spec` holds its other fields."""
     return term_decorator(TerminationTerm, **spec)
+
+
+def event_term(**spec) -> Callable:
+    """Registers the decorated function as an EventTerm; `spec` holds its other fields."""
+    return term_decorator(EventTerm, **spec)
+
+
+def sensing_term(**spec) -> Callable:
+    """Registers the decorated function as a SensingTerm; `spec` holds its other fields."""
+    return term_decorator(SensingTerm, **spec)
 
 
 def fixed(size: int) -> Callable[[Layout, Any], int]:

@@ -15,14 +15,15 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from envfactory.backends.base import BackendError, CameraFrame, JointReading, ObjectReading
+from envfactory.backends.base import (PHYSICS_QUANTITIES, BackendError, CameraFrame, JointReading, ObjectReading,
+                                      PhysicsChange)
 from envfactory.backends.mujoco import shortcuts
 from envfactory.backends.mujoco.held import Carry
 from envfactory.backends.mujoco.model import CAMERA, ROBOT_PREFIX, build
 from envfactory.backends.rest import CycleCounts
 from envfactory.geometry.frames import TaskFrame
 from envfactory.geometry.object_clearance import NEAR_CONTACT, ObjectClearance, bounding_radius
-from envfactory.geometry.obstacles import scene_obstacles
+from envfactory.geometry.obstacles import TABLE_TOP, scene_obstacles
 from envfactory.schema.models import CameraSpec, EnvSpec
 
 STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -108,6 +109,11 @@ class MujocoBackend:
             pads = {self.model.body(ROBOT_PREFIX + link).id for link in spec.robot.gripper.pads.links}
             radii = dict(zip(spec.task.objects, self._object_radii))
             self._carry = Carry(self.model, self.handles, pads, scene_obstacles(spec), radii)
+        # what randomized physics scales from and recombines: each object's mass and inertia as built, and the
+        # friction of every surface an object can touch
+        self._built_mass = {body: (float(self.model.body_mass[body]), self.model.body_inertia[body].copy())
+                            for body in self.handles.object_body.values()}
+        self._friction = dict(self.handles.surface_friction or {})
         camera = spec.scene.camera
         if spec.env.observation.camera_images and camera is not None:
             self._renderer(camera.width, camera.height)  # images are part of every observation: fail at make
@@ -176,6 +182,29 @@ class MujocoBackend:
         """Hold the arm where it is now."""
         here = self.data.qpos[self.handles.arm_qpos].copy()
         self._arm = Profile(here, here, self._sim_time, 0.0)
+
+    def apply_physics(self, change: PhysicsChange) -> None:
+        model, handles, quantity, value = self.model, self.handles, change.quantity, change.value
+        if quantity == "object_mass":
+            body = handles.object_body[change.target]
+            mass, inertia = self._built_mass[body]
+            model.body_mass[body] = value
+            model.body_inertia[body] = inertia * (value / mass)
+            # the solver scales each constraint's softness by the inverse weights taken at build: a lighter
+            # body left with its old ones meets too stiff a contact (measured: a 0.05 kg cube blew up)
+            mujoco.mj_setConst(model, self._scratch)
+        elif quantity in ("object_friction", "table_friction"):
+            surface = f"object:{change.target}" if quantity == "object_friction" else f"obstacle:{TABLE_TOP}"
+            self._friction[surface] = (value, *self._friction[surface][1:])
+            for index, (one, other) in enumerate(handles.pair_surfaces):
+                if surface in (one, other):  # the pair rubs with the product, as it was built (model.py)
+                    model.pair_friction[index, :2] = self._friction[one][0] * self._friction[other][0]
+        elif quantity == "arm_damping":
+            model.dof_damping[handles.arm_dof] = value
+        elif quantity == "gripper_force" and handles.gripper_actuator is not None:
+            model.actuator_forcerange[handles.gripper_actuator] = [-value, value]
+        else:
+            raise BackendError(f"MuJoCo cannot set {quantity!r} (known: {', '.join(PHYSICS_QUANTITIES)})")
 
     def advance(self, seconds: float) -> None:
         """Simulate `seconds`; in realtime mode, also let that long pass on the wall clock, so that an episode

@@ -20,7 +20,7 @@ Choices where MuJoCo and PyBullet differ, each a setting of the model built here
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import mujoco
@@ -70,6 +70,10 @@ class Handles:
     object_dof: dict[str, int]  # its first dof address
     object_body: dict[str, int]
     marker_mocap: int
+    # per contact pair (in the model's order), the two surfaces it joins, and each surface's friction: what
+    # a randomized friction recomputes the pair's product from
+    pair_surfaces: tuple[tuple[str, str], ...] = ()
+    surface_friction: dict[str, tuple[float, float, float]] | None = None
 
 
 def _wxyz(rotation: np.ndarray) -> list[float]:
@@ -106,6 +110,7 @@ def build(spec: EnvSpec, urdf_path: Path) -> tuple[mujoco.MjModel, Handles]:
     world.option.iterations = spec.sim.mujoco.solver_iterations
     world.option.noslip_iterations = spec.sim.mujoco.noslip_iterations
     surfaces: dict[str, tuple[float, float, float]] = {}  # every geom an object can touch, and its friction
+    pair_surfaces: list[tuple[str, str]] = []
     for obstacle in scene_obstacles(spec):
         name = f"obstacle:{obstacle.name}"
         world.worldbody.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX,
@@ -162,6 +167,7 @@ def build(spec: EnvSpec, urdf_path: Path) -> tuple[mujoco.MjModel, Handles]:
             world.add_pair(geomname1=f"object:{name}", geomname2=other,
                            friction=[lateral, lateral, spinning, rolling, rolling],
                            condim=_friction_condim(lateral, spinning, rolling))
+            pair_surfaces.append((f"object:{name}", other))
         surfaces[f"object:{name}"] = friction
     marker = world.worldbody.add_body(name="goal_marker", mocap=True, pos=[0.0, 0.0, -10.0])
     marker.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.025, 0, 0], rgba=list(MARKER_RGBA), contype=0,
@@ -172,7 +178,7 @@ def build(spec: EnvSpec, urdf_path: Path) -> tuple[mujoco.MjModel, Handles]:
         world.cameras[-1].alt.type = mujoco.mjtOrientation.mjORIENTATION_XYAXES
         world.cameras[-1].alt.xyaxes = _camera_axes(camera)
     model = world.compile()
-    return model, _handles(model, spec)
+    return model, replace(_handles(model, spec), pair_surfaces=tuple(pair_surfaces), surface_friction=surfaces)
 
 
 def _servo(world: mujoco.MjSpec, joint: str, effort: float) -> None:

@@ -10,12 +10,13 @@ import numpy as np
 import pinocchio as pin
 import pybullet as p
 
-from envfactory.backends.base import BackendError, CameraFrame, JointReading, ObjectReading, window_impossible
+from envfactory.backends.base import (PHYSICS_QUANTITIES, BackendError, CameraFrame, JointReading, ObjectReading,
+                                      PhysicsChange, window_impossible)
 from envfactory.backends.pybullet import scene
 from envfactory.backends.pybullet.fast_physics import FastCycles, GripperResponse, Rig, record_gripper_response
 from envfactory.geometry.frames import TaskFrame, base_rotation
 from envfactory.geometry.object_clearance import ObjectClearance, bounding_radius
-from envfactory.geometry.obstacles import scene_obstacles
+from envfactory.geometry.obstacles import TABLE_TOP, scene_obstacles
 from envfactory.schema.models import CameraSpec, EnvSpec
 
 # Followers of a mimic joint track their driver through gear constraints;
@@ -76,7 +77,9 @@ class PyBulletBackend:
         p.setPhysicsEngineParameter(numSolverIterations=self.spec.sim.solver_iterations, deterministicOverlappingPairs=1,
                                     physicsClientId=c)
         p.configureDebugVisualizer(p.COV_ENABLE_GUI, 0, physicsClientId=c)
-        self.obstacle_bodies = scene.add_obstacles(c, scene_obstacles(self.spec))
+        obstacles = scene_obstacles(self.spec)
+        self.obstacle_bodies = scene.add_obstacles(c, obstacles)
+        self._table_body = self.obstacle_bodies[[o.name for o in obstacles].index(TABLE_TOP)]
         mount = np.asarray(self.robot.mount, float)
         x, y, z, w = pin.Quaternion(base_rotation(self.robot)).coeffs()
         # Self-collision stays off: the gripper's linkage links overlap by design.
@@ -95,6 +98,7 @@ class PyBulletBackend:
         self._gripper = None
         if self.robot.gripper is not None:
             gripper = self.robot.gripper
+            self._gripper_force, self._gripper_target = gripper.force, gripper.open
             self._gripper = index[gripper.joint]
             self._gripper_followers = [(index[name], gain) for name, gain in gripper.mimic.items()]
             for follower, gain in self._gripper_followers:
@@ -178,8 +182,32 @@ class PyBulletBackend:
 
     def _drive_gripper(self, value: float) -> None:
         gripper = self.robot.gripper
+        self._gripper_target = float(value)
         p.setJointMotorControl2(self.body, self._gripper, p.POSITION_CONTROL, targetPosition=float(value),
-                                force=gripper.force, maxVelocity=gripper.max_velocity, physicsClientId=self.client)
+                                force=self._gripper_force, maxVelocity=gripper.max_velocity,
+                                physicsClientId=self.client)
+
+    def apply_physics(self, change: PhysicsChange) -> None:
+        c, quantity, value = self.client, change.quantity, change.value
+        with self._lock:
+            if quantity == "object_mass":
+                body = self.objects[change.target]
+                info = p.getDynamicsInfo(body, -1, physicsClientId=c)
+                mass, inertia = info[0], info[2]
+                p.changeDynamics(body, -1, mass=value, localInertiaDiagonal=[i * value / mass for i in inertia],
+                                 physicsClientId=c)
+            elif quantity == "object_friction":
+                p.changeDynamics(self.objects[change.target], -1, lateralFriction=value, physicsClientId=c)
+            elif quantity == "table_friction":
+                p.changeDynamics(self._table_body, -1, lateralFriction=value, physicsClientId=c)
+            elif quantity == "arm_damping":
+                for joint in self._arm:
+                    p.changeDynamics(self.body, joint, jointDamping=value, physicsClientId=c)
+            elif quantity == "gripper_force" and self._gripper is not None:
+                self._gripper_force = value
+                self._drive_gripper(self._gripper_target)  # the drive pushes with the new limit from now on
+            else:
+                raise BackendError(f"PyBullet cannot set {quantity!r} (known: {', '.join(PHYSICS_QUANTITIES)})")
 
     # ---------------------------------------------------------------- protocol
 

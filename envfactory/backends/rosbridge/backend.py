@@ -327,6 +327,9 @@ class RosbridgeBackend:
         step = total / count
         return [(i * step, start + (home - start) * (i + 1) / count, step) for i in range(count)]
 
+    def apply_physics(self, change) -> None:
+        raise BackendError(f"a real arm's physics cannot be set ({change.quantity}): randomization is for Sim IDs")
+
     def advance(self, seconds: float) -> None:
         deadline = time.monotonic() + seconds
         while time.monotonic() < deadline:

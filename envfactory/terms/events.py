@@ -1,0 +1,139 @@
+"""Event terms: physical quantities sampled at every reset (and, with `every`, again during the episode) and
+set through the backend, for training that survives the difference between engines, or between the
+simulation and the real arm. Each term samples one value from its range and names what it sets."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from pydantic import model_validator
+
+from envfactory.state import PhysicsChange
+from envfactory.schema.numbers import Real
+from envfactory.terms.library import Layout, TermParams, UnknownReference, event_term
+
+
+class Sampled(TermParams):
+    """Where the value comes from: `range` (absolute, in the term's unit) or `scale` (times the value the spec
+    declares), drawn uniformly or log-uniformly (every ratio equally likely: masses, gains)."""
+
+    range: tuple[Real, Real] | None = None
+    scale: tuple[Real, Real] | None = None
+    distribution: Literal["uniform", "log_uniform"] = "uniform"
+
+    @model_validator(mode="after")
+    def _one_source(self) -> "Sampled":
+        if (self.range is None) == (self.scale is None):
+            raise ValueError("give exactly one of 'range' (absolute) and 'scale' (times the spec's value)")
+        low, high = self.range if self.range is not None else self.scale
+        if low > high:
+            raise ValueError(f"low {low} exceeds high {high}")
+        if self.scale is not None and low <= 0:
+            raise ValueError(f"scale {list(self.scale)}: a factor must be positive")
+        return self
+
+
+class ObjectSampled(Sampled):
+    object: str = "cube"
+
+
+@dataclass(frozen=True)
+class SampledQuantity:
+    """What a bound event samples: the quantity it sets, of which thing, and the absolute interval."""
+
+    quantity: str
+    target: str
+    low: float
+    high: float
+    distribution: str
+
+    def sample(self, rng: np.random.Generator) -> PhysicsChange:
+        if self.low == self.high:
+            value = self.low
+        elif self.distribution == "log_uniform":
+            value = math.exp(rng.uniform(math.log(self.low), math.log(self.high)))
+        else:
+            value = rng.uniform(self.low, self.high)
+        return PhysicsChange(self.quantity, self.target, float(value))
+
+
+def _resolve(params: Sampled, quantity: str, target: str, declared: float | None, unit: str,
+             plausible: tuple[float, float]) -> SampledQuantity:
+    """The absolute interval, checked against what such a quantity can plausibly be (ValueError says why not)."""
+    if params.scale is not None:
+        if declared is None:
+            raise ValueError(f"{quantity} has no value in the spec to scale: give an absolute 'range' in {unit}")
+        low, high = (factor * declared for factor in params.scale)
+    else:
+        low, high = params.range
+    least, most = plausible
+    if low < least or high > most:
+        raise ValueError(f"{quantity} from {low:g} to {high:g} {unit} leaves the plausible [{least:g}, {most:g}] {unit}")
+    if params.distribution == "log_uniform" and low <= 0:
+        raise ValueError(f"a log-uniform {quantity} needs a positive low end, not {low:g} {unit}")
+    return SampledQuantity(quantity, target, float(low), float(high), params.distribution)
+
+
+def _object(layout: Layout, params: ObjectSampled):
+    objects = layout.task.objects
+    if params.object not in objects:
+        raise UnknownReference(f"object {params.object!r} is not one of the task's objects ({list(objects) or 'none'})")
+    return objects[params.object]
+
+
+def _bind_object_mass(layout: Layout, params: ObjectSampled) -> SampledQuantity:
+    mass = _object(layout, params).mass
+    return _resolve(params, "object_mass", params.object, mass, "kg", (1e-3, 100.0))
+
+
+def _bind_object_friction(layout: Layout, params: ObjectSampled) -> SampledQuantity:
+    friction = _object(layout, params).friction
+    return _resolve(params, "object_friction", params.object, friction, "", (0.0, 10.0))
+
+
+def _bind_table_friction(layout: Layout, params: Sampled) -> SampledQuantity:
+    return _resolve(params, "table_friction", "", None, "", (0.0, 10.0))
+
+
+def _bind_arm_damping(layout: Layout, params: Sampled) -> SampledQuantity:
+    return _resolve(params, "arm_damping", "", None, "N m s/rad", (0.0, 100.0))
+
+
+def _bind_gripper_force(layout: Layout, params: Sampled) -> SampledQuantity:
+    gripper = layout.robot.gripper
+    if gripper is None:
+        raise UnknownReference(f"robot {layout.robot.name!r} has no gripper")
+    return _resolve(params, "gripper_force", "", gripper.force, "N", (1e-3, 10 * gripper.force))
+
+
+@event_term(params=ObjectSampled, bind=_bind_object_mass, unit="kg")
+def object_mass(rng: np.random.Generator, bound: SampledQuantity) -> PhysicsChange:
+    """The object's mass (its inertia scales with it)."""
+    return bound.sample(rng)
+
+
+@event_term(params=ObjectSampled, bind=_bind_object_friction, unit="")
+def object_friction(rng: np.random.Generator, bound: SampledQuantity) -> PhysicsChange:
+    """The object's lateral friction coefficient (a contact rubs with the product of both surfaces')."""
+    return bound.sample(rng)
+
+
+@event_term(params=Sampled, bind=_bind_table_friction, unit="")
+def table_friction(rng: np.random.Generator, bound: SampledQuantity) -> PhysicsChange:
+    """The table's lateral friction coefficient (a range only: the specs give the table none to scale)."""
+    return bound.sample(rng)
+
+
+@event_term(params=Sampled, bind=_bind_arm_damping, unit="N m s/rad")
+def arm_damping(rng: np.random.Generator, bound: SampledQuantity) -> PhysicsChange:
+    """Viscous damping of every arm joint (a range only)."""
+    return bound.sample(rng)
+
+
+@event_term(params=Sampled, bind=_bind_gripper_force, unit="N")
+def gripper_force(rng: np.random.Generator, bound: SampledQuantity) -> PhysicsChange:
+    """The gripper drive's force limit."""
+    return bound.sample(rng)
