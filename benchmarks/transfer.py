@@ -37,7 +37,8 @@ def main() -> None:
         trained_on = kwargs.get("engine", "pybullet")
         curve = read_csv(folder / "curve.csv")
         curves.setdefault(record["env_id"], {})[
-            f"{trained_on}, {'randomized' if kwargs.get('randomize') else 'not randomized'}"] = curve
+            f"{trained_on}, {'randomized' if kwargs.get('randomize') else 'not randomized'}, seed {record['seed']}"] \
+            = curve
         successes = [replay(folder, args.episodes, args.first_seed, {"engine": engine, "randomize": False})[1]
                      for engine in ENGINES]
         table.add(folder.name, record["env_id"], trained_on, "yes" if kwargs.get("randomize") else "no",
