@@ -50,7 +50,7 @@ def main() -> None:
         args.pictures.mkdir(parents=True, exist_ok=True)
         for env_id, labelled in curves.items():
             path = args.pictures / f"{env_id}.png"
-            plot(labelled, path, f"{env_id}: success on its training env, by engine and randomization")
+            plot(labelled, path, f"{env_id}: success on its training env")
             report.note(f"![{env_id}: training curves](../img/transfer/{path.name})")
     report.finish()
 
