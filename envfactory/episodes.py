@@ -62,7 +62,7 @@ def iter_episodes(env, policy, episodes: int, seed: int, on_frame: Callable | No
             if on_frame is not None:
                 on_frame(env.render())
             if on_step is not None:
-                on_step()
+                on_step(info)
             if terminated or truncated or (stop_on_success and success):
                 break
         yield EpisodeResult(index, episode_seed, total, length, success, rejected, abort, first_success)

@@ -25,7 +25,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("envfactory.envs",),  # the gymnasium envs, generic over blueprints and backends
     ("envfactory.factory",),  # ID -> blueprint -> env
     ("envfactory.describe", "envfactory.episodes", "envfactory.safety_view", "envfactory.twin",
-     "envfactory.learn", "envfactory.cluster"),  # tools over envs (cluster: the only wing that imports ray)
+     "envfactory.learn", "envfactory.cluster", "envfactory.sensing_spec"),  # tools over envs (cluster: the only wing that imports ray)
     ("envfactory.cli", "envfactory"),  # the command, and the package's own facade
 ]
 

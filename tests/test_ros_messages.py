@@ -107,13 +107,14 @@ def test_the_follow_watch_waits_for_motion_and_keeps_its_clock_across_commands()
     watch.check(now=10.0)
     watch.commanded(here, here + 0.2, now=10.0)
     watch.commanded(here, here + 0.3, now=10.6)  # a later command does not restart the clock
-    watch.observe(here + 0.001)  # noise is not motion
+    watch.observe(here + 0.001, now=10.8)  # noise is not motion
     with pytest.raises(CommandIgnored, match="did not follow the command on /arm"):
         watch.check(now=11.1)
     watch.clear()
     watch.commanded(here, here + 0.2, now=20.0)
-    watch.observe(here + np.array([0.0, 0.01, 0.0]))  # it moved
+    watch.observe(here + np.array([0.0, 0.01, 0.0]), now=20.25)  # it moved: the command's latency is 0.25 s
     watch.check(now=25.0)
+    assert watch.take_latencies() == [pytest.approx(0.25)] and watch.take_latencies() == []
 
 
 def test_ros2_type_names_match_their_ros1_spelling():

@@ -104,6 +104,10 @@ class Backend(Protocol):
         """Set one randomized physical quantity (events, envfactory/terms/events.py): simulators only; the
         compiler refuses randomization on other backends."""
 
+    def step_timing(self) -> dict[str, float]:
+        """How this step's readings and commands were timed on a real path (reading age, repeats, command
+        latency; recorded in info["timing"]); a simulator has nothing to report: {}."""
+
     def advance(self, seconds: float) -> None:
         """Let `seconds` pass: simulated time in sim, wall time on hardware."""
 

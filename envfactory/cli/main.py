@@ -6,6 +6,7 @@ message and exits 1 (`--debug` shows the traceback instead).
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 from typing import List, Optional
@@ -18,6 +19,7 @@ from typer.core import TyperCommand
 from envfactory.cli.app import (KWARG_HELP, _check_output, _fail, _known, _parse_kwargs, app, command, console,
                                 errors, model_file)
 from envfactory import factory, registry, user_config
+from envfactory.sensing_spec import read_log, sensing_terms, sensing_yaml
 from envfactory.backends.base import BackendError
 from envfactory.cli import learn as _learn_commands  # noqa: F401  (registers its commands)
 from envfactory.cli import scale as _scale_commands  # noqa: F401  (registers its commands)
@@ -245,6 +247,9 @@ def run(
     stop_at_success: bool = typer.Option(
         False, "--stop-at-success", help="End each episode at its first success, even on Dense IDs (which go on to "
                                          "the time limit), so Length reads as time-to-success"),
+    timing_log: Optional[Path] = typer.Option(
+        None, "--timing-log", help="Real IDs: write each step's info['timing'] (joint reading age, repeats, command "
+                                   "latency) as JSON lines, for `envfactory sensing-spec`"),
 ):
     """The main job: run episodes and print a per-episode table.
 
@@ -270,6 +275,13 @@ def run(
     except (SpecError, KeyError, gym.error.Error, BackendError) as exc:
         _fail(str(exc).strip("'\""))
     frames, results, failure = [], [], ""
+    timing = timing_log.open("w") if timing_log is not None else None
+
+    def on_step(info: dict) -> None:
+        progress.advance(task)
+        if timing is not None and "timing" in info:
+            timing.write(json.dumps(info["timing"]) + "\n")
+
     try:
         actor = _bind_model(saved, env, algo) if saved is not None else make_policy(policy, env, seed)
         limit = env.spec.max_episode_steps or 100
@@ -277,7 +289,7 @@ def run(
             task = progress.add_task(f"{env_id} ({policy})", total=episodes * limit)
             # the first reset is the first episode's: a real arm drives home once
             for result in iter_episodes(env, actor, episodes, seed, on_frame=frames.append if video else None,
-                                        on_step=lambda: progress.advance(task), stop_on_success=stop_at_success):
+                                        on_step=on_step, stop_on_success=stop_at_success):
                 results.append(result)
     except KeyboardInterrupt:
         env.close()  # before the message: on a real robot this sends the stop
@@ -288,7 +300,11 @@ def run(
         failure = str(exc)
     finally:
         env.close()
+        if timing is not None:
+            timing.close()
     _print_results(env_id, policy, results, stop_at_success)
+    if timing_log is not None:
+        console.print(f"timing log: {timing_log} (envfactory sensing-spec {timing_log} turns it into sensing terms)")
     if failure:
         _fail(f"the run stopped after {len(results)} of {episodes} episodes: {failure}")
     if video:
@@ -297,6 +313,27 @@ def run(
         fps = env.unwrapped.metadata.get("render_fps", 2)
         imageio.mimsave(video, frames, fps=max(1, int(round(fps))) * 2, macro_block_size=8)
         console.print(f"video: {video} ({len(frames)} frames)")
+
+
+@command("sensing-spec")
+def sensing_spec(
+    log_file: Path = typer.Argument(..., help="A timing log written by `envfactory run REAL_ID --timing-log`"),
+    env_id: str = typer.Option(..., "--id", help="The ID the sensing terms are for: its action cycle sets the step"),
+    cycle_time: Optional[float] = typer.Option(None, "--cycle-time", min=1e-3,
+                                               help="Seconds a step, when the terms are for another action cycle "
+                                                    "than the ID's (its action_cycle_time kwarg)"),
+):
+    """Sensing terms from what the real path measured: a timing log of joint reading ages, repeats and command
+    latencies becomes observation_delay, action_delay and repeated_readings terms in whole steps, printed as a
+    block to paste under task.randomization."""
+    _known(env_id)
+    try:
+        records = read_log(log_file)
+        cycle = cycle_time or factory.blueprint(env_id).spec.env.timing.action_cycle_time
+    except (OSError, ValueError) as exc:
+        _fail(str(exc))
+    terms, facts = sensing_terms(records, cycle)
+    console.print(sensing_yaml(terms, facts, str(log_file)), highlight=False, markup=False, end="")
 
 
 def _saved_policy(path_text: str) -> tuple[Path, dict]:

@@ -268,6 +268,9 @@ class RobotEnv(gym.Env):
         info.update(self.rewards.measure(state))
         if self.randomizer is not None:
             info["randomization"] = dict(self.randomizer.values)
+        timing = self.backend.step_timing()
+        if timing:
+            info["timing"] = timing
         return info
 
     def render(self):

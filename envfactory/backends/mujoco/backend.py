@@ -206,6 +206,9 @@ class MujocoBackend:
         else:
             raise BackendError(f"MuJoCo cannot set {quantity!r} (known: {', '.join(PHYSICS_QUANTITIES)})")
 
+    def step_timing(self) -> dict[str, float]:
+        return {}  # simulated readings are never late
+
     def advance(self, seconds: float) -> None:
         """Simulate `seconds`; in realtime mode, also let that long pass on the wall clock, so that an episode
         takes as long as on the real arm (the engine still simulates the cycle at once: nothing moves between

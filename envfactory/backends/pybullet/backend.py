@@ -277,6 +277,9 @@ class PyBulletBackend:
             if self._fast is not None:
                 self._fast.commanded_arm(here, 0.0)
 
+    def step_timing(self) -> dict[str, float]:
+        return {}  # simulated readings are never late
+
     def advance(self, seconds: float) -> None:
         if self.realtime:
             time.sleep(seconds)

@@ -99,6 +99,7 @@ class RosbridgeBackend:
         self.objects = {name: Feed(ros.object_poses[name].topic, real.cube_pose_timeout_s, self._lock)
                         for name in spec.task.objects}
         self.follow = FollowWatch(ros.arm_command.topic, real.follow_timeout_s)
+        self._reading_age, self._reading_repeated, self._last_stamp = math.nan, False, -math.inf
         self._last_command = 0.0
         self._last_target: np.ndarray | None = None
         self._deadman_armed = False
@@ -142,7 +143,7 @@ class RosbridgeBackend:
             self.joints.fail(f"malformed message on {self.joints.topic}: {exc}")
             return
         self.joints.update(values)
-        self.follow.observe(values[0][self._arm_in_states])
+        self.follow.observe(values[0][self._arm_in_states], time.monotonic())
 
     def _on_pose(self, name: str, msg: dict) -> None:
         feed = self.objects[name]
@@ -338,7 +339,17 @@ class RosbridgeBackend:
 
     def read_joints(self) -> JointReading:
         (position, velocity), stamp = self._fresh(self.joints)
+        self._reading_age, self._reading_repeated = time.monotonic() - stamp, stamp == self._last_stamp
+        self._last_stamp = stamp
         return JointReading(position.copy(), velocity.copy(), stamp)
+
+    def step_timing(self) -> dict[str, float]:
+        """How the last joint reading and the arm commands were timed: the reading's age when read, whether it
+        was the one read before (a reading that did not come in time), and the command latencies measured since
+        the last call (NaN: none this step). `envfactory sensing-spec` turns a log of these into sensing terms."""
+        latencies = self.follow.take_latencies()
+        return {"joint_reading_age_s": float(self._reading_age), "joint_reading_repeated": float(self._reading_repeated),
+                "command_latency_s": float(np.mean(latencies)) if latencies else math.nan}
 
     def read_object(self, name: str) -> ObjectReading:
         (position, quaternion), stamp = self._fresh(self.objects[name])

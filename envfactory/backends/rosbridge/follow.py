@@ -25,6 +25,9 @@ class FollowWatch:
         self._lock = threading.Lock()
         self._since: float | None = None  # when the unanswered command went out
         self._start: np.ndarray | None = None
+        # from a command that asks for motion to the first reading that shows it: the command latency the real
+        # path has (transport both ways and the controller's start), what a sensing spec's action_delay models
+        self.latencies: list[float] = []
 
     def commanded(self, q_now: np.ndarray, q_target: np.ndarray, now: float) -> None:
         """A command went out. The clock starts at the first one that asks for motion and keeps
@@ -35,11 +38,18 @@ class FollowWatch:
             if self._since is None:
                 self._since, self._start = now, np.array(q_now, float)
 
-    def observe(self, q_arm: np.ndarray) -> None:
-        """A joint reading arrived."""
+    def observe(self, q_arm: np.ndarray, now: float) -> None:
+        """A joint reading arrived, at `now`: a first motion since a command times the command's latency."""
         with self._lock:
             if self._start is not None and np.max(np.abs(q_arm - self._start)) >= MIN_MOTION:
+                self.latencies.append(now - self._since)
                 self._since = self._start = None
+
+    def take_latencies(self) -> list[float]:
+        """The command-to-motion times measured since the last call (seconds)."""
+        with self._lock:
+            taken, self.latencies = self.latencies, []
+        return taken
 
     def check(self, now: float) -> None:
         with self._lock:

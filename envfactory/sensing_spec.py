@@ -1,0 +1,76 @@
+"""A sensing spec from what the real path measured: `envfactory run --timing-log` records each step's
+info["timing"] on a Real ID (the joint reading's age, whether it repeated the last one, the command latency),
+and this turns such a log into `task.randomization.sensing` terms, in whole steps of the env's cycle.
+
+A latency is timed from the first command that asks for motion to the first reading that shows it; a command
+sent while the arm still moves from the one before may be credited with that motion and read short, so the
+terms use medians."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+JOINT_OBSERVATIONS = ["joint_positions", "joint_velocities"]  # the observation terms that read /joint_states
+
+
+def read_log(path: Path) -> list[dict[str, float]]:
+    """The timing records of a log (one JSON object per line); ValueError names a line that is not one."""
+    records = []
+    for number, line in enumerate(path.read_text().splitlines(), start=1):
+        if not line.strip():
+            continue
+        try:
+            record = json.loads(line)
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"{path}:{number}: not a JSON timing record ({exc.msg})") from None
+        if not isinstance(record, dict) or "joint_reading_age_s" not in record:
+            raise ValueError(f"{path}:{number}: not a timing record (it lacks joint_reading_age_s)")
+        records.append(record)
+    if not records:
+        raise ValueError(f"{path}: no timing records (write them with `envfactory run REAL_ID --timing-log`)")
+    return records
+
+
+def sensing_terms(records: list[dict[str, float]], cycle_time: float) -> tuple[dict, list[str]]:
+    """The sensing terms the measurements call for, and the measurements themselves, line by line."""
+    ages = np.array([r["joint_reading_age_s"] for r in records], float)
+    repeated = float(np.mean([r.get("joint_reading_repeated", 0.0) for r in records]))
+    latencies = np.array([r["command_latency_s"] for r in records
+                          if r.get("command_latency_s") is not None and math.isfinite(r["command_latency_s"])])
+    facts = [f"{len(records)} steps, cycle {cycle_time:g} s",
+             f"joint reading age: median {np.median(ages):.3f} s, 90th percentile {np.percentile(ages, 90):.3f} s",
+             f"joint reading repeated the step before's: {repeated:.1%} of steps"]
+    terms: dict[str, dict] = {}
+    age_steps = round(float(np.median(ages)) / cycle_time)
+    if age_steps >= 1:
+        terms["late_observation"] = {"term": "observation_delay", "params": {"steps": min(age_steps, 10)}}
+    if latencies.size:
+        median = float(np.median(latencies))
+        facts.append(f"command latency: median {median:.3f} s over {latencies.size} commands")
+        latency_steps = round(median / cycle_time)
+        if latency_steps >= 1:
+            terms["late_action"] = {"term": "action_delay", "params": {"steps": min(latency_steps, 10)}}
+    else:
+        facts.append("command latency: no command that asked for motion was seen to start")
+    if repeated > 0:
+        terms["dropped_readings"] = {"term": "repeated_readings",
+                                     "params": {"observations": JOINT_OBSERVATIONS,
+                                                "probability": round(min(repeated, 0.99), 3)}}
+    return terms, facts
+
+
+def sensing_yaml(terms: dict, facts: list[str], source: str) -> str:
+    """The terms as a block to paste under `task.randomization:` in a task or family spec."""
+    lines = [f"# measured on the real path ({source}):"] + [f"#   {fact}" for fact in facts]
+    if not terms:
+        lines.append("# every delay rounds to zero steps and no reading repeated: no sensing term is called for")
+        return "\n".join(lines + ["sensing: {}"]) + "\n"
+    lines.append("sensing:")
+    for name, term in terms.items():
+        params = ", ".join(f"{key}: {json.dumps(value)}" for key, value in term["params"].items())
+        lines.append(f"  {name}: {{term: {term['term']}, params: {{{params}}}}}")
+    return "\n".join(lines) + "\n"
