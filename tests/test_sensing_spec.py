@@ -64,3 +64,9 @@ def test_a_twin_that_answers_late_gives_an_action_delay(twin, make, tmp_path):
 def test_a_sim_id_reports_no_timing(make):
     info = make("UR5eReacherSim-v0").reset(seed=0)[1]
     assert "timing" not in info
+
+
+def test_a_timing_log_of_a_sim_id_is_refused(tmp_path):
+    result = CliRunner().invoke(app, ["run", "UR5eReacherSim-v0", "-n", "1", "--timing-log", str(tmp_path / "t.jsonl")])
+    assert result.exit_code != 0 and "use a Real ID" in result.output
+    assert not (tmp_path / "t.jsonl").exists()

@@ -275,7 +275,15 @@ def run(
     except (SpecError, KeyError, gym.error.Error, BackendError) as exc:
         _fail(str(exc).strip("'\""))
     frames, results, failure = [], [], ""
-    timing = timing_log.open("w") if timing_log is not None else None
+    if timing_log is not None and env.unwrapped.blueprint.backend != "rosbridge":
+        env.close()
+        _fail(f"--timing-log records a real path's timing; {env_id} is simulated (its readings are never late): "
+              f"use a Real ID")
+    try:
+        timing = timing_log.open("w") if timing_log is not None else None
+    except OSError as exc:
+        env.close()
+        _fail(f"--timing-log {timing_log}: {exc.strerror}")
 
     def on_step(info: dict) -> None:
         progress.advance(task)

@@ -57,12 +57,13 @@ class Randomizer:
             observation = sensor.observe(observation)
         return observation
 
-    def after_step(self) -> None:
-        """A step passed: the interval events that are due are sampled and set, for the next step to meet."""
-        self._steps += 1
+    def before_step(self) -> None:
+        """A step begins: the interval events due after the steps so far are sampled and set, so the values a
+        step's info records are the ones that acted in it."""
         for slot, every in zip(self.events, self._every):
-            if every is not None and self._steps % every == 0:
+            if every is not None and self._steps > 0 and self._steps % every == 0:
                 self._apply(slot)
+        self._steps += 1
 
     def _apply(self, slot: EventSlot) -> None:
         change = slot.term.fn(self._events_rng, slot.bound)

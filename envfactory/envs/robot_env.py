@@ -200,6 +200,7 @@ class RobotEnv(gym.Env):
         state = self._state
         action = self._checked_action(action)
         if self.randomizer is not None:
+            self.randomizer.before_step()
             action = self.randomizer.act(action)  # a delayed action is judged and played when it lands
         command = self.actions.translate(action, state)
         rejection = command.rejection
@@ -220,8 +221,6 @@ class RobotEnv(gym.Env):
                     self.backend.command_gripper(command.gripper)
             self.backend.advance(self._timing.action_cycle_time)
             self._state = self._read_state(previous)
-            if self.randomizer is not None:
-                self.randomizer.after_step()
         except EpisodeAbort as exc:
             # stale or malformed readings, an arm that does not follow: the backend stopped it; the episode ends
             log.warning("%s: episode aborted: %s", self.blueprint.env_id, exc)

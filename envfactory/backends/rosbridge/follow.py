@@ -42,7 +42,8 @@ class FollowWatch:
         """A joint reading arrived, at `now`: a first motion since a command times the command's latency."""
         with self._lock:
             if self._start is not None and np.max(np.abs(q_arm - self._start)) >= MIN_MOTION:
-                self.latencies.append(now - self._since)
+                if now > self._since:  # a reading taken before the command went out times nothing
+                    self.latencies.append(now - self._since)
                 self._since = self._start = None
 
     def take_latencies(self) -> list[float]:
