@@ -263,6 +263,12 @@ def test_a_declaration_left_off_that_does_not_fit_the_task_is_inert():
     assert "cube_noise" in [slot.name for slot in blueprint.sensing]
 
 
+def test_a_goal_env_names_why_a_goal_dependent_column_cannot_be_sensed():
+    overrides = [ON, "task.randomization.sensing.joint_noise.params.observations=[goal_direction]"]
+    assert "depend on the goal" in _refusal("VX300SPushGoalSim-v0", overrides)
+    envfactory.blueprint(PUSH, overrides)  # the Box env has the column: nothing to refuse
+
+
 def test_randomization_is_refused_on_a_real_id():
     message = _refusal("VX300SPushReal-v0", [], randomize=True)
     assert "task.randomization.enabled" in message and "rosbridge" in message

@@ -12,7 +12,7 @@ import numpy as np
 from pydantic import Field
 
 from envfactory.schema.numbers import NonNegative
-from envfactory.terms.library import Layout, TermParams, UnknownReference, sensing_term
+from envfactory.terms.library import OBSERVATIONS, Layout, TermParams, UnknownReference, sensing_term
 
 MAX_DELAY_STEPS = 10  # beyond this a policy acting on the observation would be playing a different game
 
@@ -42,6 +42,10 @@ def _columns(layout: Layout, params: Columns) -> np.ndarray:
         return np.arange(sum(slot.size for slot in slots))
     known = [slot.name for slot in slots]
     unknown = [name for name in params.observations if name not in known]
+    goal_dependent = [name for name in unknown if name in OBSERVATIONS and OBSERVATIONS[name].goal_dependent]
+    if goal_dependent:
+        raise UnknownReference(f"observations {goal_dependent} depend on the goal: a goal env leaves them out of its "
+                               f"'observation' (the goal is in desired_goal), so no sensor can read them there")
     if unknown:
         raise UnknownReference(f"observations {unknown} are not in this task's observation (it has {known})")
     return np.concatenate([np.arange(slot.start, slot.stop) for slot in slots if slot.name in params.observations])
