@@ -109,31 +109,20 @@ def _bind_gripper_force(layout: Layout, params: Sampled) -> SampledQuantity:
     return _resolve(params, "gripper_force", "", gripper.force, "N", (1e-3, 10 * gripper.force))
 
 
-@event_term(params=ObjectSampled, bind=_bind_object_mass, unit="kg")
-def object_mass(rng: np.random.Generator, bound: SampledQuantity) -> PhysicsChange:
-    """The object's mass (its inertia scales with it)."""
-    return bound.sample(rng)
+def _register(name: str, params: type[Sampled], bind, unit: str, doc: str) -> None:
+    """One event term: every shipped one draws its bound quantity; they differ in what they bind and say."""
+
+    def draw(rng: np.random.Generator, bound: SampledQuantity) -> PhysicsChange:
+        return bound.sample(rng)
+
+    draw.__name__, draw.__qualname__, draw.__doc__ = name, name, doc
+    event_term(name=name, params=params, bind=bind, unit=unit)(draw)
 
 
-@event_term(params=ObjectSampled, bind=_bind_object_friction, unit="")
-def object_friction(rng: np.random.Generator, bound: SampledQuantity) -> PhysicsChange:
-    """The object's lateral friction coefficient (a contact rubs with the product of both surfaces')."""
-    return bound.sample(rng)
-
-
-@event_term(params=Sampled, bind=_bind_table_friction, unit="")
-def table_friction(rng: np.random.Generator, bound: SampledQuantity) -> PhysicsChange:
-    """The table's lateral friction coefficient (a range only: the specs give the table none to scale)."""
-    return bound.sample(rng)
-
-
-@event_term(params=Sampled, bind=_bind_arm_damping, unit="N m s/rad")
-def arm_damping(rng: np.random.Generator, bound: SampledQuantity) -> PhysicsChange:
-    """Viscous damping of every arm joint (a range only)."""
-    return bound.sample(rng)
-
-
-@event_term(params=Sampled, bind=_bind_gripper_force, unit="N")
-def gripper_force(rng: np.random.Generator, bound: SampledQuantity) -> PhysicsChange:
-    """The gripper drive's force limit."""
-    return bound.sample(rng)
+_register("object_mass", ObjectSampled, _bind_object_mass, "kg", "The object's mass (its inertia scales with it).")
+_register("object_friction", ObjectSampled, _bind_object_friction, "",
+          "The object's lateral friction coefficient (a contact rubs with the product of both surfaces').")
+_register("table_friction", Sampled, _bind_table_friction, "",
+          "The table's lateral friction coefficient (a range only: the specs give the table none to scale).")
+_register("arm_damping", Sampled, _bind_arm_damping, "N m s/rad", "Viscous damping of every arm joint (a range only).")
+_register("gripper_force", Sampled, _bind_gripper_force, "N", "The gripper drive's force limit.")
