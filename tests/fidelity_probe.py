@@ -103,6 +103,9 @@ class _BulletSnapshot:
         p.removeState(state, physicsClientId=self.backend.client)
 
     def play_full(self, advance, seconds: float) -> None:
+        # the fast player programs the arm's motors when a cycle first steps the physics: the reference,
+        # which steps every cycle, gives them the command first (the motors' targets survive restoreState)
+        self.backend.program_pending_arm()
         self.backend._fast = None
         try:
             advance(seconds)

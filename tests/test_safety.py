@@ -81,6 +81,42 @@ def test_capsule_bounds_never_exceed_coal(env):
         assert np.all(collision.bounds() <= collision.all_exact() + 1e-9)
 
 
+def test_capsule_halving_proves_only_pairs_that_keep_their_threshold(env):
+    """The compiled capsule pass over a motion: every pair it calls proven keeps its threshold at 129 evenly
+    spaced poses of the motion, by coal's exact clearance (the shapes, not the capsules); pairs whose ends
+    coal already puts inside the threshold are never called proven; and the pass does prove pairs the two
+    end bounds alone leave in doubt (it has work to do on these motions)."""
+    collision, kin, check = env.safety.collision, env.kinematics, env.safety
+    gripper = kin.robot.gripper
+    rng = np.random.default_rng(12)
+    proven_total = doubted_total = 0
+    for _ in range(60):
+        q_from = rng.uniform(kin.arm_lower, kin.arm_upper)
+        q_to = np.clip(q_from + rng.uniform(-0.3, 0.3, q_from.size), kin.arm_lower, kin.arm_upper)
+        value = rng.uniform(gripper.low, gripper.high)
+        travel = collision.pair_lever[:, :q_from.size] @ np.abs(q_to - q_from)
+        threshold = check.margin
+        no_reserve = np.zeros(collision.pair_count)
+        collision.pose(q_from, value)
+        start = collision.bounds()
+        collision.pose(q_to, value)
+        end = collision.bounds()
+        doubted = np.flatnonzero(start + end - travel < 2 * threshold)
+        left = collision.unproven_by_capsules(q_from, q_to - q_from, value, doubted, start, end, travel, no_reserve,
+                                              threshold, 4)
+        proven = np.setdiff1d(doubted, left)
+        proven_total += proven.size
+        doubted_total += doubted.size
+        if not proven.size:
+            continue
+        for fraction in np.linspace(0.0, 1.0, 129):
+            collision.pose(q_from + fraction * (q_to - q_from), value)
+            exact = collision.exact(proven)
+            assert np.all(exact >= threshold[proven] - 1e-9), [collision.pair_names(int(k)) for k in
+                                                               proven[exact < threshold[proven]]]
+    assert proven_total > 0.2 * doubted_total, (proven_total, doubted_total)
+
+
 def test_levers_bound_every_shape_move_by_bullet(env):
     """No point of any link moves farther than lever · |Δ coordinates|: judged on Bullet's link AABBs,
     whose corners move with the links' collision shapes."""

@@ -194,13 +194,19 @@ def capsule_sphere_gaps(ends, radius, centers, radii, out):
     """(capsules, spheres) gaps between capsules (ends: capsules x 2 x 3) and spheres, negative when they
     overlap: a lower bound on the gap between anything inside them."""
     for c in range(ends.shape[0]):
-        ax, ay, az = ends[c, 1, 0] - ends[c, 0, 0], ends[c, 1, 1] - ends[c, 0, 1], ends[c, 1, 2] - ends[c, 0, 2]
-        length2 = max(ax * ax + ay * ay + az * az, 1e-12)
         for s in range(centers.shape[0]):
-            ox, oy, oz = centers[s, 0] - ends[c, 0, 0], centers[s, 1] - ends[c, 0, 1], centers[s, 2] - ends[c, 0, 2]
-            t = min(max((ox * ax + oy * ay + oz * az) / length2, 0.0), 1.0)
-            nx, ny, nz = ox - t * ax, oy - t * ay, oz - t * az
-            out[c, s] = np.sqrt(nx * nx + ny * ny + nz * nz) - radius[c] - radii[s]
+            out[c, s] = _segment_point_distance(ends, c, centers[s]) - radius[c] - radii[s]
+
+
+@njit(cache=True, inline="always")
+def _segment_point_distance(ends, c, point):
+    """Distance from a point to the segment of capsule c (ends: capsules x 2 x 3)."""
+    ax, ay, az = ends[c, 1, 0] - ends[c, 0, 0], ends[c, 1, 1] - ends[c, 0, 1], ends[c, 1, 2] - ends[c, 0, 2]
+    length2 = max(ax * ax + ay * ay + az * az, 1e-12)
+    ox, oy, oz = point[0] - ends[c, 0, 0], point[1] - ends[c, 0, 1], point[2] - ends[c, 0, 2]
+    t = min(max((ox * ax + oy * ay + oz * az) / length2, 0.0), 1.0)
+    nx, ny, nz = ox - t * ax, oy - t * ay, oz - t * az
+    return np.sqrt(nx * nx + ny * ny + nz * nz)
 
 
 @njit(cache=True)
@@ -261,3 +267,156 @@ def swept_box_gaps(frames, mount_joint, sweep_corners, first, last, rows, obstac
                     lowest, highest = min(lowest, value), max(highest, value)
                 apart = max(apart, lowest - box_high, box_low - highest)
         out[p] = apart
+
+
+@njit(cache=True)
+def _pair_bound(frames, ends, pair, shape_joint, local_corners, radius, padding, moving, obstacle_low, obstacle_high,
+                self_a, self_b):
+    """capsule_bounds' bound for one pair (its numbering: moving shape x obstacle, then the self pairs)."""
+    obstacles = obstacle_low.shape[0]
+    scene = moving.shape[0] * obstacles
+    if pair >= scene:
+        a, b = self_a[pair - scene], self_b[pair - scene]
+        bound = _segment_distance(ends, a, b) - radius[a] - radius[b]
+        return bound if bound >= 0.0 else NO_BOUND
+    shape, o = moving[pair // obstacles], pair % obstacles
+    frame = frames[shape_joint[shape]]
+    capsule_apart, box_apart = -np.inf, -np.inf
+    for k in range(3):
+        low = min(ends[shape, 0, k], ends[shape, 1, k])
+        high = max(ends[shape, 0, k], ends[shape, 1, k])
+        capsule_apart = max(capsule_apart, low - obstacle_high[o, k], obstacle_low[o, k] - high)
+        corner_low, corner_high = np.inf, -np.inf
+        for corner in range(8):
+            value = _placed(frame, local_corners[shape, corner, 0], local_corners[shape, corner, 1],
+                            local_corners[shape, corner, 2], k)
+            corner_low, corner_high = min(corner_low, value), max(corner_high, value)
+        box_apart = max(box_apart, corner_low - obstacle_high[o, k], obstacle_low[o, k] - corner_high)
+    bound = max(capsule_apart - radius[shape], box_apart - padding[shape])
+    return bound if bound >= 0.0 else NO_BOUND
+
+
+@njit(cache=True)
+def capsule_motion_unproven(coordinates, q_from, way, pairs, start_bound, end_bound, travel, reserve, threshold,
+                            levels, parent, placement, kind, axis, coordinate, gain, shape_joint, local_ends,
+                            local_corners, radius, padding, moving, obstacle_low, obstacle_high, self_a, self_b,
+                            unproven):
+    """The lever-bound bisection of a straight arm motion on capsule bounds alone, for these pairs: each level
+    halves every piece and poses the arm once at each new point (the gripper where `coordinates` holds it).
+    A pair is proven once every piece's two end bounds less the piece's travel keep twice its threshold;
+    unproven[i] says pairs[i] was not, after `levels` halvings (or at once, where capsules overlap)."""
+    count = pairs.shape[0]
+    points = 2 ** levels + 1
+    grid = np.empty((count, points))
+    active = np.empty(count, dtype=np.bool_)  # still worth halving: unproven, no overlap met
+    alive = 0
+    for i in range(count):
+        pair = pairs[i]
+        grid[i, 0], grid[i, points - 1] = start_bound[pair], end_bound[pair]
+        unproven[i] = True
+        active[i] = grid[i, 0] > NO_BOUND and grid[i, points - 1] > NO_BOUND
+        alive += active[i]
+    frames = np.empty((parent.shape[0], 3, 4))
+    ends = np.empty((shape_joint.shape[0], 2, 3))
+    arm = q_from.shape[0]
+    for level in range(1, levels + 1):
+        if alive == 0:
+            break
+        spacing = 2 ** (levels - level)
+        for k in range(1, 2 ** level, 2):
+            fraction = k / 2 ** level
+            for j in range(arm):
+                coordinates[j] = q_from[j] + fraction * way[j]
+            joint_frames(coordinates, parent, placement, kind, axis, coordinate, gain, frames)
+            capsule_ends(frames, shape_joint, local_ends, ends)
+            for i in range(count):
+                if active[i]:
+                    pair = pairs[i]
+                    grid[i, k * spacing] = _pair_bound(frames, ends, pair, shape_joint, local_corners, radius,
+                                                       padding, moving, obstacle_low, obstacle_high, self_a,
+                                                       self_b) - reserve[pair]
+        length = 1.0 / 2 ** level
+        for i in range(count):
+            if not active[i]:
+                continue
+            pair = pairs[i]
+            proven = True
+            for piece in range(2 ** level):
+                a, b = grid[i, piece * spacing], grid[i, (piece + 1) * spacing]
+                if a == NO_BOUND or b == NO_BOUND:  # overlapping capsules: no halving can prove it
+                    active[i] = False
+                    proven = False
+                    break
+                if a + b - travel[pair] * length < 2.0 * threshold[pair]:
+                    proven = False
+            if proven:
+                unproven[i] = False
+                active[i] = False
+            if not active[i]:
+                alive -= 1
+
+
+@njit(cache=True)
+def _sphere_gaps_at(fraction, coordinates, q_from, way, parent, placement, kind, axis, coordinate, gain, shape_joint,
+                    local_ends, moving, radius, reserve, centers, radii, frames, ends, out):
+    """out[m, s]: the gap of moving shape m's capsule from sphere s, less the shape's reserve, with the arm
+    `fraction` of the way along the motion."""
+    for j in range(q_from.shape[0]):
+        coordinates[j] = q_from[j] + fraction * way[j]
+    joint_frames(coordinates, parent, placement, kind, axis, coordinate, gain, frames)
+    capsule_ends(frames, shape_joint, local_ends, ends)
+    for m in range(moving.shape[0]):
+        shape = moving[m]
+        for s in range(centers.shape[0]):
+            out[m, s] = _segment_point_distance(ends, shape, centers[s]) - radius[shape] - radii[s] - reserve[m]
+
+
+@njit(cache=True)
+def motion_clear_of_spheres(coordinates, q_from, way, parent, placement, kind, axis, coordinate, gain, shape_joint,
+                            local_ends, moving, radius, reserve, travel, centers, radii, margin, levels):
+    """Whether every moving shape's capsule stays `margin` from every sphere along the straight arm motion
+    q_from + f way (the gripper where `coordinates` holds it): the lever bound on pieces halved where their
+    two end gaps cannot prove it, down to 2**-levels of the motion, refused at any pose measured inside."""
+    points = 2 ** levels + 1
+    grid = np.empty((points, moving.shape[0], centers.shape[0]))
+    frames = np.empty((parent.shape[0], 3, 4))
+    ends = np.empty((shape_joint.shape[0], 2, 3))
+    _sphere_gaps_at(0.0, coordinates, q_from, way, parent, placement, kind, axis, coordinate, gain, shape_joint,
+                    local_ends, moving, radius, reserve, centers, radii, frames, ends, grid[0])
+    clear = True
+    for m in range(moving.shape[0]):
+        for s in range(centers.shape[0]):
+            if grid[0, m, s] - travel[m] < margin:
+                clear = False
+    if clear:
+        return True
+    last = points - 1
+    _sphere_gaps_at(1.0, coordinates, q_from, way, parent, placement, kind, axis, coordinate, gain, shape_joint,
+                    local_ends, moving, radius, reserve, centers, radii, frames, ends, grid[last])
+    stack = np.empty((2 * points, 2), dtype=np.int64)
+    stack[0, 0], stack[0, 1] = 0, last
+    top = 1
+    while top > 0:
+        top -= 1
+        a, b = stack[top, 0], stack[top, 1]
+        length = (b - a) / last
+        proven = True
+        for m in range(moving.shape[0]):
+            for s in range(centers.shape[0]):
+                if grid[a, m, s] + grid[b, m, s] - travel[m] * length < 2.0 * margin:
+                    proven = False
+        if proven:
+            continue
+        if b - a == 1:
+            return False
+        middle = (a + b) // 2
+        _sphere_gaps_at(middle / last, coordinates, q_from, way, parent, placement, kind, axis, coordinate, gain,
+                        shape_joint, local_ends, moving, radius, reserve, centers, radii, frames, ends, grid[middle])
+        for m in range(moving.shape[0]):
+            for s in range(centers.shape[0]):
+                if grid[middle, m, s] < margin:
+                    return False
+        stack[top, 0], stack[top, 1] = a, middle
+        stack[top + 1, 0], stack[top + 1, 1] = middle, b
+        top += 2
+    return True

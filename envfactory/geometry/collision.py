@@ -470,6 +470,31 @@ class CollisionModel:
                                       self.obstacle_high, self.self_a, self.self_b, out)
         return out
 
+    def unproven_by_capsules(self, q_from: np.ndarray, way: np.ndarray, gripper: float, pairs: np.ndarray,
+                             start_bound: np.ndarray, end_bound: np.ndarray, travel: np.ndarray,
+                             reserve: np.ndarray, threshold: np.ndarray, levels: int) -> np.ndarray:
+        """Of these pairs, those the capsule bounds cannot prove clear along the straight arm motion q_from +
+        f way (gripper fixed at `gripper`, less each pair's reserve), halving its pieces up to `levels` times
+        (capsule_kernel.capsule_motion_unproven). Leaves the model posed nowhere in particular."""
+        coordinates = self._coordinates
+        if self.coordinates > len(q_from):
+            coordinates[len(q_from)] = gripper
+        unproven = np.empty(len(pairs), dtype=np.bool_)
+        joints = self._joints
+        capsule_kernel.capsule_motion_unproven(coordinates, q_from, way, pairs, start_bound, end_bound, travel, reserve,
+                                               threshold, levels, joints.parent, joints.placement, joints.kind,
+                                               joints.axis, joints.coordinate, joints.gain, self._shape_joint,
+                                               self._local_ends, self._local_corners, self.radius, self.padding,
+                                               self.moving_shapes, self.obstacle_low, self.obstacle_high, self.self_a,
+                                               self.self_b, unproven)
+        self.forget_pose()
+        return pairs[unproven]
+
+    def forget_pose(self) -> None:
+        """A compiled pass posed the coordinates along a motion: the frames and placements no longer match any
+        pose() call, and pose() must come before the next measure."""
+        self._frames_current = self._pinocchio_current = False
+
     def _place_geometry(self) -> None:
         if not self._pinocchio_current:
             arm = len(self.kinematics.robot.arm_joints)

@@ -269,6 +269,10 @@ class MujocoBackend:
         servo is kp (q_ref - q) + kv (qdot_ref - qdot); the profile's acceleration times the arm's inertia fed
         forward, as a trajectory controller does), then MuJoCo plays them all in one call."""
         model, data, handles = self.model, self.data, self.handles
+        start = self._sim_time + self.dt * (first + 1)
+        if all(profile is None or start >= profile.t0 + profile.length for profile in (self._arm, self._gripper)):
+            self._hold_substeps(steps)
+            return
         times = self._sim_time + self.dt * np.arange(first + 1, first + steps + 1)
         controls = self._controls
         if controls.shape[0] < steps:
@@ -286,12 +290,30 @@ class MujocoBackend:
         if self._gripper is not None:
             controls[:, handles.gripper_actuator] = self._gripper.at(times)[0][:, 0]
         mujoco.mj_getState(model, data, self._state, STATE)
+        # the solver's warm start is no part of the state: carried across, so that the rollout and the substeps
+        # stepped in place continue one another as one run of substeps would
+        self._scratch.qacc_warmstart[:] = data.qacc_warmstart
         if self._states.shape[1] != steps:
             self._states = np.zeros((1, steps, self._state.size))
         self._rollout.rollout([model], [self._scratch], self._state[None], np.ascontiguousarray(controls[None]),
                               control_spec=CONTROL, skip_checks=True, nstep=steps, state=self._states)
         mujoco.mj_setState(model, data, self._states[0, -1], STATE)
+        data.qacc_warmstart[:] = self._scratch.qacc_warmstart
         data.ctrl[:] = controls[-1, :model.nu]
+
+    def _hold_substeps(self, steps: int) -> None:
+        """Substeps after every profile has ended: the servos hold the profiles' ends and nothing is fed forward,
+        so each substep's controls are the same and MuJoCo steps in place (the rest test's small chunks would
+        cost more in laying out and copying a rollout's controls and states than in the substeps themselves)."""
+        model, data, handles = self.model, self.data, self.handles
+        if self._arm is not None:
+            data.ctrl[handles.arm_actuators] = self._arm.end  # the profile's velocity is zero: no lead
+        if self._gripper is not None:
+            data.ctrl[handles.gripper_actuator] = self._gripper.end[0]
+        data.qfrc_applied[:] = 0.0
+        step = mujoco.mj_step
+        for _ in range(steps):
+            step(model, data)
 
     def _at_rest(self) -> bool:
         """Whether a cycle would change nothing: every body at rest and every command already reached."""

@@ -59,6 +59,7 @@ class PyBulletBackend:
             p.disconnect(self.client)
             raise
         self._fast: FastCycles | None = None  # sim.fidelity fast, once attach_geometry gives the shapes
+        self._pending_arm: tuple[np.ndarray, float] | None = None  # a command the arm's motors do not have yet
         self._object_radii: dict[int, float] = {}
         self._thread = None
         if self.realtime:
@@ -125,7 +126,7 @@ class PyBulletBackend:
         if self.spec.sim.fidelity != "fast" or self.realtime:
             return
         rig = Rig(self.client, self.body, self._arm, np.asarray(self._velocities, float), self._gripper, self.dt,
-                  self._set_joint_state)
+                  self._set_joint_state, self.program_pending_arm)
         response = None
         if self._gripper is not None:
             gripper = self.robot.gripper
@@ -176,6 +177,7 @@ class PyBulletBackend:
             self._drive_gripper(self.robot.gripper.open if gripper is None else gripper)
 
     def _hold_arm(self, q_arm) -> None:
+        self._pending_arm = None  # superseded
         p.setJointMotorControlArray(self.body, self._arm, p.POSITION_CONTROL, targetPositions=list(q_arm),
                                     forces=self._efforts, positionGains=[self._position_gain] * len(self._arm),
                                     physicsClientId=self.client)
@@ -245,18 +247,32 @@ class PyBulletBackend:
         # One call per joint: setJointMotorControlArray takes no speed limit, and
         # setJointMotorControlMultiDofArray's maxVelocities do not reach 1-DoF motors
         # (measured: the arm then moves at its full speed).
-        c = self.client
         with self._lock:
-            current = np.array([s[0] for s in p.getJointStates(self.body, self._arm, physicsClientId=c)])
-            travel = np.abs(np.asarray(q_arm_target, float) - current)
-            length = max(duration, float(np.max(travel / np.asarray(self._velocities, float))))
-            for joint, target, distance, effort in zip(self._arm, q_arm_target, travel, self._efforts):
-                speed = max(distance / length, 1e-3)
-                p.setJointMotorControl2(self.body, joint, p.POSITION_CONTROL, targetPosition=float(target),
-                                        force=effort, maxVelocity=speed, positionGain=self._position_gain,
-                                        physicsClientId=c)
-            if self._fast is not None:
-                self._fast.commanded_arm(q_arm_target, duration)
+            if self._fast is None:
+                self._program_arm(q_arm_target, duration)
+                return
+            # The fast fidelity plays most cycles without a substep, and a motor's target matters only to
+            # substeps: the motors are programmed when a cycle first steps the physics (program_pending_arm).
+            self._pending_arm = (np.asarray(q_arm_target, float), duration)
+            self._fast.commanded_arm(q_arm_target, duration)
+
+    def _program_arm(self, q_arm_target, duration: float) -> None:
+        c = self.client
+        current = np.array([s[0] for s in p.getJointStates(self.body, self._arm, physicsClientId=c)])
+        travel = np.abs(np.asarray(q_arm_target, float) - current)
+        length = max(duration, float(np.max(travel / np.asarray(self._velocities, float))))
+        for joint, target, distance, effort in zip(self._arm, q_arm_target, travel, self._efforts):
+            speed = max(distance / length, 1e-3)
+            p.setJointMotorControl2(self.body, joint, p.POSITION_CONTROL, targetPosition=float(target),
+                                    force=effort, maxVelocity=speed, positionGain=self._position_gain,
+                                    physicsClientId=c)
+
+    def program_pending_arm(self) -> None:
+        """Program the arm's motors for the last command, if they do not have it yet (before any substep)."""
+        if self._pending_arm is not None:
+            target, duration = self._pending_arm
+            self._pending_arm = None
+            self._program_arm(target, duration)
 
     def command_gripper(self, value: float) -> None:
         if self._gripper is None:

@@ -22,6 +22,7 @@ therefore played one of three ways:
 
 from __future__ import annotations
 
+import bisect
 from dataclasses import dataclass
 from typing import Callable
 
@@ -53,6 +54,9 @@ class GripperResponse:
 
     def __init__(self, closing: np.ndarray, opening: np.ndarray, dt: float):
         self.curves = {1.0: closing, -1.0: opening}  # error to target per substep, decreasing
+        # the same as plain lists, read a substep at a time (numpy's scalar calls would cost more than the reading)
+        self._lists = {direction: (curve.tolist(), (-np.diff(curve)).tolist(), (-curve).tolist())
+                       for direction, curve in self.curves.items()}
         self.dt = dt
 
     def advance(self, value: float, target: float, substeps: int) -> tuple[float, float] | None:
@@ -60,18 +64,40 @@ class GripperResponse:
         error = target - value
         if abs(error) < 1e-9:
             return target, 0.0
-        direction = float(np.sign(error))
-        curve = self.curves[direction]
+        direction = 1.0 if error > 0 else -1.0
+        curve, rates, rising = self._lists[direction]
         if abs(error) > curve[0] + 1e-6:
             return None
         # the substep (fractional) at which the recorded response is this far from its target
-        start = float(np.interp(-abs(error), -curve, np.arange(curve.size)))
+        start = _at_value(rising, -abs(error))
         end = start + substeps
-        if end >= curve.size - 1:
+        if end >= len(curve) - 1:
             return target - direction * curve[-1], 0.0
-        remaining = float(np.interp(end, np.arange(curve.size), curve))
-        speed = float(np.interp(end, np.arange(curve.size - 1) + 0.5, -np.diff(curve))) / self.dt
+        remaining = _at_index(curve, end)
+        speed = _at_index(rates, end - 0.5) / self.dt  # each rate belongs to the middle of its substep
         return target - direction * remaining, direction * speed
+
+
+def _at_index(values: list[float], index: float) -> float:
+    """values read at a fractional index, linearly between neighbours and held at both ends."""
+    if index <= 0.0:
+        return values[0]
+    whole = int(index)
+    if whole >= len(values) - 1:
+        return values[-1]
+    share = index - whole
+    return values[whole] + share * (values[whole + 1] - values[whole])
+
+
+def _at_value(rising: list[float], value: float) -> float:
+    """The fractional index at which a non-decreasing list reaches `value`, linearly between neighbours."""
+    after = bisect.bisect_left(rising, value)
+    if after == 0:
+        return 0.0
+    if after >= len(rising):
+        return float(len(rising) - 1)
+    low, high = rising[after - 1], rising[after]
+    return after - 1 + ((value - low) / (high - low) if high > low else 1.0)
 
 
 def record_gripper_response(client: int, body: int, joint: int, open_value: float, closed_value: float,
@@ -112,6 +138,7 @@ class Rig:
     gripper: int | None
     dt: float
     set_joints: Callable[[np.ndarray, float | None, float], None]
+    program_motors: Callable[[], None]  # gives the arm's motors the last command: called before any substep
 
 
 class FastCycles:
@@ -156,6 +183,8 @@ class FastCycles:
         if plan is None:
             return self._play_dynamic(substeps, objects)
         done = 0
+        if not self.objects_at_rest:
+            self.rig.program_motors()
         while not self.objects_at_rest:
             # objects not yet seen resting (fresh from a reset, sinking into their contact): a few
             # substeps tell, with the arm on its way along the path proven clear
@@ -200,6 +229,7 @@ class FastCycles:
 
     def _play_dynamic(self, substeps: int, objects, done: int = 0) -> int:
         rig = self.rig
+        rig.program_motors()
         self.counts.dynamic += 1
         step, c = p.stepSimulation, rig.client
         # the commanded motion is over after action_speed; the gripper may run on, the rest test sees it
