@@ -14,8 +14,9 @@ the median of the per-round ratios.
 Per env: steps/s of env.step (the policy's own time left out), the ratio to
 panda-gym's env of the same task in the same run, µs per step inside
 PyBullet's stepSimulation and outside it, substeps per step, simulated
-seconds per wall second, reset / gym.make / import times and the process's
-peak memory. Random actions are action_space.sample() at full scale; the
+seconds per wall second, reset time, the first 5 steps' time (a process's
+first steps load the compiled kernels: kept out of the timed steps),
+gym.make / import times and the process's peak memory. Random actions are action_space.sample() at full scale; the
 scripted experts are envfactory's own and, for panda-gym, a proportional
 controller of the same stages (reach; push from behind; pick and place).
 With --engines, each envfactory ID runs on each engine named (a row per
@@ -37,6 +38,8 @@ import time
 
 from report import Report, add_markdown_option
 
+# untimed steps after the resets, before the timed ones (random actions, then the measured episode's reset)
+WARM_UP_STEPS = 5
 PANDA_TWIN = {"Reacher": "PandaReach-v3", "Push": "PandaPush-v3", "PnP": "PandaPickAndPlace-v3"}
 ENVFACTORY_IDS = ["UR5eReacherSim-v0", "UR5ePushSim-v0", "UR5ePnPSim-v0",
                   "VX300SReacherSim-v0", "VX300SPushSim-v0", "VX300SPnPSim-v0"]
@@ -209,6 +212,13 @@ def work(env_id: str, steps: int, policy: str, seed: int, kwargs: dict) -> dict:
         env.reset(seed=seed * 100 + i)
         resets.append(time.perf_counter() - t)
 
+    # The first steps of a process load the compiled kernels (numba's cache) and warm PyBullet's and MuJoCo's
+    # caches: a one-time cost, reported on its own ("first steps ms") and kept out of the steady-state steps/s.
+    t = time.perf_counter()
+    for _ in range(WARM_UP_STEPS):
+        env.step(env.action_space.sample())
+    first_steps_s = time.perf_counter() - t
+
     clock = PhysicsClock()
     act, restart = _policy(env, env_id, policy, seed)
     observation, _ = env.reset(seed=seed)
@@ -248,6 +258,7 @@ def work(env_id: str, steps: int, policy: str, seed: int, kwargs: dict) -> dict:
         "substeps": calls / steps,
         "sim_s_per_wall_s": cycle / per_step,
         "reset_ms": 1e3 * float(np.median(resets)),
+        "first_steps_ms": 1e3 * first_steps_s,
         "make_s": make_s,
         "import_s": import_s,
         "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
@@ -309,7 +320,8 @@ def parse_kwargs(pairs: list[str]) -> dict:
 COLUMNS = [("steps/s", "steps_per_s", "{:,.0f}"), ("÷ panda-gym", "ratio", "{:.2f}×"),
            ("µs outside physics", "outside_us", "{:,.0f}"), ("physics µs/step", "physics_us", "{:,.0f}"),
            ("substeps/step", "substeps", "{:.1f}"), ("sim s / wall s", "sim_s_per_wall_s", "{:,.0f}"),
-           ("reset ms", "reset_ms", "{:.2f}"), ("make s", "make_s", "{:.2f}"), ("import s", "import_s", "{:.2f}"),
+           ("reset ms", "reset_ms", "{:.2f}"), (f"first {WARM_UP_STEPS} steps ms", "first_steps_ms", "{:.1f}"),
+           ("make s", "make_s", "{:.2f}"), ("import s", "import_s", "{:.2f}"),
            ("peak MB", "peak_mb", "{:.0f}"), ("success", "success", "{}"), ("touching %", "touching", "{:.0f}"),
            ("cycles kinematic/at rest/carried/dynamic %", "played", "{}")]
 

@@ -70,6 +70,7 @@ class Motion:
         return self.q_from + fraction * self.way
 
 
+
 class SafetyCheck:
     # Bisection stops at pieces this small. Deep pieces are needed only where a pair starts
     # inside the margin and must prove it does not get closer.
@@ -167,7 +168,7 @@ class SafetyCheck:
 
         start = self._start_anchor(motion)
         # a pair already inside the margin now (contact, tracking error) may only move out
-        candidates = np.flatnonzero(start.bound < self.margin)
+        candidates = (start.bound < self.margin).nonzero()[0]
         now = np.zeros(0)
         if candidates.size:
             collision.pose(q_from, gripper_from)
@@ -333,7 +334,7 @@ class SafetyCheck:
         # its intervals down to the resolution (dozens of queries per pair, on every refused motion) would only
         # settle how far below. It keeps the coarse samples' bound, valid and already below the threshold.
         doomed = np.min(ends, axis=0) < threshold
-        every = np.flatnonzero(~doomed)
+        every = (~doomed).nonzero()[0]
         if doomed.any():
             bound[doomed] = np.min([(ends[k][doomed] + ends[k + 1][doomed]) / 2
                                     - reserve[doomed] * (fractions[k + 1] - fractions[k])
@@ -381,7 +382,7 @@ class SafetyCheck:
         """Tighten every pair (of these) the capsules cannot clear, and refuse if one is truly too close."""
         for level in (1, 2) if motion.gripper_moves else (1,):
             if pairs is None:
-                weak = np.flatnonzero(anchor.bound < motion.threshold)
+                weak = (anchor.bound < motion.threshold).nonzero()[0]
             else:
                 weak = pairs[anchor.bound[pairs] < motion.threshold[pairs]]
             if weak.size == 0:
@@ -402,12 +403,12 @@ class SafetyCheck:
     def _weak(a: Anchor, b: Anchor, motion: Motion, length: float, pairs: np.ndarray | None) -> np.ndarray:
         """The pairs (of these, or of all) whose clearance between two anchors is not proven above their threshold."""
         if pairs is None:
-            return np.flatnonzero(a.bound + b.bound - motion.travel * length < 2 * motion.threshold)
+            return (a.bound + b.bound - motion.travel * length < 2 * motion.threshold).nonzero()[0]
         proven = a.bound[pairs] + b.bound[pairs] - motion.travel[pairs] * length >= 2 * motion.threshold[pairs]
         return pairs[~proven]
 
     def _violation(self, anchor: Anchor, threshold: np.ndarray, where: str) -> Verdict:
-        below = np.flatnonzero((anchor.level > 0) & (anchor.bound < threshold))
+        below = ((anchor.level > 0) & (anchor.bound < threshold)).nonzero()[0]
         if below.size == 0:
             return ACCEPTED
         worst = below[np.argmin(anchor.bound[below] - threshold[below])]
