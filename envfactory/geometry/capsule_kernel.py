@@ -5,7 +5,8 @@ The safety check asks for these bounds at each pose it tries. For one arm
 costs is its per-call overhead, dozens of small operations per pose. One
 compiled pass does the forward kinematics of the shape-carrying joints, the
 capsule ends, the separation of each capsule from each obstacle box, and the
-capsule-to-capsule distance of each self pair, in a few microseconds.
+capsule-to-capsule distance of each self pair (box against box where the
+capsules come close), in a few microseconds.
 
 Numba compiles this on first use and caches the result next to the module.
 """
@@ -154,7 +155,7 @@ def capsule_bounds(frames, shape_joint, local_ends, radius, local_corners, paddi
                    obstacle_high, self_a, self_b, out):
     """Lower bounds on the clearance of every measured pair, in the order the collision model numbers
     them: each moving shape against each obstacle (the better of its capsule's and its box's), then the
-    self pairs (capsule against capsule)."""
+    self pairs (capsule against capsule, and box against box where the capsules come close)."""
     ends = np.empty((shape_joint.shape[0], 2, 3))
     capsule_ends(frames, shape_joint, local_ends, ends)
     obstacles = obstacle_low.shape[0]
@@ -182,11 +183,65 @@ def capsule_bounds(frames, shape_joint, local_ends, radius, local_corners, paddi
             bound = max(capsule_apart - radius[shape], box_apart - padding[shape])
             out[row] = bound if bound >= 0.0 else NO_BOUND
             row += 1
+    placed = np.empty((shape_joint.shape[0], 8, 3))
+    is_placed = np.zeros(shape_joint.shape[0], dtype=np.bool_)
     for pair in range(self_a.shape[0]):
-        a, b = self_a[pair], self_b[pair]
-        bound = _segment_distance(ends, a, b) - radius[a] - radius[b]
-        out[row] = bound if bound >= 0.0 else NO_BOUND
+        out[row] = _self_pair_bound(frames, ends, self_a[pair], self_b[pair], shape_joint, local_corners, radius,
+                                    padding, placed, is_placed)
         row += 1
+
+
+# Below this capsule bound a self pair is also bounded by its two boxes: a flat base plate's capsule, or a long
+# link's by the base it turns on, can overlap where the boxes are centimetres apart, and coal would be asked at
+# every pose; above it the capsules already clear what a motion can close.
+BOX_BELOW = 0.05
+
+
+@njit(cache=True)
+def _place_corners(frames, shape, shape_joint, local_corners, placed, is_placed):
+    if not is_placed[shape]:
+        frame = frames[shape_joint[shape]]
+        for corner in range(8):
+            for i in range(3):
+                placed[shape, corner, i] = _placed(frame, local_corners[shape, corner, 0],
+                                                   local_corners[shape, corner, 1], local_corners[shape, corner, 2], i)
+        is_placed[shape] = True
+
+
+@njit(cache=True)
+def _self_pair_bound(frames, ends, a, b, shape_joint, local_corners, radius, padding, placed, is_placed):
+    """A lower bound on the clearance of two of the robot's shapes: their capsules' distance, or where that is
+    small, the better of it and their boxes' separation along the boxes' edges and the line between their centres
+    (any direction separates two convex sets by at least the gap of their projections on it)."""
+    bound = _segment_distance(ends, a, b) - radius[a] - radius[b]
+    if bound < BOX_BELOW:
+        _place_corners(frames, a, shape_joint, local_corners, placed, is_placed)
+        _place_corners(frames, b, shape_joint, local_corners, placed, is_placed)
+        apart = -np.inf
+        for axis_kind in range(7):
+            if axis_kind < 6:
+                shape = a if axis_kind < 3 else b
+                step = 4 >> (axis_kind % 3)  # fit_box's order: x-, y- and z-steps are 4, 2 and 1
+                ux = placed[shape, step, 0] - placed[shape, 0, 0]
+                uy = placed[shape, step, 1] - placed[shape, 0, 1]
+                uz = placed[shape, step, 2] - placed[shape, 0, 2]
+            else:  # corners 0 and 7 are opposite
+                ux = placed[b, 0, 0] + placed[b, 7, 0] - placed[a, 0, 0] - placed[a, 7, 0]
+                uy = placed[b, 0, 1] + placed[b, 7, 1] - placed[a, 0, 1] - placed[a, 7, 1]
+                uz = placed[b, 0, 2] + placed[b, 7, 2] - placed[a, 0, 2] - placed[a, 7, 2]
+            length = np.sqrt(ux * ux + uy * uy + uz * uz)
+            if length < 1e-12:
+                continue
+            ux, uy, uz = ux / length, uy / length, uz / length
+            a_low, a_high, b_low, b_high = np.inf, -np.inf, np.inf, -np.inf
+            for corner in range(8):
+                value = placed[a, corner, 0] * ux + placed[a, corner, 1] * uy + placed[a, corner, 2] * uz
+                a_low, a_high = min(a_low, value), max(a_high, value)
+                value = placed[b, corner, 0] * ux + placed[b, corner, 1] * uy + placed[b, corner, 2] * uz
+                b_low, b_high = min(b_low, value), max(b_high, value)
+            apart = max(apart, b_low - a_high, a_low - b_high)
+        bound = max(bound, apart - padding[a] - padding[b])
+    return bound if bound >= 0.0 else NO_BOUND
 
 
 @njit(cache=True)
@@ -271,14 +326,13 @@ def swept_box_gaps(frames, mount_joint, sweep_corners, first, last, rows, obstac
 
 @njit(cache=True)
 def _pair_bound(frames, ends, pair, shape_joint, local_corners, radius, padding, moving, obstacle_low, obstacle_high,
-                self_a, self_b):
+                self_a, self_b, placed, is_placed):
     """capsule_bounds' bound for one pair (its numbering: moving shape x obstacle, then the self pairs)."""
     obstacles = obstacle_low.shape[0]
     scene = moving.shape[0] * obstacles
     if pair >= scene:
-        a, b = self_a[pair - scene], self_b[pair - scene]
-        bound = _segment_distance(ends, a, b) - radius[a] - radius[b]
-        return bound if bound >= 0.0 else NO_BOUND
+        return _self_pair_bound(frames, ends, self_a[pair - scene], self_b[pair - scene], shape_joint, local_corners,
+                                radius, padding, placed, is_placed)
     shape, o = moving[pair // obstacles], pair % obstacles
     frame = frames[shape_joint[shape]]
     capsule_apart, box_apart = -np.inf, -np.inf
@@ -318,6 +372,8 @@ def capsule_motion_unproven(coordinates, q_from, way, pairs, start_bound, end_bo
         alive += active[i]
     frames = np.empty((parent.shape[0], 3, 4))
     ends = np.empty((shape_joint.shape[0], 2, 3))
+    placed = np.empty((shape_joint.shape[0], 8, 3))
+    is_placed = np.zeros(shape_joint.shape[0], dtype=np.bool_)
     arm = q_from.shape[0]
     for level in range(1, levels + 1):
         if alive == 0:
@@ -329,12 +385,13 @@ def capsule_motion_unproven(coordinates, q_from, way, pairs, start_bound, end_bo
                 coordinates[j] = q_from[j] + fraction * way[j]
             joint_frames(coordinates, parent, placement, kind, axis, coordinate, gain, frames)
             capsule_ends(frames, shape_joint, local_ends, ends)
+            is_placed[:] = False
             for i in range(count):
                 if active[i]:
                     pair = pairs[i]
                     grid[i, k * spacing] = _pair_bound(frames, ends, pair, shape_joint, local_corners, radius,
                                                        padding, moving, obstacle_low, obstacle_high, self_a,
-                                                       self_b) - reserve[pair]
+                                                       self_b, placed, is_placed) - reserve[pair]
         length = 1.0 / 2 ** level
         for i in range(count):
             if not active[i]:
