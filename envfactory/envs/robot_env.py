@@ -24,6 +24,7 @@ from envfactory.envs.randomization import Randomizer
 from envfactory.geometry.frames import TaskFrame
 from envfactory.geometry.object_press import ObjectPressGuard
 from envfactory.geometry.robot_model import robot_geometry
+from envfactory.geometry.vectors import length
 from envfactory.scaling import AffineScale
 from envfactory.state import EnvState
 from envfactory.terms.rewards import STEP_FLAGS
@@ -258,7 +259,7 @@ class RobotEnv(gym.Env):
         return observation, reward, terminated, truncated, info
 
     def _info(self, state: EnvState, achieved: np.ndarray, out_of_bounds: bool, rejection: str) -> dict:
-        distance = float(np.linalg.norm(achieved - self._goal))
+        distance = length(achieved - self._goal)
         flags = (out_of_bounds, bool(rejection), self._goal_failed)
         info = {key: float(value) for key, value in zip(STEP_FLAGS, flags, strict=True)}
         info.update(rejection_reason=rejection, observation_clipped=list(self._clipped), distance=distance,

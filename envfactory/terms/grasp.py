@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from pydantic import Field
 
+from envfactory.geometry.vectors import length
 from envfactory.schema.models import GripperSpec
 from envfactory.terms.library import Description, TermParams, constant_bounds, fixed, observation_term, reward_term
 from envfactory.terms.objects import bind_object
@@ -46,7 +47,7 @@ def bind_grasp(layout, params) -> GraspTest:
 
 
 def grasped(state, test: GraspTest) -> float:
-    near = np.linalg.norm(state.objects[test.object].position - state.ee_position) < test.distance
+    near = length(state.objects[test.object].position - state.ee_position) < test.distance
     closed = test.gripper.closure(state.gripper) >= test.closure
     return float(near and closed)
 

@@ -6,6 +6,7 @@ import numpy as np
 from pydantic import ConfigDict, Field
 
 from envfactory.geometry.point_boxes import Box
+from envfactory.geometry.vectors import length
 from envfactory.terms.library import (
     Description,
     TermParams,
@@ -111,7 +112,7 @@ def ee_rpy(state, params):
 def goal_direction(state, params):
     """Unit vector from the EE or an object to the current goal."""
     offset = state.current_goal - state.position_of(params.from_)
-    norm = np.linalg.norm(offset)
+    norm = length(offset)
     return offset / norm if norm > 1e-9 else np.zeros(3)
 
 
@@ -130,7 +131,7 @@ def goal_direction(state, params):
 )
 def goal_distance(state, params):
     """Distance from the EE or an object to the current goal (bound: the farthest it can be from the goal box)."""
-    return np.linalg.norm(state.current_goal - state.position_of(params.from_))
+    return length(state.current_goal - state.position_of(params.from_))
 
 
 @observation_term(

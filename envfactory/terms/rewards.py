@@ -12,6 +12,7 @@ from typing import Literal
 
 import numpy as np
 
+from envfactory.geometry.vectors import lengths
 from envfactory.terms.library import TermParams, reward_term, termination_term
 from envfactory.terms.stages import STAGE_KEYS
 
@@ -47,13 +48,13 @@ def _target(desired, info, params):
     if params.goal == "final":
         return desired
     active = np.asarray(info["intermediate_active"]) > 0
-    if not np.any(active):
+    if not active.any():
         return desired
     return np.where(active[..., None], info["intermediate_goal"], desired)
 
 
 def _distance(achieved, desired):
-    return np.linalg.norm(achieved - desired, axis=-1)
+    return lengths(achieved - desired)
 
 
 @reward_term(description="‖achieved − goal‖", params=CurrentGoal, info_keys=STAGE_KEYS)

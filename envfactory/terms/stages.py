@@ -15,6 +15,7 @@ from typing import Callable, Protocol
 
 import numpy as np
 
+from envfactory.geometry.vectors import length
 from envfactory.schema.task import GoalSpec
 
 # recorded at every step, also without a stage (then never active)
@@ -70,7 +71,7 @@ class LiftStage:
         self.active = self.enabled
 
     def update(self, achieved: np.ndarray) -> None:
-        if self.active and np.linalg.norm(achieved - self.goal) < self.tolerance:
+        if self.active and length(achieved - self.goal) < self.tolerance:
             self.active = False
 
     def current(self, desired: np.ndarray) -> np.ndarray:
