@@ -25,9 +25,9 @@ class ObservationManager:
         buffer = np.empty(self.size, dtype=np.float32)
         for fn, params, where in self._calls:
             buffer[where] = fn(state, params)
-        outside = np.flatnonzero((buffer < self.low) | (buffer > self.high))
-        if outside.size == 0:
+        if not ((buffer < self.low).any() or (buffer > self.high).any()):
             return buffer, []
+        outside = ((buffer < self.low) | (buffer > self.high)).nonzero()[0]
         names = [f"{self.column_name(int(i))}={float(buffer[i]):.4g}" for i in outside]
         return np.clip(buffer, self.low, self.high), names
 
