@@ -70,7 +70,6 @@ class Motion:
         return self.q_from + fraction * self.way
 
 
-
 class SafetyCheck:
     # Bisection stops at pieces this small. Deep pieces are needed only where a pair starts
     # inside the margin and must prove it does not get closer.
