@@ -20,7 +20,7 @@ gym.make / import times and the process's peak memory. Random actions are action
 scripted experts are envfactory's own and, for panda-gym, a proportional
 controller of the same stages (reach; push from behind; pick and place).
 With --engines, each envfactory ID runs on each engine named (a row per
-engine); physics time is MuJoCo's rollout call there. "touching %" is the
+engine); physics time is MuJoCo's rollout and mj_step calls there. "touching %" is the
 share of steps that end with the robot within 2 mm of the cube (each engine's
 own distance query, outside the timed step): how much of the run is contact.
 """
@@ -89,6 +89,19 @@ class PhysicsClock:
             return result
 
         rollout.Rollout.rollout = timed_rollout
+        # and steps in place where a cycle only holds still (the backend looks mj_step up at each call)
+        import mujoco
+
+        original_step = mujoco.mj_step
+
+        def timed_step(*args, **kwargs):
+            start = clock()
+            result = original_step(*args, **kwargs)
+            self.seconds += clock() - start
+            self.calls += 1
+            return result
+
+        mujoco.mj_step = timed_step
 
     def read(self) -> tuple[float, int]:
         return self.seconds, self.calls
