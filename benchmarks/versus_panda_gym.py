@@ -56,52 +56,37 @@ def panda_twin(env_id: str) -> str | None:
 # ---------------------------------------------------------------- worker (one env, one fresh process)
 
 class PhysicsClock:
-    """Times every pybullet.stepSimulation call. Both packages look the function up on the module at
-    call time (envfactory in its advance loop, panda-gym through its BulletClient), so one patch
-    measures both alike."""
+    """Times every pybullet.stepSimulation call (and MuJoCo's rollout and mj_step calls). Both packages look
+    the function up on the module at call time (envfactory in its advance loop, panda-gym through its
+    BulletClient), so one patch measures both alike."""
 
     def __init__(self):
         import pybullet
 
-        self.module, self.original = pybullet, pybullet.stepSimulation
         self.seconds, self.calls = 0.0, 0
-        clock, original = time.perf_counter, self.original
+        pybullet.stepSimulation = self._timed(pybullet.stepSimulation, lambda kwargs: 1)
+        try:
+            import mujoco
+            from mujoco import rollout
+        except ImportError:
+            return
+        # the MuJoCo engine plays a cycle's substeps in one rollout call, and steps in place where a cycle only
+        # holds still (the backend looks both up at each call)
+        rollout.Rollout.rollout = self._timed(rollout.Rollout.rollout, lambda kwargs: kwargs.get("nstep") or 1)
+        mujoco.mj_step = self._timed(mujoco.mj_step, lambda kwargs: 1)
+
+    def _timed(self, original, substeps):
+        """`original`, adding its time and its substeps (from its keyword arguments) to the clock."""
+        clock = time.perf_counter
 
         def timed(*args, **kwargs):
             start = clock()
             result = original(*args, **kwargs)
             self.seconds += clock() - start
-            self.calls += 1
+            self.calls += substeps(kwargs)
             return result
 
-        pybullet.stepSimulation = timed
-        try:  # the MuJoCo engine plays a cycle's substeps in one rollout call
-            from mujoco import rollout
-        except ImportError:
-            return
-        original_rollout = rollout.Rollout.rollout
-
-        def timed_rollout(instance, *args, **kwargs):
-            start = clock()
-            result = original_rollout(instance, *args, **kwargs)
-            self.seconds += clock() - start
-            self.calls += kwargs.get("nstep") or 1
-            return result
-
-        rollout.Rollout.rollout = timed_rollout
-        # and steps in place where a cycle only holds still (the backend looks mj_step up at each call)
-        import mujoco
-
-        original_step = mujoco.mj_step
-
-        def timed_step(*args, **kwargs):
-            start = clock()
-            result = original_step(*args, **kwargs)
-            self.seconds += clock() - start
-            self.calls += 1
-            return result
-
-        mujoco.mj_step = timed_step
+        return timed
 
     def read(self) -> tuple[float, int]:
         return self.seconds, self.calls

@@ -310,7 +310,7 @@ class MujocoBackend:
             data.ctrl[handles.arm_actuators] = self._arm.end  # the profile's velocity is zero: no lead
         if self._gripper is not None:
             data.ctrl[handles.gripper_actuator] = self._gripper.end[0]
-        data.qfrc_applied[:] = 0.0
+        # (the feed-forward forces go into the rollout's own controls: this data's qfrc_applied stays zero)
         step = mujoco.mj_step
         for _ in range(steps):
             step(model, data)

@@ -53,10 +53,11 @@ class GripperResponse:
     respond the same way to every step of their range (speed-limited, then a common tail)."""
 
     def __init__(self, closing: np.ndarray, opening: np.ndarray, dt: float):
-        self.curves = {1.0: closing, -1.0: opening}  # error to target per substep, decreasing
-        # the same as plain lists, read a substep at a time (numpy's scalar calls would cost more than the reading)
+        # per direction, the error to the target per substep (decreasing), the rate per substep, and the error
+        # negated (rising, for bisect), as plain lists: read a substep at a time, numpy's scalar calls would cost
+        # more than the reading
         self._lists = {direction: (curve.tolist(), (-np.diff(curve)).tolist(), (-curve).tolist())
-                       for direction, curve in self.curves.items()}
+                       for direction, curve in ((1.0, closing), (-1.0, opening))}
         self.dt = dt
 
     def advance(self, value: float, target: float, substeps: int) -> tuple[float, float] | None:
