@@ -104,6 +104,17 @@ def test_fast_steps_match_full_dynamics_from_the_same_state(env_id):
     assert [success] == expert_success(env_id, "full", [0])
 
 
+@pytest.mark.parametrize("env_id", ["NED2PnPSim-v0", "RX200PnPSim-v0"])
+def test_a_cube_dropped_at_spawn_settles_before_the_arm_is_placed(env_id):
+    """These specs spawn the cube 5 mm above the table (their seeds' cube_init_pos): it lands and comes to rest
+    in about 50 substeps. The first cycle simulates only that much, then places the arm where a kinematic
+    cycle does, and ends where full dynamics ends the whole cycle."""
+    for seed in range(3):
+        gaps, _ = paired_episode(env_id, "random", seed=seed, steps=1)
+        assert gaps.kinds == ["kinematic"], (seed, gaps.kinds)
+        assert_within(gaps, f"{env_id} first cycle, seed {seed}")
+
+
 def test_a_cycle_that_ends_before_the_arm_settles_stays_faithful():
     """With action_cycle_time barely above action_speed the motors are still closing in when the
     observation is read: the fast fidelity must not pretend the arm arrived."""
