@@ -106,6 +106,9 @@ class RewardManager:
         achieved, desired = np.asarray(achieved, float), np.asarray(desired, float)
         batch = achieved.shape[:-1]
         columns = info_columns(info, self.info_keys, batch)
+        if not batch:  # one step's reward: summed as plain numbers, numpy's 0-d arithmetic costs more
+            return np.asarray(sum((term.weight * float(term.term.fn(achieved, desired, columns, term.bound,
+                                                                    self.tolerance)) for term in self.terms), 0.0))
         total = np.zeros(batch)
         for term in self.terms:
             total = total + term.weight * term.term.fn(achieved, desired, columns, term.bound, self.tolerance)

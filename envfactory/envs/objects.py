@@ -51,17 +51,29 @@ class ObjectTracker:
     """Turns successive pose readings of one object into its full state."""
 
     def __init__(self):
-        self._previous: tuple[ObjectReading, np.ndarray] | None = None  # the last reading and its rotation
+        # the last reading, its rotation and the state made of it
+        self._previous: tuple[ObjectReading, np.ndarray, ObjectState] | None = None
 
     def reset(self) -> None:
         self._previous = None
 
     def update(self, reading: ObjectReading) -> ObjectState:
+        previous = self._previous
+        if previous is not None and _same_pose(reading, previous[0]):
+            # an object at rest (most steps): its rotation and angles stand, and it did not move
+            state = previous[2]
+            self._previous = (reading, previous[1], state)
+            return ObjectState(reading.position, state.rotation, state.rpy, np.zeros(3), np.zeros(3))
         rotation = quaternion_to_matrix(reading.quaternion)
-        previous, self._previous = self._previous, (reading, rotation)
         linear, angular = np.zeros(3), np.zeros(3)
         if previous is not None and reading.stamp > previous[0].stamp:
             dt = reading.stamp - previous[0].stamp
             linear = (reading.position - previous[0].position) / dt
             angular = pin.log3(rotation @ previous[1].T) / dt
-        return ObjectState(reading.position, rotation, pin.rpy.matrixToRpy(rotation), linear, angular)
+        state = ObjectState(reading.position, rotation, pin.rpy.matrixToRpy(rotation), linear, angular)
+        self._previous = (reading, rotation, state)
+        return state
+
+
+def _same_pose(a: ObjectReading, b: ObjectReading) -> bool:
+    return a.position.tolist() == b.position.tolist() and a.quaternion.tolist() == b.quaternion.tolist()

@@ -245,12 +245,18 @@ def _self_pair_bound(frames, ends, a, b, shape_joint, local_corners, radius, pad
 
 
 @njit(cache=True)
-def capsule_sphere_gaps(ends, radius, centers, radii, out):
-    """(capsules, spheres) gaps between capsules (ends: capsules x 2 x 3) and spheres, negative when they
+def shape_sphere_gaps(frames, shape_joint, local_ends, radius, shapes, center, sphere_radius, out):
+    """out[i]: the gap between the capsule of shapes[i], placed by the frames, and a sphere, negative when they
     overlap: a lower bound on the gap between anything inside them."""
-    for c in range(ends.shape[0]):
-        for s in range(centers.shape[0]):
-            out[c, s] = _segment_point_distance(ends, c, centers[s]) - radius[c] - radii[s]
+    ends = np.empty((1, 2, 3))
+    for i in range(shapes.shape[0]):
+        shape = shapes[i]
+        frame = frames[shape_joint[shape]]
+        for end in range(2):
+            for k in range(3):
+                ends[0, end, k] = _placed(frame, local_ends[shape, end, 0], local_ends[shape, end, 1],
+                                          local_ends[shape, end, 2], k)
+        out[i] = _segment_point_distance(ends, 0, center) - radius[shape] - sphere_radius
 
 
 @njit(cache=True, inline="always")

@@ -454,12 +454,14 @@ class CollisionModel:
                                         joints.coordinate, joints.gain, self._frames)
             self._frames_current = True
 
-    def capsule_ends(self) -> np.ndarray:
-        """Every shape's capsule end points at the current pose (shapes x 2 x 3, base frame)."""
+    def sphere_gaps(self, shapes: np.ndarray, center: np.ndarray, radius: float) -> np.ndarray:
+        """Gaps between these shapes' capsules at the current pose and a sphere (base frame), negative where
+        they overlap: a lower bound on the gap between anything inside them."""
         self._place_frames()
-        ends = np.empty((len(self.shapes), 2, 3))
-        capsule_kernel.capsule_ends(self._frames, self._shape_joint, self._local_ends, ends)
-        return ends
+        out = np.empty(len(shapes))
+        capsule_kernel.shape_sphere_gaps(self._frames, self._shape_joint, self._local_ends, self.radius, shapes,
+                                         np.ascontiguousarray(center, float), float(radius), out)
+        return out
 
     def bounds(self) -> np.ndarray:
         """A lower bound on the clearance of every measured pair at the current pose."""
@@ -528,12 +530,3 @@ class CollisionModel:
                                      coal.Transform3s(pose.rotation, pose.translation), box, placement,
                                      self._distance_request, coal.DistanceResult()) - self.padding[shape]
         return out
-
-
-def capsule_sphere_gaps(ends: np.ndarray, radius: np.ndarray, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
-    """(capsules, spheres) gaps between capsules (ends: capsules x 2 x 3) and spheres, negative when they
-    overlap: a lower bound on the gap between anything inside them."""
-    out = np.empty((len(ends), len(centers)))
-    capsule_kernel.capsule_sphere_gaps(np.ascontiguousarray(ends, float), np.ascontiguousarray(radius, float),
-                                       np.ascontiguousarray(centers, float), np.ascontiguousarray(radii, float), out)
-    return out

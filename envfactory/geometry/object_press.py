@@ -18,7 +18,7 @@ from __future__ import annotations
 import coal
 import numpy as np
 
-from envfactory.geometry.collision import CollisionModel, capsule_sphere_gaps
+from envfactory.geometry.collision import CollisionModel
 from envfactory.geometry.frames import TaskFrame
 from envfactory.geometry.safety import ACCEPTED, Verdict
 from envfactory.schema.models import ObjectSpec
@@ -40,12 +40,11 @@ class ObjectPressGuard:
         self.base_in_world = np.asarray(collision.kinematics.robot.mount, float)
         self.guarded = np.array([shape for shape in collision.moving_shapes if not collision.moved_by_gripper[shape]],
                                 dtype=int)
-        self.radius = collision.radius[self.guarded]
         self.half_extents = {name: np.full(3, spec.size / 2) for name, spec in objects.items()}
         self.boxes = {name: coal.Box(*(2 * half)) for name, half in self.half_extents.items()}
         self.surfaces = [(o.name, float(o.high[2]), tuple(map(float, o.low[:2])), tuple(map(float, o.high[:2])))
                          for o in collision.obstacles]
-        self.bounding_radius = {name: np.array([np.linalg.norm(half)]) for name, half in self.half_extents.items()}
+        self.bounding_radius = {name: float(np.linalg.norm(half)) for name, half in self.half_extents.items()}
 
     def check(self, q_from: np.ndarray, q_to: np.ndarray, gripper_from: float, gripper_to: float,
               objects: dict[str, ObjectState]) -> Verdict:
@@ -56,11 +55,11 @@ class ObjectPressGuard:
             if surface is None:
                 continue
             end = self._clearances(q_to, gripper_to, name, center, rotation)
-            if np.all(end >= -self.CONTACT_TOLERANCE):
+            if (end >= -self.CONTACT_TOLERANCE).all():
                 continue
             start = self._clearances(q_from, gripper_from, name, center, rotation)
             deeper = (end < -self.CONTACT_TOLERANCE) & (end < start - self.DEEPER_TOLERANCE)
-            if np.any(deeper):
+            if deeper.any():
                 worst = int(np.argmin(np.where(deeper, end, np.inf)))
                 link = self.collision.shapes[self.guarded[worst]].link
                 return Verdict(False, f"{link} would press the {name} (resting on the {surface}) "
@@ -82,9 +81,8 @@ class ObjectPressGuard:
         collision = self.collision
         collision.pose(np.asarray(q_arm, float), gripper)
         in_base = center - self.base_in_world  # the base frame has the world's axes
-        ends = collision.capsule_ends()[self.guarded]
-        gaps = capsule_sphere_gaps(ends, self.radius, in_base[None, :], self.bounding_radius[name])[:, 0]
+        gaps = collision.sphere_gaps(self.guarded, in_base, self.bounding_radius[name])
         near = gaps <= 0.0
-        if np.any(near):
+        if near.any():
             gaps[near] = collision.box_clearances(self.guarded[near], self.boxes[name], in_base, rotation)
         return gaps

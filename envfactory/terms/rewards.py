@@ -48,6 +48,8 @@ def _target(desired, info, params):
     if params.goal == "final":
         return desired
     active = np.asarray(info["intermediate_active"]) > 0
+    if not active.ndim:  # one step's
+        return info["intermediate_goal"] if active else desired
     if not active.any():
         return desired
     return np.where(active[..., None], info["intermediate_goal"], desired)
