@@ -108,7 +108,7 @@ def joint_frames(coordinates, parent, placement, kind, axis, coordinate, gain, f
         _compose(frames[parent[joint]], local, frames[joint])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _segment_distance(ends, a, b):
     """Distance between the segments of shapes a and b (ends: shapes x 2 x 3), on scalars: small
     array temporaries would cost more than the arithmetic."""
@@ -151,7 +151,7 @@ def capsule_ends(frames, shape_joint, local_ends, ends):
 
 
 @njit(cache=True)
-def capsule_bounds(frames, shape_joint, local_ends, radius, local_corners, padding, moving, obstacle_low,
+def capsule_bounds(frames, shape_joint, local_ends, radius, local_boxes, box_half, padding, moving, obstacle_low,
                    obstacle_high, self_a, self_b, out):
     """Lower bounds on the clearance of every measured pair, in the order the collision model numbers
     them: each moving shape against each obstacle (the better of its capsule's and its box's), then the
@@ -159,36 +159,36 @@ def capsule_bounds(frames, shape_joint, local_ends, radius, local_corners, paddi
     ends = np.empty((shape_joint.shape[0], 2, 3))
     capsule_ends(frames, shape_joint, local_ends, ends)
     obstacles = obstacle_low.shape[0]
-    corner_low, corner_high = np.empty(3), np.empty(3)
-    row = 0
+    placed = np.empty((shape_joint.shape[0], PLACED_ROWS, 3))
+    is_placed = np.zeros(shape_joint.shape[0], dtype=np.bool_)
     for m in range(moving.shape[0]):
         shape = moving[m]
-        frame = frames[shape_joint[shape]]
-        corner_low[:] = np.inf
-        corner_high[:] = -np.inf
-        for corner in range(8):
-            for i in range(3):
-                value = _placed(frame, local_corners[shape, corner, 0], local_corners[shape, corner, 1],
-                                local_corners[shape, corner, 2], i)
-                corner_low[i] = min(corner_low[i], value)
-                corner_high[i] = max(corner_high[i], value)
+        _place_box(frames, shape, shape_joint, local_boxes, box_half, placed, is_placed)
         for o in range(obstacles):
-            # separation along the obstacle box's own axes bounds the distance between two convex sets
-            capsule_apart, box_apart = -np.inf, -np.inf
-            for k in range(3):
-                low = min(ends[shape, 0, k], ends[shape, 1, k])
-                high = max(ends[shape, 0, k], ends[shape, 1, k])
-                capsule_apart = max(capsule_apart, low - obstacle_high[o, k], obstacle_low[o, k] - high)
-                box_apart = max(box_apart, corner_low[k] - obstacle_high[o, k], obstacle_low[o, k] - corner_high[k])
-            bound = max(capsule_apart - radius[shape], box_apart - padding[shape])
-            out[row] = bound if bound >= 0.0 else NO_BOUND
-            row += 1
-    placed = np.empty((shape_joint.shape[0], 8, 3))
-    is_placed = np.zeros(shape_joint.shape[0], dtype=np.bool_)
+            out[m * obstacles + o] = _scene_bound(frames, ends, shape, o, shape_joint, local_boxes, box_half, radius,
+                                                  padding, obstacle_low, obstacle_high, placed, is_placed)
+    row = moving.shape[0] * obstacles
     for pair in range(self_a.shape[0]):
-        out[row] = _self_pair_bound(frames, ends, self_a[pair], self_b[pair], shape_joint, local_corners, radius,
-                                    padding, placed, is_placed)
+        out[row] = _self_pair_bound(frames, ends, self_a[pair], self_b[pair], shape_joint, local_boxes, box_half,
+                                    radius, padding, placed, is_placed)
         row += 1
+
+
+@njit(cache=True, inline="always")
+def _scene_bound(frames, ends, shape, o, shape_joint, local_boxes, box_half, radius, padding, obstacle_low,
+                 obstacle_high, placed, is_placed):
+    """A lower bound on a moving shape's clearance from obstacle o: the separation of the obstacle from the shape's
+    capsule, or from its box, along the obstacle box's own axes (which bounds the distance between two convex
+    sets), whichever is the larger."""
+    _place_box(frames, shape, shape_joint, local_boxes, box_half, placed, is_placed)
+    capsule_apart, box_apart = -np.inf, -np.inf
+    for k in range(3):
+        low = min(ends[shape, 0, k], ends[shape, 1, k])
+        high = max(ends[shape, 0, k], ends[shape, 1, k])
+        capsule_apart = max(capsule_apart, low - obstacle_high[o, k], obstacle_low[o, k] - high)
+        box_apart = max(box_apart, placed[shape, LOW, k] - obstacle_high[o, k], obstacle_low[o, k] - placed[shape, HIGH, k])
+    bound = max(capsule_apart - radius[shape], box_apart - padding[shape])
+    return bound if bound >= 0.0 else NO_BOUND
 
 
 # Below this capsule bound a self pair is also bounded by its two boxes: a flat base plate's capsule, or a long
@@ -197,49 +197,64 @@ def capsule_bounds(frames, shape_joint, local_ends, radius, local_corners, paddi
 BOX_BELOW = 0.05
 
 
-@njit(cache=True)
-def _place_corners(frames, shape, shape_joint, local_corners, placed, is_placed):
+# rows of a placed box (capsule_bounds' `placed`): its centre, its three axes, and the corners of the box along the
+# base frame's axes around it
+CENTER, AXES, LOW, HIGH = 0, 1, 4, 5
+PLACED_ROWS = 6
+
+
+@njit(cache=True, inline="always")
+def _place_box(frames, shape, shape_joint, local_boxes, box_half, placed, is_placed):
+    """The shape's box in the base frame (placed[shape], rows CENTER to HIGH), once per pose."""
     if not is_placed[shape]:
         frame = frames[shape_joint[shape]]
-        for corner in range(8):
-            for i in range(3):
-                placed[shape, corner, i] = _placed(frame, local_corners[shape, corner, 0],
-                                                   local_corners[shape, corner, 1], local_corners[shape, corner, 2], i)
+        for i in range(3):
+            placed[shape, CENTER, i] = _placed(frame, local_boxes[shape, 0, 0], local_boxes[shape, 0, 1],
+                                               local_boxes[shape, 0, 2], i)
+            for axis in range(1, 4):
+                placed[shape, axis, i] = (frame[i, 0] * local_boxes[shape, axis, 0]
+                                          + frame[i, 1] * local_boxes[shape, axis, 1]
+                                          + frame[i, 2] * local_boxes[shape, axis, 2])
+        for i in range(3):
+            reach = (box_half[shape, 0] * abs(placed[shape, AXES, i]) + box_half[shape, 1] * abs(placed[shape, AXES + 1, i])
+                     + box_half[shape, 2] * abs(placed[shape, AXES + 2, i]))
+            placed[shape, LOW, i] = placed[shape, CENTER, i] - reach
+            placed[shape, HIGH, i] = placed[shape, CENTER, i] + reach
         is_placed[shape] = True
 
 
-@njit(cache=True)
-def _self_pair_bound(frames, ends, a, b, shape_joint, local_corners, radius, padding, placed, is_placed):
+@njit(cache=True, inline="always")
+def _box_reach(placed, box_half, shape, nx, ny, nz):
+    """How far the shape's box reaches from its centre along the unit direction n."""
+    reach = 0.0
+    for axis in range(3):
+        reach += box_half[shape, axis] * abs(placed[shape, axis + 1, 0] * nx + placed[shape, axis + 1, 1] * ny
+                                             + placed[shape, axis + 1, 2] * nz)
+    return reach
+
+
+@njit(cache=True, inline="always")
+def _self_pair_bound(frames, ends, a, b, shape_joint, local_boxes, box_half, radius, padding, placed, is_placed):
     """A lower bound on the clearance of two of the robot's shapes: their capsules' distance, or where that is
-    small, the better of it and their boxes' separation along the boxes' edges and the line between their centres
+    small, the better of it and their boxes' separation along the boxes' 6 axes and the line between their centres
     (any direction separates two convex sets by at least the gap of their projections on it)."""
     bound = _segment_distance(ends, a, b) - radius[a] - radius[b]
     if bound < BOX_BELOW:
-        _place_corners(frames, a, shape_joint, local_corners, placed, is_placed)
-        _place_corners(frames, b, shape_joint, local_corners, placed, is_placed)
+        _place_box(frames, a, shape_joint, local_boxes, box_half, placed, is_placed)
+        _place_box(frames, b, shape_joint, local_boxes, box_half, placed, is_placed)
+        dx, dy, dz = placed[b, 0, 0] - placed[a, 0, 0], placed[b, 0, 1] - placed[a, 0, 1], placed[b, 0, 2] - placed[a, 0, 2]
         apart = -np.inf
-        for axis_kind in range(7):
-            if axis_kind < 6:
-                shape = a if axis_kind < 3 else b
-                step = 4 >> (axis_kind % 3)  # fit_box's order: x-, y- and z-steps are 4, 2 and 1
-                ux = placed[shape, step, 0] - placed[shape, 0, 0]
-                uy = placed[shape, step, 1] - placed[shape, 0, 1]
-                uz = placed[shape, step, 2] - placed[shape, 0, 2]
-            else:  # corners 0 and 7 are opposite
-                ux = placed[b, 0, 0] + placed[b, 7, 0] - placed[a, 0, 0] - placed[a, 7, 0]
-                uy = placed[b, 0, 1] + placed[b, 7, 1] - placed[a, 0, 1] - placed[a, 7, 1]
-                uz = placed[b, 0, 2] + placed[b, 7, 2] - placed[a, 0, 2] - placed[a, 7, 2]
-            length = np.sqrt(ux * ux + uy * uy + uz * uz)
-            if length < 1e-12:
-                continue
-            ux, uy, uz = ux / length, uy / length, uz / length
-            a_low, a_high, b_low, b_high = np.inf, -np.inf, np.inf, -np.inf
-            for corner in range(8):
-                value = placed[a, corner, 0] * ux + placed[a, corner, 1] * uy + placed[a, corner, 2] * uz
-                a_low, a_high = min(a_low, value), max(a_high, value)
-                value = placed[b, corner, 0] * ux + placed[b, corner, 1] * uy + placed[b, corner, 2] * uz
-                b_low, b_high = min(b_low, value), max(b_high, value)
-            apart = max(apart, b_low - a_high, a_low - b_high)
+        for direction in range(7):
+            if direction < 6:
+                shape, axis = (a, direction + 1) if direction < 3 else (b, direction - 2)
+                nx, ny, nz = placed[shape, axis, 0], placed[shape, axis, 1], placed[shape, axis, 2]
+            else:
+                length = np.sqrt(dx * dx + dy * dy + dz * dz)
+                if length < 1e-12:
+                    continue
+                nx, ny, nz = dx / length, dy / length, dz / length
+            apart = max(apart, abs(dx * nx + dy * ny + dz * nz) - _box_reach(placed, box_half, a, nx, ny, nz)
+                        - _box_reach(placed, box_half, b, nx, ny, nz))
         bound = max(bound, apart - padding[a] - padding[b])
     return bound if bound >= 0.0 else NO_BOUND
 
@@ -331,36 +346,23 @@ def swept_box_gaps(frames, mount_joint, sweep_corners, first, last, rows, obstac
 
 
 @njit(cache=True)
-def _pair_bound(frames, ends, pair, shape_joint, local_corners, radius, padding, moving, obstacle_low, obstacle_high,
-                self_a, self_b, placed, is_placed):
+def _pair_bound(frames, ends, pair, shape_joint, local_boxes, box_half, radius, padding, moving, obstacle_low,
+                obstacle_high, self_a, self_b, placed, is_placed):
     """capsule_bounds' bound for one pair (its numbering: moving shape x obstacle, then the self pairs)."""
     obstacles = obstacle_low.shape[0]
     scene = moving.shape[0] * obstacles
     if pair >= scene:
-        return _self_pair_bound(frames, ends, self_a[pair - scene], self_b[pair - scene], shape_joint, local_corners,
-                                radius, padding, placed, is_placed)
-    shape, o = moving[pair // obstacles], pair % obstacles
-    frame = frames[shape_joint[shape]]
-    capsule_apart, box_apart = -np.inf, -np.inf
-    for k in range(3):
-        low = min(ends[shape, 0, k], ends[shape, 1, k])
-        high = max(ends[shape, 0, k], ends[shape, 1, k])
-        capsule_apart = max(capsule_apart, low - obstacle_high[o, k], obstacle_low[o, k] - high)
-        corner_low, corner_high = np.inf, -np.inf
-        for corner in range(8):
-            value = _placed(frame, local_corners[shape, corner, 0], local_corners[shape, corner, 1],
-                            local_corners[shape, corner, 2], k)
-            corner_low, corner_high = min(corner_low, value), max(corner_high, value)
-        box_apart = max(box_apart, corner_low - obstacle_high[o, k], obstacle_low[o, k] - corner_high)
-    bound = max(capsule_apart - radius[shape], box_apart - padding[shape])
-    return bound if bound >= 0.0 else NO_BOUND
+        return _self_pair_bound(frames, ends, self_a[pair - scene], self_b[pair - scene], shape_joint, local_boxes,
+                                box_half, radius, padding, placed, is_placed)
+    return _scene_bound(frames, ends, moving[pair // obstacles], pair % obstacles, shape_joint, local_boxes,
+                        box_half, radius, padding, obstacle_low, obstacle_high, placed, is_placed)
 
 
 @njit(cache=True)
 def capsule_motion_unproven(coordinates, q_from, way, pairs, start_bound, end_bound, travel, reserve, threshold,
                             levels, parent, placement, kind, axis, coordinate, gain, shape_joint, local_ends,
-                            local_corners, radius, padding, moving, obstacle_low, obstacle_high, self_a, self_b,
-                            unproven):
+                            local_boxes, box_half, radius, padding, moving, obstacle_low, obstacle_high, self_a,
+                            self_b, unproven):
     """The lever-bound bisection of a straight arm motion on capsule bounds alone, for these pairs: each level
     halves every piece and poses the arm once at each new point (the gripper where `coordinates` holds it).
     A pair is proven once every piece's two end bounds less the piece's travel keep twice its threshold;
@@ -378,7 +380,7 @@ def capsule_motion_unproven(coordinates, q_from, way, pairs, start_bound, end_bo
         alive += active[i]
     frames = np.empty((parent.shape[0], 3, 4))
     ends = np.empty((shape_joint.shape[0], 2, 3))
-    placed = np.empty((shape_joint.shape[0], 8, 3))
+    placed = np.empty((shape_joint.shape[0], PLACED_ROWS, 3))
     is_placed = np.zeros(shape_joint.shape[0], dtype=np.bool_)
     arm = q_from.shape[0]
     for level in range(1, levels + 1):
@@ -395,8 +397,8 @@ def capsule_motion_unproven(coordinates, q_from, way, pairs, start_bound, end_bo
             for i in range(count):
                 if active[i]:
                     pair = pairs[i]
-                    grid[i, k * spacing] = _pair_bound(frames, ends, pair, shape_joint, local_corners, radius,
-                                                       padding, moving, obstacle_low, obstacle_high, self_a,
+                    grid[i, k * spacing] = _pair_bound(frames, ends, pair, shape_joint, local_boxes, box_half,
+                                                       radius, padding, moving, obstacle_low, obstacle_high, self_a,
                                                        self_b, placed, is_placed) - reserve[pair]
         length = 1.0 / 2 ** level
         for i in range(count):

@@ -48,7 +48,13 @@ class Shape:
     capsule_end: np.ndarray
     radius: float  # capsule radius, padding included
     padding: float
-    corners: np.ndarray  # (8, 3) of a box around the shape: flat links (fingers, pads) fit a box far better
+    box: tuple[np.ndarray, np.ndarray, np.ndarray]  # around the shape: flat links (fingers, pads) fit a box far better
+
+    @property
+    def corners(self) -> np.ndarray:
+        """The box's 8 corners (box_corners' order), each pushed out by BOX_ROUNDING."""
+        corners = box_corners(*self.box)
+        return corners + np.sign(corners - self.box[0]) * BOX_ROUNDING
 
 
 _AXES = {"X": np.array([1.0, 0.0, 0.0]), "Y": np.array([0.0, 1.0, 0.0]), "Z": np.array([0.0, 0.0, 1.0])}
@@ -98,17 +104,28 @@ def fit_capsule(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     return center + axis * low, center + axis * high, radius
 
 
-def fit_box(points: np.ndarray) -> np.ndarray:
-    """The 8 corners of a box containing every point, aligned with their principal directions."""
+def fit_box_frame(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A box containing every point, aligned with their principal directions: its centre, its axes (rows,
+    orthonormal) and its half extents along them."""
     center = points.mean(axis=0)
     axes = np.linalg.svd(points - center, full_matrices=False)[2]
     along = (points - center) @ axes.T
     low, high = along.min(axis=0), along.max(axis=0)
-    signs = np.array([[sx, sy, sz] for sx in (0, 1) for sy in (0, 1) for sz in (0, 1)])
-    return center + (low + signs * (high - low)) @ axes
+    return center + ((low + high) / 2) @ axes, axes, (high - low) / 2
 
 
-def _box_of(geometry_object) -> np.ndarray:
+# a nanometre out from the centre along each coordinate: rounding must not shrink a box
+BOX_ROUNDING = 1e-9
+
+
+def box_corners(center: np.ndarray, axes: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """The 8 corners of a box, x-, y- and z-steps 4, 2 and 1 apart in the list."""
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+    return center + (signs * half) @ axes
+
+
+def _box_of(geometry_object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The box around a shape (parent joint frame): centre, axes (rows), half extents."""
     geometry, placement = geometry_object.geometry, geometry_object.placement
     if isinstance(geometry, (coal.Cylinder, coal.Capsule, coal.Sphere)):
         radius = float(geometry.radius)
@@ -120,10 +137,7 @@ def _box_of(geometry_object) -> np.ndarray:
         local = np.array([[sx * radius, sy * radius, sz * half] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
     else:
         local = shape_points(geometry)
-    corners = fit_box(local @ placement.rotation.T + placement.translation)
-    # rounding must not shrink it: push each corner out from the centre by a nanometre
-    middle = corners.mean(axis=0)
-    return corners + np.sign(corners - middle) * 1e-9
+    return fit_box_frame(local @ placement.rotation.T + placement.translation)
 
 
 def _capsule_of(geometry_object) -> tuple[np.ndarray, np.ndarray, float]:
@@ -205,6 +219,9 @@ class CollisionModel:
         self._shape_joint = np.array([shape.joint for shape in self.shapes], dtype=np.int64)
         self._local_ends = np.array([[shape.capsule_start, shape.capsule_end] for shape in self.shapes])
         self._local_corners = np.array([shape.corners for shape in self.shapes])
+        # the same boxes as centre, axes and half extents (grown to hold the corners' push) for separating them
+        self._local_boxes = np.array([[shape.box[0], *shape.box[1]] for shape in self.shapes])  # (shapes, 4, 3)
+        self._box_half = np.array([shape.box[2] + 2 * BOX_ROUNDING for shape in self.shapes])
         self._coordinates = np.zeros(self.coordinates)
         self._frames_current = self._pinocchio_current = False
         self.gripper_sweep = GripperSweep(self)
@@ -468,8 +485,8 @@ class CollisionModel:
         self._place_frames()
         out = np.empty(self.pair_count)
         capsule_kernel.capsule_bounds(self._frames, self._shape_joint, self._local_ends, self.radius,
-                                      self._local_corners, self.padding, self.moving_shapes, self.obstacle_low,
-                                      self.obstacle_high, self.self_a, self.self_b, out)
+                                      self._local_boxes, self._box_half, self.padding, self.moving_shapes,
+                                      self.obstacle_low, self.obstacle_high, self.self_a, self.self_b, out)
         return out
 
     def unproven_by_capsules(self, q_from: np.ndarray, way: np.ndarray, gripper: float, pairs: np.ndarray,
@@ -486,7 +503,8 @@ class CollisionModel:
         capsule_kernel.capsule_motion_unproven(coordinates, q_from, way, pairs, start_bound, end_bound, travel, reserve,
                                                threshold, levels, joints.parent, joints.placement, joints.kind,
                                                joints.axis, joints.coordinate, joints.gain, self._shape_joint,
-                                               self._local_ends, self._local_corners, self.radius, self.padding,
+                                               self._local_ends, self._local_boxes, self._box_half, self.radius,
+                                               self.padding,
                                                self.moving_shapes, self.obstacle_low, self.obstacle_high, self.self_a,
                                                self.self_b, unproven)
         self.forget_pose()
