@@ -128,7 +128,7 @@ class SafetyCheck:
               gripper_target: float | None = None) -> Verdict:
         """Whether the arm may move from now to the target (and the gripper to its target, if given)."""
         q_arm_target = np.asarray(q_arm_target, float)
-        if not np.all(np.isfinite(q_arm_target)):
+        if not np.isfinite(q_arm_target).all():
             return Verdict(False, "non-finite joint target")
         kin = self.kinematics
         if ((q_arm_target < kin.arm_lower) | (q_arm_target > kin.arm_upper)).any():

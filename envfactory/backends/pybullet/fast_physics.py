@@ -210,7 +210,7 @@ class FastCycles:
     def _kinematic_plan(self, q, gripper, substeps: int, objects):
         """Where the cycle ends (arm, gripper, gripper speed) if it may be played kinematically, else None."""
         rig, arm_target = self.rig, self.arm_target
-        if self.arm_duration > 0 and np.any(np.abs(arm_target - q) / rig.arm_speed_limits > self.arm_duration):
+        if self.arm_duration > 0 and (np.abs(arm_target - q) / rig.arm_speed_limits > self.arm_duration).any():
             return None  # a joint slower than the commanded timing: its path is the motors' to shape
         gripper_end = gripper_speed = None
         if gripper is not None:
