@@ -134,7 +134,7 @@ class SafetyCheck:
         if ((q_arm_target < kin.arm_lower) | (q_arm_target > kin.arm_upper)).any():
             return Verdict(False, "joint target outside the joint bounds")
         delta = q_arm_target - q_arm_now
-        largest = float(np.max(np.abs(delta)))
+        largest = float(np.abs(delta).max())
         if largest > self.settings.max_joint_delta + 1e-12:
             return Verdict(False, f"joint change {largest:.3f} rad exceeds max_joint_delta {self.settings.max_joint_delta}")
         if gripper_target is not None and not np.isfinite(gripper_target):

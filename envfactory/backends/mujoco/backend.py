@@ -389,7 +389,11 @@ class MujocoBackend:
         if gripper is not None:
             self._place_gripper(g_to, g_speed)
             data.ctrl[handles.gripper_actuator] = g_to
-        mujoco.mj_forward(self.model, data)
+        # frames, cameras and lights for the readers; not collisions and forces (most of mj_forward): a motion proven
+        # clear of the objects starts no contact a reader asks about, and the next simulated substep computes them
+        mujoco.mj_kinematics(self.model, data)
+        mujoco.mj_comPos(self.model, data)
+        mujoco.mj_camlight(self.model, data)
         return True
 
     def read_joints(self) -> JointReading:
