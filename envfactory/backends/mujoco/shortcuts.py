@@ -32,11 +32,12 @@ def object_velocities(data, object_dofs: dict[str, int]) -> list[tuple[np.ndarra
 
 
 def objects_at_rest(data, object_dofs: dict[str, int]) -> bool:
-    return all(np.linalg.norm(linear) < OBJECT_REST and np.linalg.norm(angular) < OBJECT_SPIN_REST
+    # squared speeds against squared limits: the same test, without a norm call per vector
+    return all(float(linear @ linear) < OBJECT_REST ** 2 and float(angular @ angular) < OBJECT_SPIN_REST ** 2
                for linear, angular in object_velocities(data, object_dofs))
 
 
 def robot_at_rest(data, arm_dof: np.ndarray, gripper_dof: int | None) -> bool:
     if gripper_dof is not None and abs(data.qvel[gripper_dof]) >= GRIPPER_REST:
         return False
-    return float(np.max(np.abs(data.qvel[arm_dof]), initial=0.0)) < JOINT_REST
+    return arm_dof.size == 0 or float(np.abs(data.qvel[arm_dof]).max()) < JOINT_REST
