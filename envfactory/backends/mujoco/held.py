@@ -63,7 +63,7 @@ class Carry:
         self._relative: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # object pose in the hand, last cycle end
         self.slip: dict[str, float] = {}  # how far each object moved against the hand over the last cycle, m
         self.withstood: dict[str, float] = {}  # the hardest demand (m/s^2) the present grasp held, simulated
-        self._pad_normal = np.zeros(3)  # the pads' closing direction in the hand frame
+        self._pads = sorted(self.pad_bodies)
 
     def reset(self) -> None:
         self._relative.clear()
@@ -74,10 +74,6 @@ class Carry:
         """At the end of a simulated cycle that moved the arm from q_from to q_to over `length` s: each object's
         slip against the hand since the last cycle, and what its grasp has withstood."""
         hand_position, hand_rotation = _pose(data, self.hand)
-        pads = sorted(self.pad_bodies)
-        if len(pads) >= 2:
-            between = hand_rotation.T @ (data.xpos[pads[0]] - data.xpos[pads[1]])
-            self._pad_normal = between / max(np.linalg.norm(between), 1e-9)
         for name, body in self.handles.object_body.items():
             position = hand_rotation.T @ (data.xpos[body] - hand_position)
             rotation = hand_rotation.T @ data.xmat[body].reshape(3, 3)
@@ -95,12 +91,13 @@ class Carry:
         """The peak specific force (m/s^2) the pads must supply by friction to keep the object in the hand along
         the profile from q_from to q_to: its acceleration less gravity, in the plane of the pads."""
         relative_position = self._relative[name][0]
+        pad_normal = self._pad_normal(data)
         tau = np.linspace(0.0, 1.0, DEMAND_SAMPLES)
         points, normals = [], []
         for fraction in quintic(tau):
             hand_position, hand_rotation = self._hand_at(data, q_from + fraction * (q_to - q_from))
             points.append(hand_position + hand_rotation @ relative_position)
-            normals.append(hand_rotation @ self._pad_normal)
+            normals.append(hand_rotation @ pad_normal)
         step = max(length, 1e-6) / (DEMAND_SAMPLES - 1)
         points = np.array(points)
         acceleration = (points[2:] - 2 * points[1:-1] + points[:-2]) / step ** 2
@@ -108,6 +105,14 @@ class Carry:
         normals = np.array(normals[1:-1])
         in_plane = force - np.sum(force * normals, axis=1, keepdims=True) * normals
         return float(np.max(np.linalg.norm(in_plane, axis=1)))
+
+    def _pad_normal(self, data) -> np.ndarray:
+        """The pads' closing direction in the hand frame, as the gripper is now (zero without two pads)."""
+        if len(self._pads) < 2:
+            return np.zeros(3)
+        hand_rotation = data.xmat[self.hand].reshape(3, 3)
+        between = hand_rotation.T @ (data.xpos[self._pads[0]] - data.xpos[self._pads[1]])
+        return between / max(np.linalg.norm(between), 1e-9)
 
     def _hand_at(self, data, q_arm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         scratch = self._scratch
