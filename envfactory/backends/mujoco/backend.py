@@ -66,7 +66,7 @@ def synchronous_length(start: np.ndarray, end: np.ndarray, duration: float, velo
     travels furthest for its speed limit would pass that limit at the profile's peak."""
     if not len(start):
         return duration
-    return max(duration, PEAK_OVER_MEAN_SPEED * float(np.max(np.abs(end - start) / velocities)))
+    return max(duration, PEAK_OVER_MEAN_SPEED * float((np.abs(end - start) / velocities).max()))
 
 
 class MujocoBackend:
