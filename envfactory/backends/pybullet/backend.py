@@ -125,8 +125,11 @@ class PyBulletBackend:
         movable objects, so those cycles are played without dynamics (fast_physics.py)."""
         if self.spec.sim.fidelity != "fast" or self.realtime:
             return
-        rig = Rig(self.client, self.body, self._arm, np.asarray(self._velocities, float), self._gripper, self.dt,
-                  self._set_joint_state, self.program_pending_arm)
+        limits = np.array([p.getJointInfo(self.body, joint, physicsClientId=self.client)[8:10] for joint in self._arm]).T
+        unlimited = limits[0] >= limits[1]  # how PyBullet reports a continuous joint
+        limits[:, unlimited] = [[-np.inf], [np.inf]]
+        rig = Rig(self.client, self.body, self._arm, np.asarray(self._velocities, float), limits, self._gripper,
+                  self.dt, self._set_joint_state, self.program_pending_arm)
         response = None
         if self._gripper is not None:
             gripper = self.robot.gripper

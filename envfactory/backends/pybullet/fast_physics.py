@@ -36,6 +36,10 @@ from envfactory.geometry.object_clearance import NEAR_CONTACT, ObjectClearance
 # substeps (measured at 240 Hz: 1e-2 rad short at 0.2 s, 5e-6 rad at 0.5 s). A cycle with fewer
 # substeps than this after the motion ends is not over when the observation is read: it gets dynamics.
 SETTLE_SUBSTEPS = 60
+# A motion that starts or ends this close to a joint's limit (rad) gets dynamics: PyBullet's limit constraint and
+# the motor together leave the joint up to 2 mrad from its target there (Ned2 shoulder at its lower limit: 1.8 mrad,
+# 1 mm at the EE), where the kinematic cycle would land it exactly.
+NEAR_LIMIT = 0.005
 # A joint this close to its target (rad, or m for a finger) counts as there: holding it still
 # moves it less than this in full dynamics.
 SETTLED = 1e-4
@@ -133,6 +137,7 @@ class Rig:
     body: int
     arm: list[int]
     arm_speed_limits: np.ndarray
+    arm_limits: np.ndarray  # (2, joints): the lower and upper limits PyBullet holds the arm joints in
     gripper: int | None
     dt: float
     set_joints: Callable[[np.ndarray, float | None, float], None]
@@ -212,6 +217,9 @@ class FastCycles:
         rig, arm_target = self.rig, self.arm_target
         if self.arm_duration > 0 and (np.abs(arm_target - q) / rig.arm_speed_limits > self.arm_duration).any():
             return None  # a joint slower than the commanded timing: its path is the motors' to shape
+        low, high = rig.arm_limits
+        if (np.minimum(np.minimum(q, arm_target) - low, high - np.maximum(q, arm_target)) < NEAR_LIMIT).any():
+            return None  # a joint limit's constraint holds the joint a little off where the motor sends it
         gripper_end = gripper_speed = None
         if gripper is not None:
             response = self.gripper_response.advance(gripper, self.gripper_target, substeps)
