@@ -37,8 +37,8 @@ from envfactory.geometry.object_clearance import NEAR_CONTACT, ObjectClearance
 # substeps than this after the motion ends is not over when the observation is read: it gets dynamics.
 SETTLE_SUBSTEPS = 60
 # A motion that starts or ends this close to a joint's limit (rad) gets dynamics: PyBullet's limit constraint and
-# the motor together leave the joint up to 2 mrad from its target there (Ned2 shoulder at its lower limit: 1.8 mrad,
-# 1 mm at the EE), where the kinematic cycle would land it exactly.
+# the motor together leave the joint up to 2 mrad from its target there (measured on a shoulder whose spec bound lies
+# just beyond its URDF limit: 1.8 mrad, 1 mm at the EE), where the kinematic cycle would land it exactly.
 NEAR_LIMIT = 0.005
 # A joint this close to its target (rad, or m for a finger) counts as there: holding it still
 # moves it less than this in full dynamics.
