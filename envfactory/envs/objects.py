@@ -51,8 +51,7 @@ class ObjectTracker:
     """Turns successive pose readings of one object into its full state."""
 
     def __init__(self):
-        # the last reading, its rotation and the state made of it
-        self._previous: tuple[ObjectReading, np.ndarray, ObjectState] | None = None
+        self._previous: tuple[ObjectReading, ObjectState] | None = None  # the last reading and the state made of it
 
     def reset(self) -> None:
         self._previous = None
@@ -61,17 +60,17 @@ class ObjectTracker:
         previous = self._previous
         if previous is not None and _same_pose(reading, previous[0]):
             # an object at rest (most steps): its rotation and angles stand, and it did not move
-            state = previous[2]
-            self._previous = (reading, previous[1], state)
+            state = previous[1]
+            self._previous = (reading, state)
             return ObjectState(reading.position, state.rotation, state.rpy, np.zeros(3), np.zeros(3))
         rotation = quaternion_to_matrix(reading.quaternion)
         linear, angular = np.zeros(3), np.zeros(3)
         if previous is not None and reading.stamp > previous[0].stamp:
             dt = reading.stamp - previous[0].stamp
             linear = (reading.position - previous[0].position) / dt
-            angular = pin.log3(rotation @ previous[1].T) / dt
+            angular = pin.log3(rotation @ previous[1].rotation.T) / dt
         state = ObjectState(reading.position, rotation, pin.rpy.matrixToRpy(rotation), linear, angular)
-        self._previous = (reading, rotation, state)
+        self._previous = (reading, state)
         return state
 
 

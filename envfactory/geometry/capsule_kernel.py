@@ -165,7 +165,6 @@ def capsule_bounds(frames, shape_joint, local_ends, radius, local_boxes, box_hal
     is_placed = np.zeros(shape_joint.shape[0], dtype=np.bool_)
     for m in range(moving.shape[0]):
         shape = moving[m]
-        _place_box(frames, shape, shape_joint, local_boxes, box_half, placed, is_placed)
         for o in range(obstacles):
             out[m * obstacles + o] = _scene_bound(frames, ends, shape, o, shape_joint, local_boxes, box_half, radius,
                                                   padding, obstacle_low, obstacle_high, placed, is_placed)
@@ -217,9 +216,9 @@ def _place_box(frames, shape, shape_joint, local_boxes, box_half, placed, is_pla
                 placed[shape, axis, i] = (frame[i, 0] * local_boxes[shape, axis, 0]
                                           + frame[i, 1] * local_boxes[shape, axis, 1]
                                           + frame[i, 2] * local_boxes[shape, axis, 2])
-        for i in range(3):
-            reach = (box_half[shape, 0] * abs(placed[shape, AXES, i]) + box_half[shape, 1] * abs(placed[shape, AXES + 1, i])
-                     + box_half[shape, 2] * abs(placed[shape, AXES + 2, i]))
+        for i in range(3):  # along each of the base frame's axes
+            reach = _box_reach(placed, box_half, shape, 1.0 if i == 0 else 0.0, 1.0 if i == 1 else 0.0,
+                               1.0 if i == 2 else 0.0)
             placed[shape, LOW, i] = placed[shape, CENTER, i] - reach
             placed[shape, HIGH, i] = placed[shape, CENTER, i] + reach
         is_placed[shape] = True
@@ -230,8 +229,9 @@ def _box_reach(placed, box_half, shape, nx, ny, nz):
     """How far the shape's box reaches from its centre along the unit direction n."""
     reach = 0.0
     for axis in range(3):
-        reach += box_half[shape, axis] * abs(placed[shape, axis + 1, 0] * nx + placed[shape, axis + 1, 1] * ny
-                                             + placed[shape, axis + 1, 2] * nz)
+        row = AXES + axis
+        reach += box_half[shape, axis] * abs(placed[shape, row, 0] * nx + placed[shape, row, 1] * ny
+                                             + placed[shape, row, 2] * nz)
     return reach
 
 
@@ -244,11 +244,13 @@ def _self_pair_bound(frames, ends, a, b, shape_joint, local_boxes, box_half, rad
     if bound < BOX_BELOW:
         _place_box(frames, a, shape_joint, local_boxes, box_half, placed, is_placed)
         _place_box(frames, b, shape_joint, local_boxes, box_half, placed, is_placed)
-        dx, dy, dz = placed[b, 0, 0] - placed[a, 0, 0], placed[b, 0, 1] - placed[a, 0, 1], placed[b, 0, 2] - placed[a, 0, 2]
+        dx = placed[b, CENTER, 0] - placed[a, CENTER, 0]
+        dy = placed[b, CENTER, 1] - placed[a, CENTER, 1]
+        dz = placed[b, CENTER, 2] - placed[a, CENTER, 2]
         apart = -np.inf
         for direction in range(7):
             if direction < 6:
-                shape, axis = (a, direction + 1) if direction < 3 else (b, direction - 2)
+                shape, axis = (a, AXES + direction) if direction < 3 else (b, AXES + direction - 3)
                 nx, ny, nz = placed[shape, axis, 0], placed[shape, axis, 1], placed[shape, axis, 2]
             else:
                 length = np.sqrt(dx * dx + dy * dy + dz * dz)

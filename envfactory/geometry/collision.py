@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass
+from functools import cached_property
 
 import coal
 import numpy as np
@@ -50,7 +51,7 @@ class Shape:
     padding: float
     box: tuple[np.ndarray, np.ndarray, np.ndarray]  # around the shape: flat links (fingers, pads) fit a box far better
 
-    @property
+    @cached_property  # read per gripper sample when the finger table is built
     def corners(self) -> np.ndarray:
         """The box's 8 corners (box_corners' order), each pushed out by BOX_ROUNDING."""
         corners = box_corners(*self.box)
@@ -504,9 +505,8 @@ class CollisionModel:
                                                threshold, levels, joints.parent, joints.placement, joints.kind,
                                                joints.axis, joints.coordinate, joints.gain, self._shape_joint,
                                                self._local_ends, self._local_boxes, self._box_half, self.radius,
-                                               self.padding,
-                                               self.moving_shapes, self.obstacle_low, self.obstacle_high, self.self_a,
-                                               self.self_b, unproven)
+                                               self.padding, self.moving_shapes, self.obstacle_low, self.obstacle_high,
+                                               self.self_a, self.self_b, unproven)
         self.forget_pose()
         return pairs[unproven]
 

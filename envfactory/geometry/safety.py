@@ -235,7 +235,6 @@ class SafetyCheck:
         # the fingers' table is looser than coal by a few millimetres: a smallest piece it leaves unproven has its
         # two ends measured again with coal alone before the motion is refused. (Where coal's bounds prove a piece,
         # they prove each part of it, so this refuses exactly the motions a bisection on coal alone would refuse.)
-        remeasure = motion.gripper_moves and self.collision.gripper_sweep.sweepable(single)[0]
         coal_alone: dict[float, float] = {}
         pieces = [(start, start_clearance, end, end_clearance)]
         while pieces:
@@ -243,7 +242,7 @@ class SafetyCheck:
             if clearance_a + clearance_b - travel * (b - a) >= 2 * threshold:
                 continue
             if b - a <= finest:
-                if remeasure:
+                if motion.gripper_moves and self.collision.gripper_sweep.sweepable(single)[0]:
                     for f in (a, b):
                         if f not in coal_alone:
                             coal_alone[f] = self._pair_clearance(single, motion.arm_at(f), motion, tabulated=False)

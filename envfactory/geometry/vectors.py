@@ -21,5 +21,5 @@ def lengths(vectors: np.ndarray) -> np.ndarray:
     """The length of each vector along the last axis (a batch of goals, or one)."""
     vectors = np.asarray(vectors, dtype=float)
     if vectors.ndim == 1:  # one vector (a step's): a 0-d result, as the batch arithmetic would give
-        return np.asarray(math.sqrt(float(vectors @ vectors)))
+        return np.asarray(length(vectors))
     return np.sqrt((vectors * vectors).sum(axis=-1))
