@@ -289,6 +289,59 @@ def _segment_point_distance(ends, c, point):
     return np.sqrt(nx * nx + ny * ny + nz * nz)
 
 
+@njit(cache=True, inline="always")
+def _place_sweep(frame, sweep_corners, row, first, last, placed, low, high):
+    """A finger's box corners at gripper samples first..last (tabulated in its mount's frame), placed by the
+    mount's frame into placed[:corners], and their extent along the base frame's axes."""
+    low[:] = np.inf
+    high[:] = -np.inf
+    for sample in range(first, last + 1):
+        for corner in range(8):
+            k = 8 * (sample - first) + corner
+            x, y, z = (sweep_corners[row, sample, corner, 0], sweep_corners[row, sample, corner, 1],
+                       sweep_corners[row, sample, corner, 2])
+            for i in range(3):
+                value = _placed(frame, x, y, z, i)
+                placed[k, i] = value
+                low[i] = min(low[i], value)
+                high[i] = max(high[i], value)
+
+
+@njit(cache=True, inline="always")
+def _sweep_gap(frames, placed, low, high, corners, obstacle, obstacle_low, obstacle_high, other, other_joint,
+               local_corners, box):
+    """The separation of placed swept corners from an obstacle (obstacle >= 0) along its axes, or from another
+    shape's box along the box's axes: it bounds the distance between their convex hull and the obstacle or box."""
+    apart = -np.inf
+    if obstacle >= 0:
+        for i in range(3):
+            apart = max(apart, low[i] - obstacle_high[obstacle, i], obstacle_low[obstacle, i] - high[i])
+        return apart
+    frame = frames[other_joint]
+    for corner in range(8):
+        for i in range(3):
+            box[corner, i] = _placed(frame, local_corners[other, corner, 0], local_corners[other, corner, 1],
+                                     local_corners[other, corner, 2], i)
+    # the box's edges from its first corner (fit_box's order: x-, y- and z-steps are 4, 2 and 1)
+    for edge in range(3):
+        step = 4 >> edge
+        ux, uy, uz = box[step, 0] - box[0, 0], box[step, 1] - box[0, 1], box[step, 2] - box[0, 2]
+        length = np.sqrt(ux * ux + uy * uy + uz * uz)
+        if length < 1e-12:
+            continue
+        ux, uy, uz = ux / length, uy / length, uz / length
+        box_low, box_high = np.inf, -np.inf
+        for corner in range(8):
+            value = box[corner, 0] * ux + box[corner, 1] * uy + box[corner, 2] * uz
+            box_low, box_high = min(box_low, value), max(box_high, value)
+        lowest, highest = np.inf, -np.inf
+        for k in range(corners):
+            value = placed[k, 0] * ux + placed[k, 1] * uy + placed[k, 2] * uz
+            lowest, highest = min(lowest, value), max(highest, value)
+        apart = max(apart, lowest - box_high, box_low - highest)
+    return apart
+
+
 @njit(cache=True)
 def swept_box_gaps(frames, mount_joint, sweep_corners, first, last, rows, obstacles, obstacle_low, obstacle_high,
                    others, other_joint, local_corners, out):
@@ -303,50 +356,23 @@ def swept_box_gaps(frames, mount_joint, sweep_corners, first, last, rows, obstac
     box = np.empty((8, 3))
     for p in range(rows.shape[0]):
         row = rows[p]
-        if not done[row]:
-            frame = frames[mount_joint[row]]
-            low[row, :] = np.inf
-            high[row, :] = -np.inf
-            for sample in range(first, last + 1):
-                for corner in range(8):
-                    k = 8 * (sample - first) + corner
-                    x, y, z = (sweep_corners[row, sample, corner, 0], sweep_corners[row, sample, corner, 1],
-                               sweep_corners[row, sample, corner, 2])
-                    for i in range(3):
-                        value = _placed(frame, x, y, z, i)
-                        placed[row, k, i] = value
-                        low[row, i] = min(low[row, i], value)
-                        high[row, i] = max(high[row, i], value)
+        if not done[row]:  # a finger measured against several obstacles is placed once
+            _place_sweep(frames[mount_joint[row]], sweep_corners, row, first, last, placed[row], low[row], high[row])
             done[row] = True
-        apart = -np.inf
-        if obstacles[p] >= 0:
-            o = obstacles[p]
-            for i in range(3):
-                apart = max(apart, low[row, i] - obstacle_high[o, i], obstacle_low[o, i] - high[row, i])
-        else:
-            other = others[p]
-            frame = frames[other_joint[p]]
-            for corner in range(8):
-                for i in range(3):
-                    box[corner, i] = _placed(frame, local_corners[other, corner, 0], local_corners[other, corner, 1],
-                                             local_corners[other, corner, 2], i)
-            # the box's edges from its first corner (fit_box's order: x-, y- and z-steps are 4, 2 and 1)
-            for step in (4, 2, 1):
-                ux, uy, uz = box[step, 0] - box[0, 0], box[step, 1] - box[0, 1], box[step, 2] - box[0, 2]
-                length = np.sqrt(ux * ux + uy * uy + uz * uz)
-                if length < 1e-12:
-                    continue
-                ux, uy, uz = ux / length, uy / length, uz / length
-                box_low, box_high = np.inf, -np.inf
-                for corner in range(8):
-                    value = box[corner, 0] * ux + box[corner, 1] * uy + box[corner, 2] * uz
-                    box_low, box_high = min(box_low, value), max(box_high, value)
-                lowest, highest = np.inf, -np.inf
-                for k in range(corners):
-                    value = placed[row, k, 0] * ux + placed[row, k, 1] * uy + placed[row, k, 2] * uz
-                    lowest, highest = min(lowest, value), max(highest, value)
-                apart = max(apart, lowest - box_high, box_low - highest)
-        out[p] = apart
+        out[p] = _sweep_gap(frames, placed[row], low[row], high[row], corners, obstacles[p], obstacle_low,
+                            obstacle_high, others[p], other_joint[p], local_corners, box)
+
+
+@njit(cache=True)
+def swept_box_gap(frames, mount_joint, sweep_corners, first, last, row, obstacle, obstacle_low, obstacle_high, other,
+                  other_joint, local_corners):
+    """swept_box_gaps for one pair, on scalars: the safety check's deep bisections ask for one pair at a time."""
+    corners = 8 * (last - first + 1)
+    placed = np.empty((corners, 3))
+    low, high, box = np.empty(3), np.empty(3), np.empty((8, 3))
+    _place_sweep(frames[mount_joint[row]], sweep_corners, row, first, last, placed, low, high)
+    return _sweep_gap(frames, placed, low, high, corners, obstacle, obstacle_low, obstacle_high, other, other_joint,
+                      local_corners, box)
 
 
 @njit(cache=True, inline="always")
@@ -362,48 +388,92 @@ def _pair_bound(frames, ends, pair, shape_joint, local_boxes, box_half, radius, 
                         box_half, radius, padding, obstacle_low, obstacle_high, placed, is_placed)
 
 
+@njit(cache=True, inline="always")
+def _motion_pose(coordinates, fraction, q_from, way, parent, placement, kind, axis, coordinate, gain, shape_joint,
+                 local_ends, frames, ends, is_placed):
+    """Frames and capsule ends with the arm `fraction` of the way along the motion (boxes placed on demand)."""
+    for j in range(q_from.shape[0]):
+        coordinates[j] = q_from[j] + fraction * way[j]
+    joint_frames(coordinates, parent, placement, kind, axis, coordinate, gain, frames)
+    capsule_ends(frames, shape_joint, local_ends, ends)
+    is_placed[:] = False
+
+
+@njit(cache=True)
+def _motion_bound(frames, ends, pair, reserve, shape_joint, local_boxes, box_half, radius, padding, moving,
+                  obstacle_low, obstacle_high, self_a, self_b, sweep_first, sweep_last, sweep_row, sweep_obstacle,
+                  sweep_other, sweep_other_joint, mount_joint, sweep_corners, sweep_pad, pair_padding, local_corners,
+                  placed, is_placed, swept, swept_low, swept_high, box):
+    """One pair's bound at the posed frames: its capsule bound less the gripper's reserve, or where the fingers'
+    table applies and does better, the tabulated sweep's (NO_BOUND: may touch)."""
+    bound = _pair_bound(frames, ends, pair, shape_joint, local_boxes, box_half, radius, padding, moving,
+                        obstacle_low, obstacle_high, self_a, self_b, placed, is_placed) - reserve[pair]
+    row = sweep_row[pair]
+    if row >= 0 and sweep_last >= sweep_first:
+        _place_sweep(frames[mount_joint[row]], sweep_corners, row, sweep_first, sweep_last, swept, swept_low,
+                     swept_high)
+        gap = _sweep_gap(frames, swept, swept_low, swept_high, 8 * (sweep_last - sweep_first + 1),
+                         sweep_obstacle[pair], obstacle_low, obstacle_high, sweep_other[pair],
+                         sweep_other_joint[pair], local_corners, box) - sweep_pad[row] - pair_padding[pair]
+        if gap >= 0.0:
+            bound = max(bound, gap)
+    return bound
+
+
 @njit(cache=True)
 def capsule_motion_unproven(coordinates, q_from, way, pairs, start_bound, end_bound, travel, reserve, threshold,
-                            levels, parent, placement, kind, axis, coordinate, gain, shape_joint, local_ends,
+                            levels, deeper, parent, placement, kind, axis, coordinate, gain, shape_joint, local_ends,
                             local_boxes, box_half, radius, padding, moving, obstacle_low, obstacle_high, self_a,
-                            self_b, unproven):
-    """The lever-bound bisection of a straight arm motion on capsule bounds alone, for these pairs: each level
-    halves every piece and poses the arm once at each new point (the gripper where `coordinates` holds it).
-    A pair is proven once every piece's two end bounds less the piece's travel keep twice its threshold;
-    unproven[i] says pairs[i] was not, after `levels` halvings (or at once, where capsules overlap)."""
+                            self_b, sweep_first, sweep_last, sweep_row, sweep_obstacle, sweep_other,
+                            sweep_other_joint, mount_joint, sweep_corners, sweep_pad, pair_padding, local_corners,
+                            unproven):
+    """The lever-bound bisection of a straight arm motion on compiled bounds alone, for these pairs: each pair's
+    capsule bound less the gripper's reserve, or the fingers' table over gripper samples sweep_first..sweep_last
+    where it applies (none when sweep_last < sweep_first). Each of the first `levels` halves every piece and poses
+    the arm once at each new point (the gripper where `coordinates` holds it), shared by the pairs; the pieces a
+    pair still leaves unproven are then halved `deeper` times more, on that pair alone. A pair is proven once every
+    piece's two end bounds less the piece's travel keep twice its threshold; unproven[i] says pairs[i] was not
+    (or capsules overlap where no table applies)."""
     count = pairs.shape[0]
     points = 2 ** levels + 1
     grid = np.empty((count, points))
     active = np.empty(count, dtype=np.bool_)  # still worth halving: unproven, no overlap met
-    alive = 0
-    for i in range(count):
-        pair = pairs[i]
-        grid[i, 0], grid[i, points - 1] = start_bound[pair], end_bound[pair]
-        unproven[i] = True
-        active[i] = grid[i, 0] > NO_BOUND and grid[i, points - 1] > NO_BOUND
-        alive += active[i]
     frames = np.empty((parent.shape[0], 3, 4))
     ends = np.empty((shape_joint.shape[0], 2, 3))
     placed = np.empty((shape_joint.shape[0], PLACED_ROWS, 3))
     is_placed = np.zeros(shape_joint.shape[0], dtype=np.bool_)
-    arm = q_from.shape[0]
+    swept = np.empty((8 * max(sweep_last - sweep_first + 1, 1), 3))
+    swept_low, swept_high, box = np.empty(3), np.empty(3), np.empty((8, 3))
+    alive = 0
+    for i in range(count):
+        pair = pairs[i]
+        grid[i, 0], grid[i, points - 1] = start_bound[pair], end_bound[pair]
+        if sweep_row[pair] >= 0 and sweep_last >= sweep_first:  # the table may do better at the ends too
+            for end in (0, points - 1):
+                _motion_pose(coordinates, end / (points - 1), q_from, way, parent, placement, kind, axis, coordinate, gain,
+                             shape_joint, local_ends, frames, ends, is_placed)
+                grid[i, end] = max(grid[i, end], _motion_bound(
+                    frames, ends, pair, reserve, shape_joint, local_boxes, box_half, radius, padding, moving,
+                    obstacle_low, obstacle_high, self_a, self_b, sweep_first, sweep_last, sweep_row, sweep_obstacle,
+                    sweep_other, sweep_other_joint, mount_joint, sweep_corners, sweep_pad, pair_padding,
+                    local_corners, placed, is_placed, swept, swept_low, swept_high, box))
+        unproven[i] = True
+        active[i] = grid[i, 0] > NO_BOUND and grid[i, points - 1] > NO_BOUND
+        alive += active[i]
     for level in range(1, levels + 1):
         if alive == 0:
             break
         spacing = 2 ** (levels - level)
         for k in range(1, 2 ** level, 2):
-            fraction = k / 2 ** level
-            for j in range(arm):
-                coordinates[j] = q_from[j] + fraction * way[j]
-            joint_frames(coordinates, parent, placement, kind, axis, coordinate, gain, frames)
-            capsule_ends(frames, shape_joint, local_ends, ends)
-            is_placed[:] = False
+            _motion_pose(coordinates, k / 2 ** level, q_from, way, parent, placement, kind, axis, coordinate, gain,
+                         shape_joint, local_ends, frames, ends, is_placed)
             for i in range(count):
                 if active[i]:
-                    pair = pairs[i]
-                    grid[i, k * spacing] = _pair_bound(frames, ends, pair, shape_joint, local_boxes, box_half,
-                                                       radius, padding, moving, obstacle_low, obstacle_high, self_a,
-                                                       self_b, placed, is_placed) - reserve[pair]
+                    grid[i, k * spacing] = _motion_bound(
+                        frames, ends, pairs[i], reserve, shape_joint, local_boxes, box_half, radius, padding, moving,
+                        obstacle_low, obstacle_high, self_a, self_b, sweep_first, sweep_last, sweep_row,
+                        sweep_obstacle, sweep_other, sweep_other_joint, mount_joint, sweep_corners, sweep_pad,
+                        pair_padding, local_corners, placed, is_placed, swept, swept_low, swept_high, box)
         length = 1.0 / 2 ** level
         for i in range(count):
             if not active[i]:
@@ -423,6 +493,41 @@ def capsule_motion_unproven(coordinates, q_from, way, pairs, start_bound, end_bo
                 active[i] = False
             if not active[i]:
                 alive -= 1
+    # the pieces a pair leaves, halved on their own: (start, its bound, end, its bound, halvings left)
+    stack = np.empty((deeper + 2, 5))
+    last = 2 ** levels
+    for i in range(count):
+        if not active[i]:
+            continue
+        pair = pairs[i]
+        proven = True
+        for piece in range(last):
+            if not proven:
+                break
+            stack[0, 0], stack[0, 1] = piece / last, grid[i, piece]
+            stack[0, 2], stack[0, 3], stack[0, 4] = (piece + 1) / last, grid[i, piece + 1], deeper
+            top = 1
+            while top > 0:
+                top -= 1
+                a, bound_a, b, bound_b, left = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3], stack[top, 4]
+                if bound_a + bound_b - travel[pair] * (b - a) >= 2.0 * threshold[pair]:
+                    continue
+                if left == 0 or bound_a == NO_BOUND or bound_b == NO_BOUND:
+                    proven = False
+                    break
+                middle = (a + b) / 2
+                _motion_pose(coordinates, middle, q_from, way, parent, placement, kind, axis, coordinate, gain,
+                             shape_joint, local_ends, frames, ends, is_placed)
+                bound = _motion_bound(
+                    frames, ends, pair, reserve, shape_joint, local_boxes, box_half, radius, padding, moving,
+                    obstacle_low, obstacle_high, self_a, self_b, sweep_first, sweep_last, sweep_row, sweep_obstacle,
+                    sweep_other, sweep_other_joint, mount_joint, sweep_corners, sweep_pad, pair_padding,
+                    local_corners, placed, is_placed, swept, swept_low, swept_high, box)
+                stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3], stack[top, 4] = a, bound_a, middle, bound, left - 1
+                stack[top + 1, 0], stack[top + 1, 1] = middle, bound
+                stack[top + 1, 2], stack[top + 1, 3], stack[top + 1, 4] = b, bound_b, left - 1
+                top += 2
+        unproven[i] = not proven
 
 
 @njit(cache=True, inline="always")

@@ -73,23 +73,52 @@ class GripperSweep:
         self.pair_obstacle = np.concatenate([collision.scene_obstacle, np.full(len(self_other), -1)]).astype(np.int64)
         self.pair_other = np.concatenate([np.full(len(collision.scene_shape), -1), self_other]).astype(np.int64)
         self.pair_other_joint = np.where(self.pair_other >= 0, collision._shape_joint[self.pair_other], 0)
+        # the same as plain Python numbers for clearance_one (numpy's scalar indexing would cost more than the bound)
+        self._row_of_pair, self._obstacle_of_pair = self.pair_row.tolist(), self.pair_obstacle.tolist()
+        self._other_of_pair, self._other_joint_of_pair = self.pair_other.tolist(), self.pair_other_joint.tolist()
+        pad = self.pad[np.maximum(self.pair_row, 0)] if len(self.pad) else np.zeros(len(self.pair_row))
+        self._pad_of_pair = (np.where(self.pair_row >= 0, pad, 0.0) + collision.pair_padding).tolist()
+
+    def clearance_one(self, pair: int, first: int, last: int) -> float:
+        """clearances() for one sweepable pair over the samples first..last (bracket()'s), on scalars."""
+        collision = self.collision
+        if last < first:
+            return -math.inf
+        collision._place_frames()
+        row = self._row_of_pair[pair]
+        return capsule_kernel.swept_box_gap(collision._frames, self.mount_joint, self.corners, first, last, row,
+                                            self._obstacle_of_pair[pair], collision.obstacle_low,
+                                            collision.obstacle_high, self._other_of_pair[pair],
+                                            self._other_joint_of_pair[pair], collision._local_corners) \
+            - self._pad_of_pair[pair]
+
+    def sweepable_one(self, pair: int) -> bool:
+        return self._row_of_pair[pair] >= 0
 
     def sweepable(self, pairs: np.ndarray) -> np.ndarray:
         """Which of these pairs this bound can measure, as a mask."""
         return self.pair_row[pairs] >= 0
 
+    def bracket(self, gripper_from: float, gripper_to: float) -> tuple[int, int]:
+        """The first and last tabulated samples that bracket the gripper's range (last < first where the range
+        leaves the table: no bound)."""
+        low, high = sorted((gripper_from, gripper_to))
+        if not len(self.shapes) or low < self.low - 1e-9 or high > self.high + 1e-9:
+            return 0, -1
+        spacing, top = self.spacing, self.samples - 1
+        # scalar arithmetic: this runs thousands of times a second
+        first = min(max(math.floor((low - self.low) / spacing + 1e-9), 0), top)
+        last = min(max(math.ceil((high - self.low) / spacing - 1e-9), 0), top)
+        return first, last
+
     def clearances(self, pairs: np.ndarray, gripper_from: float, gripper_to: float) -> np.ndarray:
         """A lower bound on each pair's clearance (pairs `sweepable` picks) at the current arm pose, over
         every gripper value between the two."""
         collision = self.collision
-        low, high = sorted((gripper_from, gripper_to))
-        if low < self.low - 1e-9 or high > self.high + 1e-9:  # beyond the table: no bound
+        first, last = self.bracket(gripper_from, gripper_to)
+        if last < first:
             return np.full(len(pairs), -np.inf)
         collision._place_frames()
-        spacing, top = self.spacing, self.samples - 1
-        # the tabulated values that bracket the range (scalar arithmetic: this runs thousands of times a second)
-        first = min(max(math.floor((low - self.low) / spacing + 1e-9), 0), top)
-        last = min(max(math.ceil((high - self.low) / spacing - 1e-9), 0), top)
         rows = self.pair_row[pairs]
         out = np.empty(len(pairs))
         capsule_kernel.swept_box_gaps(collision._frames, self.mount_joint, self.corners, first, last, rows,

@@ -16,6 +16,7 @@ small to split: then the motion is refused. A doubt stops the arm.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -57,6 +58,7 @@ class Motion:
     reserve: np.ndarray  # per pair: how far the gripper's motion can close it from its middle value
     threshold: np.ndarray  # per pair: the clearance it must keep
     gripper_moves: bool = False
+    samples: tuple[int, int] = (0, -1)  # the fingers' table samples that bracket the gripper's range (GripperSweep.bracket)
     way: np.ndarray = field(init=False)  # q_to - q_from: asked for at every piece
 
     @property
@@ -88,8 +90,10 @@ class SafetyCheck:
     FEW_PAIRS = 12
     # Halvings of a motion on capsule bounds alone before coal measures what they leave (8 pieces: 7 poses)
     CAPSULE_LEVELS = 3
-    # Gripper values sampled first across the gripper's range, before finer sweeps where needed.
-    COARSE_SWEEP = 5
+    # Further halvings of the pieces a pair still leaves, on compiled bounds and that pair alone, before coal
+    DEEPER_LEVELS = 3
+    # Gripper values sampled first across the gripper's range (as shares of it), before finer sweeps where needed.
+    COARSE_FRACTIONS = (0.0, 0.25, 0.5, 0.75, 1.0)
     # Gripper values are sampled this finely (in clearance lost between samples) when its motion matters.
     SWEEP_RESOLUTION = 0.001
 
@@ -162,8 +166,10 @@ class SafetyCheck:
         # The gripper moves on its own clock: any of its values between start and target may meet
         # any arm pose, so each pose is judged over the gripper's whole range.
         reserve = lever[:, arm] * abs(gripper_to - gripper_from) / 2 if has_gripper else np.zeros(collision.pair_count)
+        moves = bool(reserve.any())
         motion = Motion(q_from, q_to, gripper_from, gripper_to, lever[:, :arm] @ np.abs(q_to - q_from), reserve,
-                        self.margin.copy(), bool(reserve.any()))
+                        self.margin.copy(), moves,
+                        collision.gripper_sweep.bracket(gripper_from, gripper_to) if moves else (0, -1))
 
         start = self._start_anchor(motion)
         # a pair already inside the margin now (contact, tracking error) may only move out
@@ -190,9 +196,9 @@ class SafetyCheck:
         # shape it passes has a lever arm that overstates how fast their gap can close).
         weak = self._weak(start, end, motion, 1.0, None)
         if weak.size:
-            weak = collision.unproven_by_capsules(q_from, motion.way, motion.gripper_middle, weak, start.bound,
+            weak = collision.unproven_by_capsules(q_from, motion.way, gripper_from, gripper_to, weak, start.bound,
                                                   end.bound, motion.travel, motion.reserve, motion.threshold,
-                                                  self.CAPSULE_LEVELS)
+                                                  self.CAPSULE_LEVELS, self.DEEPER_LEVELS)
         # A piece carries only the pairs its parent could not prove: a pair proven over a piece is
         # proven over every part of it, so deep pieces measure a handful of pairs, not all of them.
         pieces = [(start, end, weak)]
@@ -231,48 +237,47 @@ class SafetyCheck:
         """The bisection for one pair between two measured poses, on plain floats: the deep pieces
         near a pair that sits close to its threshold are many, and each costs one coal query."""
         travel, threshold = float(motion.travel[pair]), float(motion.threshold[pair])
-        single = np.array([pair])
         # the fingers' table is looser than coal by a few millimetres: a smallest piece it leaves unproven has its
         # two ends measured again with coal alone before the motion is refused. (Where coal's bounds prove a piece,
         # they prove each part of it, so this refuses exactly the motions a bisection on coal alone would refuse.)
         coal_alone: dict[float, float] = {}
+        tabulated = motion.gripper_moves and self.collision.gripper_sweep.sweepable_one(pair)
         pieces = [(start, start_clearance, end, end_clearance)]
         while pieces:
             a, clearance_a, b, clearance_b = pieces.pop()
             if clearance_a + clearance_b - travel * (b - a) >= 2 * threshold:
                 continue
             if b - a <= finest:
-                if motion.gripper_moves and self.collision.gripper_sweep.sweepable(single)[0]:
+                if tabulated:
                     for f in (a, b):
                         if f not in coal_alone:
-                            coal_alone[f] = self._pair_clearance(single, motion.arm_at(f), motion, tabulated=False)
+                            coal_alone[f] = self._pair_clearance(pair, motion.arm_at(f), motion, tabulated=False)
                     clearance_a, clearance_b = max(clearance_a, coal_alone[a]), max(clearance_b, coal_alone[b])
                     if clearance_a + clearance_b - travel * (b - a) >= 2 * threshold:
                         continue
                 return self._unproven(pair, a)
             middle = (a + b) / 2
-            clearance = self._pair_clearance(single, motion.arm_at(middle), motion)
+            clearance = self._pair_clearance(pair, motion.arm_at(middle), motion)
             if clearance < threshold:
                 return Verdict(False, self._describe(pair, clearance, f" at {middle:.0%} of the motion"))
             pieces += [(a, clearance_a, middle, clearance), (middle, clearance, b, clearance_b)]
         return ACCEPTED
 
-    def _pair_clearance(self, single: np.ndarray, q_arm: np.ndarray, motion: Motion, tabulated: bool = True) -> float:
+    def _pair_clearance(self, pair: int, q_arm: np.ndarray, motion: Motion, tabulated: bool = True) -> float:
         """A lower bound on one pair's clearance at an arm pose, over the gripper's range (the fingers'
         table first, unless told to measure with coal alone)."""
-        if not motion.gripper_moves or motion.reserve[single[0]] == 0.0:  # the gripper cannot change it
-            self.collision.pose(q_arm, motion.gripper_middle)
-            return self.collision.exact_one(int(single[0]))
-        sweep = self.collision.gripper_sweep
-        if tabulated and sweep.sweepable(single)[0]:
-            self.collision.pose(q_arm, motion.gripper_middle)
-            clearance = float(sweep.clearances(single, motion.gripper_from, motion.gripper_to)[0])
-            if clearance >= motion.threshold[single[0]]:
+        collision = self.collision
+        if not motion.gripper_moves or motion.reserve[pair] == 0.0:  # the gripper cannot change it
+            collision.pose(q_arm, motion.gripper_middle)
+            return collision.exact_one(pair)
+        if tabulated and collision.gripper_sweep.sweepable_one(pair):
+            collision.pose(q_arm, motion.gripper_middle)
+            clearance = collision.gripper_sweep.clearance_one(pair, *motion.samples)
+            if clearance >= motion.threshold[pair]:
                 return clearance
-        anchor = Anchor(0.0, q_arm, np.full(self.collision.pair_count, -np.inf),
-                        np.zeros(self.collision.pair_count, dtype=np.int8))
-        self._refine(anchor, single, motion, 2, tabulated=False)  # the table, where it applies, fell short above
-        return float(anchor.bound[single[0]])
+        # coal across the gripper's range (the table, where it applies, fell short above)
+        return self._gripper_range_bound(q_arm, motion, pair, [self._gripper_clearance_one(q_arm, motion, fraction, pair)
+                                                               for fraction in self.COARSE_FRACTIONS])
 
     def _unproven(self, pair: int, fraction: float) -> Verdict:
         names = " and ".join(self.collision.pair_names(pair))
@@ -327,37 +332,39 @@ class SafetyCheck:
             anchor.level[todo] = 1
         if sweep.size == 0:
             return
-        # Coal at a few gripper values along its range, then halving only the intervals where a pair is in
-        # doubt: over an interval a clearance dips below the mean of its ends by at most the gripper's
-        # lever times half the interval's travel (its reserve times the interval's share of the range).
-        reserve, threshold = motion.reserve[sweep], motion.threshold[sweep]
-        fractions = np.linspace(0.0, 1.0, self.COARSE_SWEEP)
-        ends = [self._gripper_clearance(anchor.q_arm, motion, fraction, sweep) for fraction in fractions]
-        bound = np.full(sweep.size, np.inf)
-        # A pair measured below its threshold at a gripper value of the range has no bound at or above it: halving
-        # its intervals down to the resolution (dozens of queries per pair, on every refused motion) would only
-        # settle how far below. It keeps the coarse samples' bound, valid and already below the threshold.
-        doomed = np.min(ends, axis=0) < threshold
-        every = (~doomed).nonzero()[0]
-        if doomed.any():
-            bound[doomed] = np.min([(ends[k][doomed] + ends[k + 1][doomed]) / 2
-                                    - reserve[doomed] * (fractions[k + 1] - fractions[k])
-                                    for k in range(len(fractions) - 1)], axis=0)
-        intervals = [(fractions[k], ends[k][every], fractions[k + 1], ends[k + 1][every], every)
-                     for k in range(len(fractions) - 1)] if every.size else []
-        while intervals:
-            a, clearance_a, b, clearance_b, rows = intervals.pop()
-            within = (clearance_a + clearance_b) / 2 - reserve[rows] * (b - a)
-            done = (within >= threshold[rows]) | (reserve[rows] * (b - a) <= self.SWEEP_RESOLUTION)
-            bound[rows[done]] = np.minimum(bound[rows[done]], within[done])
-            if done.all():
-                continue
-            rows, clearance_a, clearance_b = rows[~done], clearance_a[~done], clearance_b[~done]
-            middle = (a + b) / 2
-            clearance = self._gripper_clearance(anchor.q_arm, motion, middle, sweep[rows])
-            intervals += [(a, clearance_a, middle, clearance, rows), (middle, clearance, b, clearance_b, rows)]
-        anchor.bound[sweep] = bound
+        # coal at a few gripper values along its range, shared by the pairs; then each pair on its own
+        coarse = [self._gripper_clearance(anchor.q_arm, motion, fraction, sweep).tolist()
+                  for fraction in self.COARSE_FRACTIONS]
+        for row, pair in enumerate(sweep.tolist()):
+            anchor.bound[pair] = self._gripper_range_bound(anchor.q_arm, motion, pair, [ends[row] for ends in coarse])
         anchor.level[sweep] = 2
+
+    def _gripper_range_bound(self, q_arm: np.ndarray, motion: Motion, pair: int, coarse: list[float]) -> float:
+        """A lower bound on one pair's clearance at this arm pose over the gripper's range, from coal's clearances
+        at the coarse gripper samples, halving only the intervals where the pair is in doubt: over an interval a
+        clearance dips below the mean of its ends by at most the gripper's lever times half the interval's travel
+        (the pair's reserve times the interval's share of the range). On plain floats: it runs per pair, often."""
+        reserve, threshold = float(motion.reserve[pair]), float(motion.threshold[pair])
+        fractions = self.COARSE_FRACTIONS
+        within = [(coarse[k] + coarse[k + 1]) / 2 - reserve * (fractions[k + 1] - fractions[k])
+                  for k in range(len(fractions) - 1)]
+        if min(coarse) < threshold:
+            # measured below its threshold at a gripper value of the range, it has no bound at or above it: halving
+            # down to the resolution (dozens of queries, on every refused motion) would only settle how far below
+            return min(within)
+        bound = math.inf
+        intervals = [(fractions[k], coarse[k], fractions[k + 1], coarse[k + 1]) for k in range(len(fractions) - 1)]
+        while intervals:
+            a, clearance_a, b, clearance_b = intervals.pop()
+            dip = reserve * (b - a)
+            low = (clearance_a + clearance_b) / 2 - dip
+            if low >= threshold or dip <= self.SWEEP_RESOLUTION:
+                bound = min(bound, low)
+                continue
+            middle = (a + b) / 2
+            clearance = self._gripper_clearance_one(q_arm, motion, middle, pair)
+            intervals += [(a, clearance_a, middle, clearance), (middle, clearance, b, clearance_b)]
+        return bound
 
     def _sweep_fingers(self, anchor: Anchor, pairs: np.ndarray, motion: Motion) -> np.ndarray:
         """Prove the finger pairs the tabulated sweep clears over the gripper's whole range (level 2 at
@@ -381,6 +388,10 @@ class SafetyCheck:
         """Exact clearances of these pairs with the arm at q_arm and the gripper this far along its motion."""
         self.collision.pose(q_arm, motion.gripper_from + fraction * (motion.gripper_to - motion.gripper_from))
         return self.collision.exact(pairs)
+
+    def _gripper_clearance_one(self, q_arm: np.ndarray, motion: Motion, fraction: float, pair: int) -> float:
+        self.collision.pose(q_arm, motion.gripper_from + fraction * (motion.gripper_to - motion.gripper_from))
+        return self.collision.exact_one(pair)
 
     def _settle(self, anchor: Anchor, motion: Motion, where: str, pairs: np.ndarray | None = None) -> Verdict:
         """Tighten every pair (of these) the capsules cannot clear, and refuse if one is truly too close."""
