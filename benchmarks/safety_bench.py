@@ -50,13 +50,14 @@ def measure(env_id: str, ee: bool, steps: int) -> dict:
         poses[0] += 1
         return anchor(*args)
 
-    exact, queries = safety.collision.exact, [0]
+    # every coal query of the check goes through exact_one (exact() asks it once per pair)
+    exact_one, queries = safety.collision.exact_one, [0]
 
-    def counted_exact(pairs):
-        queries[0] += len(pairs)
-        return exact(pairs)
+    def counted_exact_one(pair):
+        queries[0] += 1
+        return exact_one(pair)
 
-    safety._anchor, safety.collision.exact = counted_anchor, counted_exact
+    safety._anchor, safety.collision.exact_one = counted_anchor, counted_exact_one
     safety.check = _timed(safety.check, times, cpu_times)
     if env.object_guard is not None:
         env.object_guard.check = _timed(env.object_guard.check, guard_times, guard_cpu)

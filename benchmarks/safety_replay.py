@@ -45,13 +45,14 @@ def replay(env, calls: list[tuple], substeps: int) -> tuple[float, float, float]
     """Median CPU µs per check, exact queries per check, and the share of checks accepted."""
     safety, client = env.safety, env.backend.client
     collision = safety.collision
-    exact, queries = collision.exact, [0]
+    # every coal query of the check goes through exact_one (exact() asks it once per pair)
+    exact_one, queries = collision.exact_one, [0]
 
-    def counted(pairs):
-        queries[0] += len(pairs)
-        return exact(pairs)
+    def counted(pair):
+        queries[0] += 1
+        return exact_one(pair)
 
-    collision.exact = counted
+    collision.exact_one = counted
     safety.forget()
     times, accepted = [], 0
     for args in calls:
@@ -61,7 +62,7 @@ def replay(env, calls: list[tuple], substeps: int) -> tuple[float, float, float]
         verdict = safety.check(*args)
         times.append(time.thread_time() - start)
         accepted += verdict.accepted
-    collision.exact = exact
+    collision.exact_one = exact_one
     return float(np.median(times) * 1e6), queries[0] / len(calls), accepted / len(calls)
 
 
