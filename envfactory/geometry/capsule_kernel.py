@@ -434,55 +434,25 @@ def _pair_bound(frames, ends, pair, shape_joint, local_boxes, box_half, radius, 
 
 @njit(cache=True, inline="always")
 def _motion_pose(coordinates, fraction, q_from, way, parent, placement, kind, axis, coordinate, gain, shape_joint,
-                 local_ends, frames, ends, is_placed, swept_done):
-    """Frames and capsule ends with the arm `fraction` of the way along the motion (boxes and the fingers' swept
-    corners placed on demand)."""
+                 local_ends, frames, ends, is_placed):
+    """Frames and capsule ends with the arm `fraction` of the way along the motion (boxes placed on demand)."""
     for j in range(q_from.shape[0]):
         coordinates[j] = q_from[j] + fraction * way[j]
     joint_frames(coordinates, parent, placement, kind, axis, coordinate, gain, frames)
     capsule_ends(frames, shape_joint, local_ends, ends)
     is_placed[:] = False
-    swept_done[:] = False
-
-
-@njit(cache=True)
-def _motion_bound(frames, ends, pair, reserve, shape_joint, local_boxes, box_half, radius, padding, moving,
-                  obstacle_low, obstacle_high, self_a, self_b, sweep_first, sweep_last, sweep_row, sweep_obstacle,
-                  sweep_other, sweep_other_joint, mount_joint, sweep_corners, sweep_pad, pair_padding, local_corners,
-                  placed, is_placed, swept, swept_low, swept_high, swept_done, box):
-    """One pair's bound at the posed frames: its capsule bound less the gripper's reserve, or where the fingers'
-    table applies and does better, the tabulated sweep's (NO_BOUND: may touch). A finger's swept corners are
-    placed once per pose (swept[row]), for every pair it is in."""
-    bound = _pair_bound(frames, ends, pair, shape_joint, local_boxes, box_half, radius, padding, moving,
-                        obstacle_low, obstacle_high, self_a, self_b, placed, is_placed) - reserve[pair]
-    row = sweep_row[pair]
-    if row >= 0 and sweep_last >= sweep_first:
-        if not swept_done[row]:
-            _place_sweep(frames[mount_joint[row]], sweep_corners, row, sweep_first, sweep_last, swept[row],
-                         swept_low[row], swept_high[row])
-            swept_done[row] = True
-        gap = _sweep_gap(frames, swept[row], swept_low[row], swept_high[row], 8 * (sweep_last - sweep_first + 1),
-                         sweep_obstacle[pair], obstacle_low, obstacle_high, sweep_other[pair],
-                         sweep_other_joint[pair], local_corners, box) - sweep_pad[row] - pair_padding[pair]
-        if gap >= 0.0:
-            bound = max(bound, gap)
-    return bound
 
 
 @njit(cache=True)
 def capsule_motion_unproven(coordinates, q_from, way, pairs, start_bound, end_bound, travel, reserve, threshold,
                             levels, deeper, parent, placement, kind, axis, coordinate, gain, shape_joint, local_ends,
                             local_boxes, box_half, radius, padding, moving, obstacle_low, obstacle_high, self_a,
-                            self_b, sweep_first, sweep_last, sweep_row, sweep_obstacle, sweep_other,
-                            sweep_other_joint, mount_joint, sweep_corners, sweep_pad, pair_padding, local_corners,
-                            unproven):
-    """The lever-bound bisection of a straight arm motion on compiled bounds alone, for these pairs: each pair's
-    capsule bound less the gripper's reserve, or the fingers' table over gripper samples sweep_first..sweep_last
-    where it applies (none when sweep_last < sweep_first). Each of the first `levels` halves every piece and poses
-    the arm once at each new point (the gripper where `coordinates` holds it), shared by the pairs; the pieces a
-    pair still leaves unproven are then halved `deeper` times more, on that pair alone. A pair is proven once every
-    piece's two end bounds less the piece's travel keep twice its threshold; unproven[i] says pairs[i] was not
-    (or capsules overlap where no table applies)."""
+                            self_b, unproven):
+    """The lever-bound bisection of a straight arm motion on capsule bounds alone (less each pair's reserve), for
+    these pairs. Each of the first `levels` halves every piece and poses the arm once at each new point (the gripper
+    where `coordinates` holds it), shared by the pairs; the pieces a pair still leaves unproven are then halved
+    `deeper` times more, posed for that pair alone. A pair is proven once every piece's two end bounds less the
+    piece's travel keep twice its threshold; unproven[i] says pairs[i] was not (or capsules overlap)."""
     count = pairs.shape[0]
     points = 2 ** levels + 1
     grid = np.empty((count, points))
@@ -491,25 +461,10 @@ def capsule_motion_unproven(coordinates, q_from, way, pairs, start_bound, end_bo
     ends = np.empty((shape_joint.shape[0], 2, 3))
     placed = np.empty((shape_joint.shape[0], PLACED_ROWS, 3))
     is_placed = np.zeros(shape_joint.shape[0], dtype=np.bool_)
-    rows = sweep_corners.shape[0]
-    swept = np.empty((rows, 8 * max(sweep_last - sweep_first + 1, 1), 3))
-    swept_low, swept_high, box = np.empty((rows, 3)), np.empty((rows, 3)), np.empty((8, 3))
-    swept_done = np.zeros(rows, dtype=np.bool_)
     alive = 0
-    tabulated = sweep_last >= sweep_first
     for i in range(count):
-        grid[i, 0], grid[i, points - 1] = start_bound[pairs[i]], end_bound[pairs[i]]
-    for end in range(0, points if tabulated else 0, points - 1):  # the table may do better at the ends too
-        _motion_pose(coordinates, end / (points - 1), q_from, way, parent, placement, kind, axis, coordinate, gain,
-                     shape_joint, local_ends, frames, ends, is_placed, swept_done)
-        for i in range(count):
-            if sweep_row[pairs[i]] >= 0:
-                grid[i, end] = max(grid[i, end], _motion_bound(
-                    frames, ends, pairs[i], reserve, shape_joint, local_boxes, box_half, radius, padding, moving,
-                    obstacle_low, obstacle_high, self_a, self_b, sweep_first, sweep_last, sweep_row, sweep_obstacle,
-                    sweep_other, sweep_other_joint, mount_joint, sweep_corners, sweep_pad, pair_padding,
-                    local_corners, placed, is_placed, swept, swept_low, swept_high, swept_done, box))
-    for i in range(count):
+        pair = pairs[i]
+        grid[i, 0], grid[i, points - 1] = start_bound[pair], end_bound[pair]
         unproven[i] = True
         active[i] = grid[i, 0] > NO_BOUND and grid[i, points - 1] > NO_BOUND
         alive += active[i]
@@ -519,14 +474,13 @@ def capsule_motion_unproven(coordinates, q_from, way, pairs, start_bound, end_bo
         spacing = 2 ** (levels - level)
         for k in range(1, 2 ** level, 2):
             _motion_pose(coordinates, k / 2 ** level, q_from, way, parent, placement, kind, axis, coordinate, gain,
-                         shape_joint, local_ends, frames, ends, is_placed, swept_done)
+                         shape_joint, local_ends, frames, ends, is_placed)
             for i in range(count):
                 if active[i]:
-                    grid[i, k * spacing] = _motion_bound(
-                        frames, ends, pairs[i], reserve, shape_joint, local_boxes, box_half, radius, padding, moving,
-                        obstacle_low, obstacle_high, self_a, self_b, sweep_first, sweep_last, sweep_row,
-                        sweep_obstacle, sweep_other, sweep_other_joint, mount_joint, sweep_corners, sweep_pad,
-                        pair_padding, local_corners, placed, is_placed, swept, swept_low, swept_high, swept_done, box)
+                    pair = pairs[i]
+                    grid[i, k * spacing] = _pair_bound(frames, ends, pair, shape_joint, local_boxes, box_half,
+                                                       radius, padding, moving, obstacle_low, obstacle_high, self_a,
+                                                       self_b, placed, is_placed) - reserve[pair]
         length = 1.0 / 2 ** level
         for i in range(count):
             if not active[i]:
@@ -570,12 +524,9 @@ def capsule_motion_unproven(coordinates, q_from, way, pairs, start_bound, end_bo
                     break
                 middle = (a + b) / 2
                 _motion_pose(coordinates, middle, q_from, way, parent, placement, kind, axis, coordinate, gain,
-                             shape_joint, local_ends, frames, ends, is_placed, swept_done)
-                bound = _motion_bound(
-                    frames, ends, pair, reserve, shape_joint, local_boxes, box_half, radius, padding, moving,
-                    obstacle_low, obstacle_high, self_a, self_b, sweep_first, sweep_last, sweep_row, sweep_obstacle,
-                    sweep_other, sweep_other_joint, mount_joint, sweep_corners, sweep_pad, pair_padding,
-                    local_corners, placed, is_placed, swept, swept_low, swept_high, swept_done, box)
+                             shape_joint, local_ends, frames, ends, is_placed)
+                bound = _pair_bound(frames, ends, pair, shape_joint, local_boxes, box_half, radius, padding, moving,
+                                    obstacle_low, obstacle_high, self_a, self_b, placed, is_placed) - reserve[pair]
                 stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3], stack[top, 4] = a, bound_a, middle, bound, left - 1
                 stack[top + 1, 0], stack[top + 1, 1] = middle, bound
                 stack[top + 1, 2], stack[top + 1, 3], stack[top + 1, 4] = b, bound_b, left - 1

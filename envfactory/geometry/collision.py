@@ -490,22 +490,16 @@ class CollisionModel:
                                       self.obstacle_low, self.obstacle_high, self.self_a, self.self_b, out)
         return out
 
-    def unproven_by_capsules(self, q_from: np.ndarray, way: np.ndarray, gripper_from: float, gripper_to: float,
-                             pairs: np.ndarray, start_bound: np.ndarray, end_bound: np.ndarray, travel: np.ndarray,
+    def unproven_by_capsules(self, q_from: np.ndarray, way: np.ndarray, gripper: float, pairs: np.ndarray,
+                             start_bound: np.ndarray, end_bound: np.ndarray, travel: np.ndarray,
                              reserve: np.ndarray, threshold: np.ndarray, levels: int, deeper: int = 0) -> np.ndarray:
-        """Of these pairs, those the compiled bounds cannot prove clear along the straight arm motion q_from +
-        f way while the gripper moves between the two values: capsules at the gripper's middle value less each
-        pair's reserve, or the fingers' coarse table over the gripper's range where it applies; every piece halved
-        up to `levels` times, then a pair's unproven pieces `deeper` times more
-        (capsule_kernel.capsule_motion_unproven).
-        Leaves the model posed nowhere in particular."""
+        """Of these pairs, those the capsule bounds cannot prove clear along the straight arm motion q_from +
+        f way (gripper fixed at `gripper`, less each pair's reserve), halving every piece up to `levels` times,
+        then a pair's unproven pieces `deeper` times more (capsule_kernel.capsule_motion_unproven). Leaves the
+        model posed nowhere in particular."""
         coordinates = self._coordinates
         if self.coordinates > len(q_from):
-            coordinates[len(q_from)] = (gripper_from + gripper_to) / 2
-        sweep = self.gripper_sweep
-        # the coarse table, only where the gripper moves: at a fixed gripper value the capsules are what it bounds with
-        table = sweep.coarse
-        first, last = table.bracket(gripper_from, gripper_to) if gripper_from != gripper_to else (0, -1)
+            coordinates[len(q_from)] = gripper
         unproven = np.empty(len(pairs), dtype=np.bool_)
         joints = self._joints
         capsule_kernel.capsule_motion_unproven(coordinates, q_from, way, pairs, start_bound, end_bound, travel, reserve,
@@ -513,10 +507,7 @@ class CollisionModel:
                                                joints.axis, joints.coordinate, joints.gain, self._shape_joint,
                                                self._local_ends, self._local_boxes, self._box_half, self.radius,
                                                self.padding, self.moving_shapes, self.obstacle_low, self.obstacle_high,
-                                               self.self_a, self.self_b, first, last, sweep.pair_row,
-                                               sweep.pair_obstacle, sweep.pair_other, sweep.pair_other_joint,
-                                               sweep.mount_joint, table.corners, table.pad, self.pair_padding,
-                                               self._local_corners, unproven)
+                                               self.self_a, self.self_b, unproven)
         self.forget_pose()
         return pairs[unproven]
 

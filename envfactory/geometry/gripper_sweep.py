@@ -10,51 +10,21 @@ the corners of the tabulated boxes across a gripper range, placed by the
 mount's frame, are separated from each obstacle box, or from the box around
 an arm link's shape, along that box's axes. Less the half millimetre, that is
 a lower bound on the finger's clearance at any gripper value in the range;
-coal measures only the pairs it leaves in doubt. A coarse table (samples
-two millimetres apart) serves the compiled pass over a motion's poses, where
-placing the fine table's corners at every pose would cost more than it proves.
+coal measures only the pairs it leaves in doubt.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from envfactory.geometry import capsule_kernel
 
 
-@dataclass(frozen=True)
-class SweepTable:
-    """Each finger's box corners in its mount's frame at `samples` gripper values evenly spaced from `low`, and per
-    finger how far a point of it may be from its place at the nearest of them (`pad`)."""
-
-    low: float
-    spacing: float
-    samples: int
-    corners: np.ndarray  # (fingers, samples, 8, 3)
-    pad: np.ndarray  # per finger
-
-    def bracket(self, gripper_from: float, gripper_to: float) -> tuple[int, int]:
-        """The first and last samples that bracket the gripper's range (last < first where the range leaves the
-        table: no bound)."""
-        low, high = sorted((gripper_from, gripper_to))
-        top = self.samples - 1
-        if not len(self.corners) or low < self.low - 1e-9 or high > self.low + top * self.spacing + 1e-9:
-            return 0, -1
-        # scalar arithmetic: this runs thousands of times a second
-        first = min(max(math.floor((low - self.low) / self.spacing + 1e-9), 0), top)
-        last = min(max(math.ceil((high - self.low) / self.spacing - 1e-9), 0), top)
-        return first, last
-
-
 class GripperSweep:
     # no point of a finger's box is farther than this from its place at the nearest tabulated gripper value
     PAD = 0.0005
-    # the coarse table the compiled motion pass places at every pose it tries: a quarter of the samples (it only
-    # filters; what it leaves in doubt is judged on the fine table and coal)
-    COARSE_PAD = 0.002
     DENSE_SAMPLES = 401  # the corners' speed is measured on this many values across the range
     SAFETY_FACTOR = 1.25
 
@@ -67,19 +37,18 @@ class GripperSweep:
         self.mount_joint = collision.gripper_mount[self.shapes]
         self.low, self.high = (float(gripper.low), float(gripper.high)) if gripper is not None else (0.0, 0.0)
         if not len(self.shapes):
-            self.table = self.coarse = SweepTable(self.low, 1.0, 1, np.zeros((0, 1, 8, 3)), np.zeros(0))
+            self.samples, self.spacing = 1, 1.0
+            self.corners, self.pad = np.zeros((0, 1, 8, 3)), np.zeros(0)
             return
         dense = self._mounted_corners(np.linspace(self.low, self.high, self.DENSE_SAMPLES))
         # the fastest any corner moves per unit of gripper travel, measured on the dense table
         step = (self.high - self.low) / (dense.shape[1] - 1)
         rate = self.SAFETY_FACTOR * np.linalg.norm(np.diff(dense, axis=1), axis=-1).max(axis=(1, 2)) / step
-        self.table, self.coarse = self._table(rate, self.PAD), self._table(rate, self.COARSE_PAD)
-
-    def _table(self, rate: np.ndarray, pad: float) -> SweepTable:
-        samples = max(int(np.ceil(rate.max() * (self.high - self.low) / (2 * pad))) + 1, 2)
-        values = np.linspace(self.low, self.high, samples)
-        spacing = values[1] - values[0]
-        return SweepTable(self.low, spacing, samples, self._mounted_corners(values), rate * spacing / 2)
+        self.samples = max(int(np.ceil(rate.max() * (self.high - self.low) / (2 * self.PAD))) + 1, 2)
+        values = np.linspace(self.low, self.high, self.samples)
+        self.spacing = values[1] - values[0]
+        self.corners = self._mounted_corners(values)
+        self.pad = rate * self.spacing / 2
 
     def _mounted_corners(self, values: np.ndarray) -> np.ndarray:
         """(fingers, values, 8, 3): each finger's box corners in its mount joint's frame at each gripper value."""
@@ -107,8 +76,7 @@ class GripperSweep:
         # the same as plain Python numbers for clearance_one (numpy's scalar indexing would cost more than the bound)
         self._row_of_pair, self._obstacle_of_pair = self.pair_row.tolist(), self.pair_obstacle.tolist()
         self._other_of_pair, self._other_joint_of_pair = self.pair_other.tolist(), self.pair_other_joint.tolist()
-        table_pad = self.table.pad
-        pad = table_pad[np.maximum(self.pair_row, 0)] if len(table_pad) else np.zeros(len(self.pair_row))
+        pad = self.pad[np.maximum(self.pair_row, 0)] if len(self.pad) else np.zeros(len(self.pair_row))
         self._pad_of_pair = (np.where(self.pair_row >= 0, pad, 0.0) + collision.pair_padding).tolist()
 
     def clearance_one(self, pair: int, first: int, last: int) -> float:
@@ -118,7 +86,7 @@ class GripperSweep:
             return -math.inf
         collision._place_frames()
         row = self._row_of_pair[pair]
-        return capsule_kernel.swept_box_gap(collision._frames, self.mount_joint, self.table.corners, first, last, row,
+        return capsule_kernel.swept_box_gap(collision._frames, self.mount_joint, self.corners, first, last, row,
                                             self._obstacle_of_pair[pair], collision.obstacle_low,
                                             collision.obstacle_high, self._other_of_pair[pair],
                                             self._other_joint_of_pair[pair], collision._local_corners) \
@@ -132,8 +100,16 @@ class GripperSweep:
         return self.pair_row[pairs] >= 0
 
     def bracket(self, gripper_from: float, gripper_to: float) -> tuple[int, int]:
-        """The fine table's samples that bracket the gripper's range (SweepTable.bracket)."""
-        return self.table.bracket(gripper_from, gripper_to)
+        """The first and last tabulated samples that bracket the gripper's range (last < first where the range
+        leaves the table: no bound)."""
+        low, high = sorted((gripper_from, gripper_to))
+        if not len(self.shapes) or low < self.low - 1e-9 or high > self.high + 1e-9:
+            return 0, -1
+        spacing, top = self.spacing, self.samples - 1
+        # scalar arithmetic: this runs thousands of times a second
+        first = min(max(math.floor((low - self.low) / spacing + 1e-9), 0), top)
+        last = min(max(math.ceil((high - self.low) / spacing - 1e-9), 0), top)
+        return first, last
 
     def clearances(self, pairs: np.ndarray, gripper_from: float, gripper_to: float) -> np.ndarray:
         """A lower bound on each pair's clearance (pairs `sweepable` picks) at the current arm pose, over
@@ -145,8 +121,8 @@ class GripperSweep:
         collision._place_frames()
         rows = self.pair_row[pairs]
         out = np.empty(len(pairs))
-        capsule_kernel.swept_box_gaps(collision._frames, self.mount_joint, self.table.corners, first, last, rows,
+        capsule_kernel.swept_box_gaps(collision._frames, self.mount_joint, self.corners, first, last, rows,
                                       self.pair_obstacle[pairs], collision.obstacle_low, collision.obstacle_high,
                                       self.pair_other[pairs], self.pair_other_joint[pairs], collision._local_corners,
                                       out)
-        return out - self.table.pad[rows] - collision.pair_padding[pairs]
+        return out - self.pad[rows] - collision.pair_padding[pairs]

@@ -90,7 +90,7 @@ class SafetyCheck:
     FEW_PAIRS = 12
     # Halvings of a motion on capsule bounds alone before coal measures what they leave (8 pieces: 7 poses)
     CAPSULE_LEVELS = 3
-    # Further halvings of the pieces a pair still leaves, on compiled bounds and that pair alone, before coal
+    # Further halvings of the pieces a pair still leaves, on capsule bounds and that pair alone, before coal
     DEEPER_LEVELS = 3
     # Gripper values sampled first across the gripper's range (as shares of it), before finer sweeps where needed.
     COARSE_FRACTIONS = (0.0, 0.25, 0.5, 0.75, 1.0)
@@ -196,7 +196,7 @@ class SafetyCheck:
         # shape it passes has a lever arm that overstates how fast their gap can close).
         weak = self._weak(start, end, motion, 1.0, None)
         if weak.size:
-            weak = collision.unproven_by_capsules(q_from, motion.way, gripper_from, gripper_to, weak, start.bound,
+            weak = collision.unproven_by_capsules(q_from, motion.way, motion.gripper_middle, weak, start.bound,
                                                   end.bound, motion.travel, motion.reserve, motion.threshold,
                                                   self.CAPSULE_LEVELS, self.DEEPER_LEVELS)
         # A piece carries only the pairs its parent could not prove: a pair proven over a piece is
