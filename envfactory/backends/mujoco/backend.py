@@ -236,25 +236,34 @@ class MujocoBackend:
         elif self._fast and self._carried(end):
             self.counts.carried += 1
         else:
+            placed, done = False, 0
             if self._fast and self._kinematic(end):
+                placed = True
+            elif self._fast and not self._settled:
+                placed, done = self._settle_then_place(steps, end)
+            if placed:
                 self.counts.kinematic += 1
+                self.counts.substeps += done
             else:
                 self.counts.dynamic += 1
-                self.counts.substeps += self._dynamic(steps)
-                self._settled = True
+                self.counts.substeps += self._dynamic(steps, done)
+            self._settled = self._settled or done > 0 or not placed
             if self._carry is not None:
                 arm = self._arm
                 self._carry.measure(self.data, q_start, q_start if arm is None else arm.end,
                                     0.0 if arm is None else arm.length)
         self.data.time = self._sim_time = end
 
-    def _dynamic(self, steps: int) -> int:
-        """The substeps of the commanded motion, then (fast) chunks until everything rests twice in a row."""
+    def _dynamic(self, steps: int, done: int = 0) -> int:
+        """The substeps of the commanded motion (after the `done` first ones, already played), then (fast) chunks
+        until everything rests twice in a row."""
         motion_end = max((profile.t0 + profile.length for profile in (self._arm, self._gripper)
                           if profile is not None and np.max(np.abs(profile.end - profile.start)) > REST_GAP),
                          default=0.0)  # a hold has nothing to play out: the rest test decides at once
-        done = steps if not self._fast else min(steps, max(1, int(np.ceil((motion_end - self._sim_time) / self.dt))))
-        self._play_substeps(0, done)
+        motion = steps if not self._fast else min(steps, max(1, int(np.ceil((motion_end - self._sim_time) / self.dt))))
+        if motion > done:
+            self._play_substeps(done, motion - done)
+            done = motion
         resting = False
         while done < steps:
             chunk = min(shortcuts.REST_CHECK_EVERY, steps - done)
@@ -375,31 +384,72 @@ class MujocoBackend:
 
     def _kinematic(self, end: float) -> bool:
         """Play the cycle without dynamics if the motion is proven clear of every object (shortcuts.py)."""
-        data, handles, arm, gripper = self.data, self.handles, self._arm, self._gripper
-        # a gripper on its way is no obstacle: its drive's profile says where it will be
+        data, handles = self.data, self.handles
         if self._clearance is None or not shortcuts.objects_at_rest(data, handles.object_dof) or \
                 not self._arm_lands_unsimulated(end):
             return False
-        q_from = data.qpos[handles.arm_qpos].copy()
+        landing = self._landing(data.qpos[handles.arm_qpos].copy(), self._gripper_value(), end)
+        if landing is None:
+            return False
+        self._land(*landing)
+        return True
+
+    def _settle_then_place(self, steps: int, end: float) -> tuple[bool, int]:
+        """A scene fresh from a reset is not at rest before its contacts have carried its objects' weight (sinking
+        into them, or dropped the few millimetres a spec spawns them above the table): the cycle is simulated, the
+        arm on its way along a path proven clear of the objects, only until they rest; then the proof is renewed
+        where they came to rest and the arm is placed as a kinematic cycle places it. Whether it was placed, and
+        the substeps simulated (the cycle's dynamics go on from there when it was not)."""
+        data, handles, arm = self.data, self.handles, self._arm
+        if self._clearance is None or not self._object_bodies or \
+                not shortcuts.robot_at_rest(data, handles.arm_dof, None) or \
+                not (arm is None or arm.t0 + arm.length <= end - shortcuts.SETTLE_TIME):
+            return False, 0
+        q_from, g_from = data.qpos[handles.arm_qpos].copy(), self._gripper_value()
+        if self._landing(q_from, g_from, end) is None:
+            return False, 0
+        done, resting, was_resting = 0, False, False
+        while done < steps and not (resting and was_resting):
+            chunk = min(shortcuts.REST_CHECK_EVERY, steps - done)
+            self._play_substeps(done, chunk)
+            done += chunk
+            # at rest at two checks in a row: one check can catch a bounce at its turning point
+            was_resting, resting = resting, shortcuts.objects_at_rest(data, handles.object_dof)
+        landing = self._landing(q_from, g_from, end) if resting and was_resting and done < steps else None
+        if landing is None:
+            return False, done
+        self._land(*landing)
+        return True, done
+
+    def _gripper_value(self) -> float:
+        return 0.0 if self._gripper is None else float(self.data.qpos[self.handles.gripper_qpos])
+
+    def _landing(self, q_from: np.ndarray, g_from: float, end: float):
+        """Where the cycle's motion from (q_from, g_from) ends (arm, gripper value and speed) if it is proven clear
+        of every object where they are now; else None."""
+        arm, gripper = self._arm, self._gripper
         q_to = q_from if arm is None else arm.end
-        g_from = g_to = g_speed = 0.0
+        g_to = g_speed = 0.0
         if gripper is not None:
-            g_from = float(data.qpos[handles.gripper_qpos])
+            # a gripper on its way is no obstacle: its drive's profile says where it will be
             position, velocity, _ = gripper.at(end)
             g_to, g_speed = float(position[0]), float(velocity[0])
         if self._object_bodies and not self._clearance.motion_is_clear(
-                q_from, g_from, q_to, g_to, data.xpos[self._object_bodies], self._object_radii, NEAR_CONTACT):
-            return False
+                q_from, g_from, q_to, g_to, self.data.xpos[self._object_bodies], self._object_radii, NEAR_CONTACT):
+            return None
+        return q_to, g_to, g_speed
+
+    def _land(self, q_to: np.ndarray, g_to: float, g_speed: float) -> None:
+        data = self.data
         self._land_arm(q_to)
-        if gripper is not None:
+        if self._gripper is not None:
             self._place_gripper(g_to, g_speed)
-            data.ctrl[handles.gripper_actuator] = g_to
+            data.ctrl[self.handles.gripper_actuator] = g_to
         # frames, cameras and lights for the readers; not collisions and forces (most of mj_forward): a motion proven
         # clear of the objects starts no contact a reader asks about, and the next simulated substep computes them
         mujoco.mj_kinematics(self.model, data)
         mujoco.mj_comPos(self.model, data)
         mujoco.mj_camlight(self.model, data)
-        return True
 
     def read_joints(self) -> JointReading:
         return JointReading(self.data.qpos[self.handles.state_qpos].copy(),
