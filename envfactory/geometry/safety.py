@@ -58,7 +58,7 @@ class Motion:
     reserve: np.ndarray  # per pair: how far the gripper's motion can close it from its middle value
     threshold: np.ndarray  # per pair: the clearance it must keep
     gripper_moves: bool = False
-    samples: tuple[int, int] = (0, -1)  # the fingers' table samples that bracket the gripper's range (GripperSweep.bracket)
+    samples: tuple[int, int] = (0, -1)  # the fingers' table samples bracketing the gripper's range (bracket())
     way: np.ndarray = field(init=False)  # q_to - q_from: asked for at every piece
 
     @property
@@ -276,8 +276,9 @@ class SafetyCheck:
             if clearance >= motion.threshold[pair]:
                 return clearance
         # coal across the gripper's range (the table, where it applies, fell short above)
-        return self._gripper_range_bound(q_arm, motion, pair, [self._gripper_clearance_one(q_arm, motion, fraction, pair)
-                                                               for fraction in self.COARSE_FRACTIONS])
+        coarse = [self._pose_with_gripper(q_arm, motion, fraction).exact_one(pair)
+                  for fraction in self.COARSE_FRACTIONS]
+        return self._gripper_range_bound(q_arm, motion, pair, coarse)
 
     def _unproven(self, pair: int, fraction: float) -> Verdict:
         names = " and ".join(self.collision.pair_names(pair))
@@ -333,7 +334,7 @@ class SafetyCheck:
         if sweep.size == 0:
             return
         # coal at a few gripper values along its range, shared by the pairs; then each pair on its own
-        coarse = [self._gripper_clearance(anchor.q_arm, motion, fraction, sweep).tolist()
+        coarse = [self._pose_with_gripper(anchor.q_arm, motion, fraction).exact(sweep).tolist()
                   for fraction in self.COARSE_FRACTIONS]
         for row, pair in enumerate(sweep.tolist()):
             anchor.bound[pair] = self._gripper_range_bound(anchor.q_arm, motion, pair, [ends[row] for ends in coarse])
@@ -346,12 +347,11 @@ class SafetyCheck:
         (the pair's reserve times the interval's share of the range). On plain floats: it runs per pair, often."""
         reserve, threshold = float(motion.reserve[pair]), float(motion.threshold[pair])
         fractions = self.COARSE_FRACTIONS
-        within = [(coarse[k] + coarse[k + 1]) / 2 - reserve * (fractions[k + 1] - fractions[k])
-                  for k in range(len(fractions) - 1)]
         if min(coarse) < threshold:
             # measured below its threshold at a gripper value of the range, it has no bound at or above it: halving
             # down to the resolution (dozens of queries, on every refused motion) would only settle how far below
-            return min(within)
+            return min((coarse[k] + coarse[k + 1]) / 2 - reserve * (fractions[k + 1] - fractions[k])
+                       for k in range(len(fractions) - 1))
         bound = math.inf
         intervals = [(fractions[k], coarse[k], fractions[k + 1], coarse[k + 1]) for k in range(len(fractions) - 1)]
         while intervals:
@@ -362,7 +362,7 @@ class SafetyCheck:
                 bound = min(bound, low)
                 continue
             middle = (a + b) / 2
-            clearance = self._gripper_clearance_one(q_arm, motion, middle, pair)
+            clearance = self._pose_with_gripper(q_arm, motion, middle).exact_one(pair)
             intervals += [(a, clearance_a, middle, clearance), (middle, clearance, b, clearance_b)]
         return bound
 
@@ -384,14 +384,10 @@ class SafetyCheck:
         fingers[fingers] = proven
         return pairs[~fingers]
 
-    def _gripper_clearance(self, q_arm: np.ndarray, motion: Motion, fraction: float, pairs: np.ndarray) -> np.ndarray:
-        """Exact clearances of these pairs with the arm at q_arm and the gripper this far along its motion."""
+    def _pose_with_gripper(self, q_arm: np.ndarray, motion: Motion, fraction: float) -> CollisionModel:
+        """Pose the arm at q_arm and the gripper this far along its motion; the collision model, to measure."""
         self.collision.pose(q_arm, motion.gripper_from + fraction * (motion.gripper_to - motion.gripper_from))
-        return self.collision.exact(pairs)
-
-    def _gripper_clearance_one(self, q_arm: np.ndarray, motion: Motion, fraction: float, pair: int) -> float:
-        self.collision.pose(q_arm, motion.gripper_from + fraction * (motion.gripper_to - motion.gripper_from))
-        return self.collision.exact_one(pair)
+        return self.collision
 
     def _settle(self, anchor: Anchor, motion: Motion, where: str, pairs: np.ndarray | None = None) -> Verdict:
         """Tighten every pair (of these) the capsules cannot clear, and refuse if one is truly too close."""

@@ -247,7 +247,7 @@ class MujocoBackend:
             else:
                 self.counts.dynamic += 1
                 self.counts.substeps += self._dynamic(steps, done)
-            self._settled = self._settled or done > 0 or not placed
+            self._settled = True  # every path here either found the scene settled or simulated until it was
             if self._carry is not None:
                 arm = self._arm
                 self._carry.measure(self.data, q_start, q_start if arm is None else arm.end,
@@ -264,18 +264,23 @@ class MujocoBackend:
         if motion > done:
             self._play_substeps(done, motion - done)
             done = motion
-        resting = False
-        while done < steps:
-            chunk = min(shortcuts.REST_CHECK_EVERY, steps - done)
-            self._play_substeps(done, chunk)
-            done += chunk
-            was_resting, resting = resting, self._scene_at_rest()
-            if resting and was_resting:
-                break  # what is left of the cycle would hold still
+        done, _ = self._play_until_rest(done, steps, self._scene_at_rest)  # what is left would hold still
         # the rest test reads only velocities, which the state holds: positions, contacts and frames are
         # computed once, for the cycle's end
         mujoco.mj_forward(self.model, self.data)
         return done
+
+    def _play_until_rest(self, done: int, steps: int, at_rest) -> tuple[int, bool]:
+        """Substeps after the `done` first ones, in chunks, until `at_rest()` holds at two checks in a row (one
+        check can catch a bounce at its turning point) or the cycle's `steps` are played: the substeps played by
+        then, and whether it came to rest."""
+        resting = was_resting = False
+        while done < steps and not (resting and was_resting):
+            chunk = min(shortcuts.REST_CHECK_EVERY, steps - done)
+            self._play_substeps(done, chunk)
+            done += chunk
+            was_resting, resting = resting, at_rest()
+        return done, resting and was_resting
 
     def _play_substeps(self, first: int, steps: int) -> None:
         """Simulate substeps first+1 … first+steps of the cycle: the controls of every substep are laid out
@@ -408,14 +413,8 @@ class MujocoBackend:
         q_from, g_from = data.qpos[handles.arm_qpos].copy(), self._gripper_value()
         if self._landing(q_from, g_from, end) is None:
             return False, 0
-        done, resting, was_resting = 0, False, False
-        while done < steps and not (resting and was_resting):
-            chunk = min(shortcuts.REST_CHECK_EVERY, steps - done)
-            self._play_substeps(done, chunk)
-            done += chunk
-            # at rest at two checks in a row: one check can catch a bounce at its turning point
-            was_resting, resting = resting, shortcuts.objects_at_rest(data, handles.object_dof)
-        landing = self._landing(q_from, g_from, end) if resting and was_resting and done < steps else None
+        done, rested = self._play_until_rest(0, steps, lambda: shortcuts.objects_at_rest(data, handles.object_dof))
+        landing = self._landing(q_from, g_from, end) if rested and done < steps else None
         if landing is None:
             return False, done
         self._land(*landing)
