@@ -175,6 +175,54 @@ def test_compiled_pass_proves_only_pairs_that_keep_their_threshold_while_the_gri
     assert by_deeper > 0 and asked > 100, (by_deeper, asked)
 
 
+def test_motion_proof_proves_only_motions_coal_finds_clear(env):
+    """The compiled proof of a whole motion (travel, reserve, bounds at both ends, the last end's bounds reused for
+    the start, the pass between): every motion it calls proven keeps every pair its margin by coal's exact
+    clearance on a grid of 17 arm poses times 5 gripper values; the start and end bounds it reports are below coal's
+    clearance at those poses over the gripper's range, reused or measured; and both outcomes occur."""
+    from envfactory.geometry import capsule_kernel
+
+    collision, kin, check = env.safety.collision, env.kinematics, env.safety
+    gripper = kin.robot.gripper
+    rng = np.random.default_rng(7)
+    home = np.asarray(kin.robot.home, float)
+    outcomes = set()
+    reused = 0
+    for trial in range(24):
+        q_from = rng.uniform(kin.arm_lower, kin.arm_upper) if trial % 3 == 0 else \
+            np.clip(home + rng.uniform(-0.6, 0.6, home.size), kin.arm_lower, kin.arm_upper)
+        q_to = np.clip(q_from + rng.uniform(-0.3, 0.3, q_from.size), kin.arm_lower, kin.arm_upper)
+        g_from, g_to = rng.uniform(gripper.low, gripper.high, 2)
+        last = None
+        if trial % 2:  # a last end 1-2 mm away, measured over a narrower gripper range: its bounds stand in
+            near = np.clip(q_from + rng.uniform(-5e-4, 5e-4, q_from.size), kin.arm_lower, kin.arm_upper)
+            collision.pose(near, (g_from + g_to) / 2)
+            last = (near, collision.bounds(), abs(g_to - g_from) / 2)
+        proof = collision.motion_proof(q_from, q_to - q_from, g_from, g_to, check.margin, last, check.REUSE_WITHIN, 3, 3)
+        outcomes.add(proof.outcome)
+        # how far each pair can close: each coordinate's lever times its change (the levers' own test is Bullet's)
+        assert np.allclose(proof.travel, collision.pair_lever[:, :-1] @ np.abs(q_to - q_from), rtol=1e-12, atol=0)
+        assert np.allclose(proof.reserve, collision.pair_lever[:, -1] * abs(g_to - g_from) / 2, rtol=1e-12, atol=0)
+        if last is not None:
+            moved = collision.pair_lever[:, :-1] @ np.abs(q_from - last[0]) + collision.pair_lever[:, -1] * last[2]
+            reused += bool(moved.max() <= check.REUSE_WITHIN)
+        grid = []
+        for fraction in np.linspace(0.0, 1.0, 17):
+            for value in np.linspace(g_from, g_to, 5):
+                collision.pose(q_from + fraction * (q_to - q_from), value)
+                grid.append(collision.all_exact())
+        grid = np.array(grid).reshape(17, 5, -1)
+        assert (proof.start_bound <= grid[0].min(axis=0) + 1e-9).all(), trial
+        assert (proof.end_bound <= grid[-1].min(axis=0) + 1e-9).all(), trial
+        if proof.outcome == capsule_kernel.PROVEN:
+            short = np.flatnonzero(grid.min(axis=(0, 1)) < check.margin - 1e-9)
+            assert short.size == 0, [collision.pair_names(int(k)) for k in short]
+        else:
+            assert proof.outcome == capsule_kernel.DOUBT_AT_ENDS or proof.unproven.size > 0
+    assert capsule_kernel.PROVEN in outcomes and len(outcomes) > 1, outcomes
+    assert reused > 0
+
+
 def test_levers_bound_every_shape_move_by_bullet(env):
     """No point of any link moves farther than lever · |Δ coordinates|: judged on Bullet's link AABBs,
     whose corners move with the links' collision shapes."""

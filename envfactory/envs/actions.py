@@ -72,25 +72,27 @@ class ActionAdapter:
         """The command an action of the layout's size (the env checked its shape) asks for."""
         if not np.isfinite(action).all():
             return Command(None, None, False, "non-finite action", self.hold_action(state))
-        command = self._translate_finite(np.asarray(action, dtype=float), state)
-        recorded = _clamp(np.asarray(action, dtype=np.float32), self.policy_low, self.policy_high)
-        return Command(command.q_arm, command.gripper, command.out_of_bounds, command.rejection, recorded)
-
-    def _translate_finite(self, action: np.ndarray, state: EnvState) -> Command:
+        action = np.asarray(action, dtype=float)
         # Flagged only outside the advertised float32 space: its bound may round past the declared row
         # (3.14 is 3.1400001 in float32), and a policy saturated on it asks for nothing the row forbids.
         inside = _clamp(action, self.policy_low, self.policy_high)
         out_of_bounds = bool((inside != action).any())
+        # the bounds are float32 numbers: rounding the clamped action is clamping the rounded one
+        recorded = inside.astype(np.float32)
+        return self._command(inside, state, out_of_bounds, recorded)
+
+    def _command(self, inside: np.ndarray, state: EnvState, out_of_bounds: bool, recorded: np.ndarray) -> Command:
+        """The command of a finite action held to the policy's space."""
         action = self.scale.to_seed(inside) if self.scale is not None else inside
         action = _clamp(action, self.low, self.high)  # that rounding, taken back
         gripper = float(action[-1]) if self.layout.gripper_in_action else None
         arm = action[: self.arm_size]
         if self.layout.ee:
-            return self._ee_target(arm, state, gripper, out_of_bounds)
+            return self._ee_target(arm, state, gripper, out_of_bounds, recorded)
         target = state.q_arm + self.layout.delta_coeff * arm if self.layout.delta else arm
         bounded = _clamp(target, self.kinematics.arm_lower, self.kinematics.arm_upper)
         out_of_bounds |= bool((bounded != target).any())
-        return Command(bounded, gripper, out_of_bounds)
+        return Command(bounded, gripper, out_of_bounds, recorded=recorded)
 
     def _oriented_ik(self, state: EnvState, position: np.ndarray):
         """IK for the position with the tool as EE mode keeps it: as it is, or turned toward pointing down by at
@@ -110,7 +112,8 @@ class ActionAdapter:
                 break
         return solution
 
-    def _ee_target(self, arm: np.ndarray, state: EnvState, gripper: float | None, out_of_bounds: bool) -> Command:
+    def _ee_target(self, arm: np.ndarray, state: EnvState, gripper: float | None, out_of_bounds: bool,
+                   recorded: np.ndarray) -> Command:
         target = state.ee_position + self.layout.delta_coeff * arm if self.layout.delta else arm
         bounded = _clamp(target, self.workspace_min, self.workspace_max)
         out_of_bounds |= bool((bounded != target).any())
@@ -119,11 +122,12 @@ class ActionAdapter:
         if solution.success and step > self.max_joint_delta and self.top_down is not None:
             # a turn that costs more joint motion than a step allows goes the allowed part of the way
             return Command(state.q_arm + (solution.q_arm - state.q_arm) * (self.max_joint_delta / step), gripper,
-                           out_of_bounds)
+                           out_of_bounds, recorded=recorded)
         if not solution.success or step > self.max_joint_delta:
             # Holding the orientation can be out of reach near the workspace edge,
             # or cost a large wrist roll on a 6-DoF arm: then only the position counts.
             solution = self.kinematics.solve_ik(state.q_arm, bounded, gripper=state.gripper, max_iterations=60)
         if not solution.success:
-            return Command(None, gripper, out_of_bounds, f"IK found no joint target for EE {np.round(bounded, 3)}")
-        return Command(solution.q_arm, gripper, out_of_bounds)
+            return Command(None, gripper, out_of_bounds, f"IK found no joint target for EE {np.round(bounded, 3)}",
+                           recorded)
+        return Command(solution.q_arm, gripper, out_of_bounds, recorded=recorded)

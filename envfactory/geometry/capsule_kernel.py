@@ -598,3 +598,89 @@ def motion_clear_of_spheres(coordinates, q_from, way, parent, placement, kind, a
         stack[top + 1, 0], stack[top + 1, 1] = middle, b
         top += 2
     return True
+
+
+# motion_proof's outcomes: the capsules prove the whole motion; a pair is in doubt at its start or end (below its
+# margin there: coal must measure it); the ends hold but the compiled pass leaves pairs unproven between them
+PROVEN, DOUBT_AT_ENDS, DOUBT_BETWEEN = 0, 1, 2
+
+
+@njit(cache=True)
+def motion_proof(coordinates, q_from, way, gripper_middle, gripper_change, pair_lever, margin, reuse, last_q,
+                 last_bound, gripper_beyond, reuse_within, levels, deeper, parent, placement, kind, axis, coordinate,
+                 gain, shape_joint, local_ends, local_boxes, box_half, radius, padding, moving, obstacle_low,
+                 obstacle_high, self_a, self_b, travel, reserve, start_bound, end_bound, unproven):
+    """The safety check's proof of a straight arm motion on capsule bounds alone, in one compiled call: per pair its
+    travel (lever arm times each joint's change) and reserve (the gripper's lever times half its change); bounds at
+    the start (the last accepted end's, less how far the arm and gripper are from it, when `reuse` and within
+    `reuse_within`; else measured) and at the end, with the gripper at its middle value, less the reserve; then the
+    lever-bound bisection (capsule_motion_unproven) of the pairs the two ends leave in doubt. Fills travel,
+    reserve, start_bound, end_bound, and unproven (per pair: left unproven by the bisection); returns (outcome,
+    whether the gripper's motion closes any pair)."""
+    pairs, arm = pair_lever.shape[0], q_from.shape[0]
+    has_gripper = pair_lever.shape[1] > arm
+    moves = False
+    for p in range(pairs):
+        total = 0.0
+        for j in range(arm):
+            total += pair_lever[p, j] * abs(way[j])
+        travel[p] = total
+        reserve[p] = pair_lever[p, arm] * gripper_change / 2.0 if has_gripper else 0.0
+        moves = moves or reserve[p] != 0.0
+        unproven[p] = False
+    if has_gripper:
+        coordinates[arm] = gripper_middle
+    frames = np.empty((parent.shape[0], 3, 4))
+    ends = np.empty((shape_joint.shape[0], 2, 3))
+    is_placed = np.zeros(shape_joint.shape[0], dtype=np.bool_)
+    if reuse:
+        farthest = 0.0
+        for p in range(pairs):
+            moved = 0.0
+            for j in range(arm):
+                moved += pair_lever[p, j] * abs(q_from[j] - last_q[j])
+            if has_gripper:
+                moved += pair_lever[p, arm] * gripper_beyond
+            start_bound[p] = last_bound[p] - moved
+            farthest = max(farthest, moved)
+        reuse = farthest <= reuse_within
+    if not reuse:
+        _motion_pose(coordinates, 0.0, q_from, way, parent, placement, kind, axis, coordinate, gain, shape_joint,
+                     local_ends, frames, ends, is_placed)
+        capsule_bounds(frames, shape_joint, local_ends, radius, local_boxes, box_half, padding, moving, obstacle_low,
+                       obstacle_high, self_a, self_b, start_bound)
+        for p in range(pairs):
+            start_bound[p] -= reserve[p]
+    _motion_pose(coordinates, 1.0, q_from, way, parent, placement, kind, axis, coordinate, gain, shape_joint,
+                 local_ends, frames, ends, is_placed)
+    capsule_bounds(frames, shape_joint, local_ends, radius, local_boxes, box_half, padding, moving, obstacle_low,
+                   obstacle_high, self_a, self_b, end_bound)
+    doubt_at_ends = False
+    weak = 0
+    for p in range(pairs):
+        end_bound[p] -= reserve[p]
+        if start_bound[p] < margin[p] or end_bound[p] < margin[p]:
+            doubt_at_ends = True
+        if start_bound[p] + end_bound[p] - travel[p] * 1.0 < 2 * margin[p]:
+            weak += 1
+    if doubt_at_ends:
+        return DOUBT_AT_ENDS, moves
+    if weak == 0:
+        return PROVEN, moves
+    asked = np.empty(weak, dtype=np.int64)
+    row = 0
+    for p in range(pairs):
+        if start_bound[p] + end_bound[p] - travel[p] * 1.0 < 2 * margin[p]:
+            asked[row] = p
+            row += 1
+    left = np.empty(weak, dtype=np.bool_)
+    capsule_motion_unproven(coordinates, q_from, way, asked, start_bound, end_bound, travel, reserve, margin, levels,
+                            deeper, parent, placement, kind, axis, coordinate, gain, shape_joint, local_ends,
+                            local_boxes, box_half, radius, padding, moving, obstacle_low, obstacle_high, self_a,
+                            self_b, left)
+    outcome = PROVEN
+    for i in range(weak):
+        if left[i]:
+            unproven[asked[i]] = True
+            outcome = DOUBT_BETWEEN
+    return outcome, moves

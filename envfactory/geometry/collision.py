@@ -155,6 +155,21 @@ def _capsule_of(geometry_object) -> tuple[np.ndarray, np.ndarray, float]:
     return start, end, radius * (1 + 1e-9) + 1e-9
 
 
+@dataclass
+class MotionProof:
+    """What the compiled proof of a motion found (capsule_kernel.motion_proof): its outcome, whether the gripper's
+    motion closes any pair, and per pair the travel, reserve and bounds at the start and end it measured, and the
+    pairs it left unproven between the ends."""
+
+    outcome: int
+    gripper_moves: bool
+    travel: np.ndarray
+    reserve: np.ndarray
+    start_bound: np.ndarray
+    end_bound: np.ndarray
+    unproven: np.ndarray
+
+
 class CollisionModel:
     """The robot's shapes, the scene's obstacles, and the pairs between them that are measured."""
 
@@ -510,6 +525,28 @@ class CollisionModel:
                                                self.self_a, self.self_b, unproven)
         self.forget_pose()
         return pairs[unproven]
+
+    def motion_proof(self, q_from: np.ndarray, way: np.ndarray, gripper_from: float, gripper_to: float,
+                     margin: np.ndarray, last: tuple[np.ndarray, np.ndarray, float] | None, reuse_within: float,
+                     levels: int, deeper: int) -> MotionProof:
+        """The capsule bounds' proof that the straight arm motion q_from + f way keeps every pair its margin, with the
+        gripper anywhere between its two values, in one compiled call (capsule_kernel.motion_proof). `last`: the
+        arm pose, bounds and gripper widening (how far this motion's gripper range reaches beyond theirs) of the
+        last proven end, which stand in for the start's bounds if the arm is within `reuse_within` of it."""
+        count = self.pair_count
+        travel, reserve, start, end = np.empty(count), np.empty(count), np.empty(count), np.empty(count)
+        unproven = np.empty(count, dtype=np.bool_)
+        last_q, last_bound, beyond = last if last is not None else (q_from, start, 0.0)
+        joints = self._joints
+        outcome, moves = capsule_kernel.motion_proof(
+            self._coordinates, q_from, way, (gripper_from + gripper_to) / 2, abs(gripper_to - gripper_from),
+            self.pair_lever, margin, last is not None, last_q, last_bound, beyond, reuse_within, levels, deeper,
+            joints.parent, joints.placement, joints.kind, joints.axis, joints.coordinate, joints.gain,
+            self._shape_joint, self._local_ends, self._local_boxes, self._box_half, self.radius, self.padding,
+            self.moving_shapes, self.obstacle_low, self.obstacle_high, self.self_a, self.self_b, travel, reserve, start,
+            end, unproven)
+        self.forget_pose()
+        return MotionProof(int(outcome), bool(moves), travel, reserve, start, end, unproven.nonzero()[0])
 
     def forget_pose(self) -> None:
         """A compiled pass posed the coordinates along a motion: the frames and placements no longer match any

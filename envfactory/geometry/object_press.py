@@ -40,8 +40,8 @@ class ObjectPressGuard:
         self.base_in_world = np.asarray(collision.kinematics.robot.mount, float)
         self.guarded = np.array([shape for shape in collision.moving_shapes if not collision.moved_by_gripper[shape]],
                                 dtype=int)
-        self.half_extents = {name: np.full(3, spec.size / 2) for name, spec in objects.items()}
-        self.boxes = {name: coal.Box(*(2 * half)) for name, half in self.half_extents.items()}
+        self.half_extents = {name: (spec.size / 2,) * 3 for name, spec in objects.items()}
+        self.boxes = {name: coal.Box(*(2 * h for h in half)) for name, half in self.half_extents.items()}
         self.surfaces = [(o.name, float(o.high[2]), tuple(map(float, o.low[:2])), tuple(map(float, o.high[:2])))
                          for o in collision.obstacles]
         self.bounding_radius = {name: float(np.linalg.norm(half)) for name, half in self.half_extents.items()}
@@ -50,12 +50,12 @@ class ObjectPressGuard:
               objects: dict[str, ObjectState]) -> Verdict:
         for name, state in objects.items():
             center = self.frame.to_world(state.position)
-            rotation = self.frame.rotation @ state.rotation
+            rotation = self.frame.rotation @ state.rotation if self.frame.rotated else state.rotation
             surface = self._resting_on(center, rotation, self.half_extents[name])
             if surface is None:
                 continue
             end = self._clearances(q_to, gripper_to, name, center, rotation)
-            if (end >= -self.CONTACT_TOLERANCE).all():
+            if float(end.min()) >= -self.CONTACT_TOLERANCE:
                 continue
             start = self._clearances(q_from, gripper_from, name, center, rotation)
             deeper = (end < -self.CONTACT_TOLERANCE) & (end < start - self.DEEPER_TOLERANCE)
@@ -66,9 +66,9 @@ class ObjectPressGuard:
                                       f"{-end[worst] * 1000:.0f} mm deep at the end of the motion")
         return ACCEPTED
 
-    def _resting_on(self, center: np.ndarray, rotation: np.ndarray, half: np.ndarray) -> str | None:
-        x, y = float(center[0]), float(center[1])
-        underside = float(center[2] - np.abs(rotation[2]) @ half)
+    def _resting_on(self, center: np.ndarray, rotation: np.ndarray, half: tuple[float, ...]) -> str | None:
+        x, y, z = center.tolist()
+        underside = z - sum(abs(r) * h for r, h in zip(rotation[2].tolist(), half))  # half: plain floats
         for name, top, low, high in self.surfaces:  # a handful: plain floats beat array calls here
             if abs(underside - top) <= self.RESTING_WITHIN and low[0] <= x <= high[0] and low[1] <= y <= high[1]:
                 return name

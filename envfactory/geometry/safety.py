@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from envfactory.geometry import capsule_kernel
 from envfactory.geometry.collision import CollisionModel
 from envfactory.schema.models import SafetySettings
 
@@ -160,45 +161,31 @@ class SafetyCheck:
 
     def _motion_verdict(self, q_from, q_to, gripper_from, gripper_to, finest, remember) -> Verdict:
         collision = self.collision
-        lever = collision.pair_lever
-        arm = len(q_from)
-        has_gripper = collision.coordinates > arm
         # The gripper moves on its own clock: any of its values between start and target may meet
         # any arm pose, so each pose is judged over the gripper's whole range.
-        reserve = lever[:, arm] * abs(gripper_to - gripper_from) / 2 if has_gripper else np.zeros(collision.pair_count)
-        moves = bool(reserve.any())
-        motion = Motion(q_from, q_to, gripper_from, gripper_to, lever[:, :arm] @ np.abs(q_to - q_from), reserve,
-                        self.margin.copy(), moves,
-                        collision.gripper_sweep.bracket(gripper_from, gripper_to) if moves else (0, -1))
-
-        start = self._start_anchor(motion)
-        # a pair already inside the margin now (contact, tracking error) may only move out
-        candidates = (start.bound < self.margin).nonzero()[0]
-        now = np.zeros(0)
-        if candidates.size:
-            collision.pose(q_from, gripper_from)
-            now = collision.exact(candidates)
-        close = now < self.margin[candidates]
-        inside, now = candidates[close], now[close]
-        motion.threshold[inside] = np.minimum(now - self.INSIDE_TOLERANCE, self.margin[inside])
-        end = self._anchor(1.0, motion)
-        verdict = self._settle(end, motion, " at the end of the motion")
-        if verdict.accepted and inside.size:
-            self._refine(end, inside, motion, level=2)
-            stuck = inside[end.bound[inside] <= now]
-            if stuck.size:
-                verdict = Verdict(False, self._describe(stuck[0], end.bound[stuck[0]],
-                                                        " and the motion does not move it away"))
-        if not verdict.accepted:
-            return verdict
-        # Capsule bounds at a few evenly spaced poses prove most pairs the two ends leave in doubt, in one
-        # compiled pass: far cheaper than coal at the ends (a long link swinging about a joint near the
-        # shape it passes has a lever arm that overstates how fast their gap can close).
-        weak = self._weak(start, end, motion, 1.0, None)
-        if weak.size:
-            weak = collision.unproven_by_capsules(q_from, motion.way, motion.gripper_middle, weak, start.bound,
-                                                  end.bound, motion.travel, motion.reserve, motion.threshold,
-                                                  self.CAPSULE_LEVELS, self.DEEPER_LEVELS)
+        gripper_range = tuple(sorted((gripper_from, gripper_to)))
+        # Most motions the capsule bounds prove alone (at the two ends, then at a few evenly spaced poses between
+        # them, in one compiled pass: far cheaper than coal at the ends). Only where they leave a pair in doubt
+        # does the rest of this run, on what that pass measured.
+        way = q_to - q_from
+        proof = collision.motion_proof(q_from, way, gripper_from, gripper_to, self.margin,
+                                       self._reusable_end(gripper_range), self.REUSE_WITHIN, self.CAPSULE_LEVELS,
+                                       self.DEEPER_LEVELS)
+        # (the end pose as Motion.arm_at(1.0) gives it)
+        end = Anchor(1.0, q_from + way, proof.end_bound, np.zeros(collision.pair_count, dtype=np.int8))
+        if proof.outcome == capsule_kernel.PROVEN:
+            if remember:
+                self._last_end = (end, gripper_range)
+            return ACCEPTED
+        motion = Motion(q_from, q_to, gripper_from, gripper_to, proof.travel, proof.reserve, self.margin.copy(),
+                        proof.gripper_moves,
+                        collision.gripper_sweep.bracket(gripper_from, gripper_to) if proof.gripper_moves else (0, -1))
+        start = Anchor(0.0, q_from, proof.start_bound, np.zeros(collision.pair_count, dtype=np.int8))
+        weak = proof.unproven
+        if proof.outcome == capsule_kernel.DOUBT_AT_ENDS:
+            verdict, weak = self._ends_in_doubt(start, end, motion)
+            if not verdict.accepted:
+                return verdict
         # A piece carries only the pairs its parent could not prove: a pair proven over a piece is
         # proven over every part of it, so deep pieces measure a handful of pairs, not all of them.
         pieces = [(start, end, weak)]
@@ -229,8 +216,37 @@ class SafetyCheck:
                 return verdict
             pieces += [(a, middle, short), (middle, b, short)]
         if remember:
-            self._last_end = (end, tuple(sorted((gripper_from, gripper_to))))
+            self._last_end = (end, gripper_range)
         return ACCEPTED
+
+    def _ends_in_doubt(self, start: Anchor, end: Anchor, motion: Motion) -> tuple[Verdict, np.ndarray]:
+        """Coal settles the pairs the capsules leave below their margin at the motion's start or end; the verdict
+        there, and the pairs still unproven between the two ends after the compiled pass."""
+        collision = self.collision
+        # a pair already inside the margin now (contact, tracking error) may only move out
+        candidates = (start.bound < self.margin).nonzero()[0]
+        now = np.zeros(0)
+        if candidates.size:
+            collision.pose(motion.q_from, motion.gripper_from)
+            now = collision.exact(candidates)
+        close = now < self.margin[candidates]
+        inside, now = candidates[close], now[close]
+        motion.threshold[inside] = np.minimum(now - self.INSIDE_TOLERANCE, self.margin[inside])
+        verdict = self._settle(end, motion, " at the end of the motion")
+        if verdict.accepted and inside.size:
+            self._refine(end, inside, motion, level=2)
+            stuck = inside[end.bound[inside] <= now]
+            if stuck.size:
+                verdict = Verdict(False, self._describe(stuck[0], end.bound[stuck[0]],
+                                                        " and the motion does not move it away"))
+        if not verdict.accepted:
+            return verdict, inside[:0]
+        weak = self._weak(start, end, motion, 1.0, None)
+        if weak.size:
+            weak = collision.unproven_by_capsules(motion.q_from, motion.way, motion.gripper_middle, weak, start.bound,
+                                                  end.bound, motion.travel, motion.reserve, motion.threshold,
+                                                  self.CAPSULE_LEVELS, self.DEEPER_LEVELS)
+        return ACCEPTED, weak
 
     def _prove_pair(self, pair: int, start: float, start_clearance: float, end: float, end_clearance: float,
                     motion: Motion, finest: float) -> Verdict:
@@ -299,21 +315,15 @@ class SafetyCheck:
         self.collision.pose(q_arm, motion.gripper_middle)
         return Anchor(fraction, q_arm, self.collision.bounds() - motion.reserve, level)
 
-    def _start_anchor(self, motion: Motion) -> Anchor:
-        """The start pose's bounds: the last accepted end pose's, less how far the arm and gripper
-        are from where it was judged."""
-        if self._last_end is not None:
-            last, (old_low, old_high) = self._last_end
-            lever = self.collision.pair_lever
-            arm = len(motion.q_from)
-            moved = lever[:, :arm] @ np.abs(motion.q_from - last.q_arm)
-            if lever.shape[1] > arm:
-                low, high = sorted((motion.gripper_from, motion.gripper_to))
-                # the old bound covers its own gripper range; beyond it, the gripper lever applies
-                moved = moved + lever[:, arm] * max(old_low - low, high - old_high, 0.0)
-            if moved.max() <= self.REUSE_WITHIN:
-                return Anchor(0.0, motion.q_from, last.bound - moved, np.zeros(moved.size, dtype=np.int8))
-        return self._anchor(0.0, motion)
+    def _reusable_end(self, gripper_range: tuple[float, float]) -> tuple[np.ndarray, np.ndarray, float] | None:
+        """The last accepted end pose, its bounds, and how far this motion's gripper range reaches beyond the one
+        they were judged over (the gripper's lever applies to that): they stand in for the start's bounds when the
+        arm is still near it."""
+        if self._last_end is None:
+            return None
+        last, (old_low, old_high) = self._last_end
+        low, high = gripper_range
+        return last.q_arm, last.bound, max(old_low - low, high - old_high, 0.0)
 
     def _refine(self, anchor: Anchor, pairs: np.ndarray, motion: Motion, level: int, tabulated: bool = True) -> None:
         """Tighten the bounds of these pairs to the given level at the anchor's pose (the fingers' table

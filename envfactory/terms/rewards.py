@@ -76,7 +76,7 @@ def goal_reached_sparse(achieved, desired, info, params, tolerance):
 
 @reward_term(description="1 every step")
 def constant(achieved, desired, info, params, tolerance):
-    return np.ones(achieved.shape[:-1])
+    return np.ones(achieved.shape[:-1]) if achieved.ndim > 1 else 1.0  # one step's: a plain number
 
 
 def _info_flag(key: str, description: str):

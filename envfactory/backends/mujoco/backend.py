@@ -43,7 +43,8 @@ PEAK_OVER_MEAN_SPEED = 1.875
 class Profile:
     """A joint-synchronous straight line from `start` to `end`, beginning at `t0` and lasting `length` s: every
     joint covers the same fraction of its way at every instant, so the arm never leaves the line. `smooth`:
-    the quintic timing law (an arm's point-to-point move); else constant speed (a gripper's finger drive)."""
+    the quintic timing law (an arm's point-to-point move); else constant speed (a gripper's finger drive).
+    `start` and `end`: arrays of joint values, or plain floats for one joint (the gripper's)."""
 
     def __init__(self, start: np.ndarray, end: np.ndarray, t0: float, length: float, smooth: bool = True):
         self.start, self.end, self.t0, self.length, self.smooth = start, end, t0, max(length, 1e-9), smooth
@@ -72,6 +73,15 @@ def synchronous_length(start: np.ndarray, end: np.ndarray, duration: float, velo
     if not len(start):
         return duration
     return max(duration, PEAK_OVER_MEAN_SPEED * float((np.abs(end - start) / velocities).max()))
+
+
+def _as_slice(indices: np.ndarray):
+    """Addresses that run in order (a serial arm's qpos, dofs and actuators) as a slice: a kinematic cycle reads
+    and writes them a dozen times, and a slice does it several times faster than an index array."""
+    indices = np.asarray(indices, dtype=int)
+    if indices.size and np.array_equal(indices, np.arange(indices[0], indices[0] + indices.size)):
+        return slice(int(indices[0]), int(indices[0]) + indices.size)
+    return indices
 
 
 class MujocoBackend:
@@ -109,6 +119,14 @@ class MujocoBackend:
         self._object_bodies = [self.handles.object_body[name] for name in spec.task.objects]
         self.counts = CycleCounts()
         self._settled = False
+        self._arm_q, self._arm_v = _as_slice(self.handles.arm_qpos), _as_slice(self.handles.arm_dof)
+        self._arm_u = _as_slice(self.handles.arm_actuators)
+        # the gripper joint and its mimic followers: (qpos address, dof address, gain) of each
+        moved = [] if self.handles.gripper_qpos is None else \
+            [(self.handles.gripper_qpos, self.handles.gripper_dof, 1.0), *self.handles.followers]
+        self._gripper_qpos = np.array([address for address, _, _ in moved], dtype=int)
+        self._gripper_dofs = np.array([dof for _, dof, _ in moved], dtype=int)
+        self._gripper_gains = np.array([gain for _, _, gain in moved], dtype=float)
         self._carry: Carry | None = None
         if self._fast and spec.sim.mujoco.carry_held and spec.robot.gripper is not None and spec.task.objects:
             pads = {self.model.body(ROBOT_PREFIX + link).id for link in spec.robot.gripper.pads.links}
@@ -140,8 +158,8 @@ class MujocoBackend:
         model, data, handles = self.model, self.data, self.handles
         mujoco.mj_resetData(model, data)
         q_arm = np.asarray(q_arm, float)
-        data.qpos[handles.arm_qpos] = q_arm
-        data.ctrl[handles.arm_actuators] = q_arm
+        data.qpos[self._arm_q] = q_arm
+        data.ctrl[self._arm_u] = q_arm
         if handles.gripper_qpos is not None:
             value = self.robot.gripper.open if gripper is None else float(gripper)
             self._place_gripper(value)
@@ -160,24 +178,24 @@ class MujocoBackend:
             self._carry.reset()
 
     def _place_gripper(self, value: float, speed: float = 0.0) -> None:
-        data, handles = self.data, self.handles
-        data.qpos[handles.gripper_qpos], data.qvel[handles.gripper_dof] = value, speed
-        for address, dof, gain in handles.followers:
-            data.qpos[address], data.qvel[dof] = gain * value, gain * speed
+        """The gripper joint and its mimic followers (one indexed write each: every kinematic cycle places them)."""
+        gains = self._gripper_gains
+        self.data.qpos[self._gripper_qpos] = gains * value
+        self.data.qvel[self._gripper_dofs] = gains * speed
 
     def command_joints(self, q_arm_target, duration: float) -> None:
-        start = self.data.qpos[self.handles.arm_qpos].copy()
+        start = self.data.qpos[self._arm_q].copy()
         end = np.asarray(q_arm_target, float)
         self._arm = Profile(start, end, self._sim_time, synchronous_length(start, end, duration, self._velocities))
 
     def command_gripper(self, value: float) -> None:
         if self.handles.gripper_actuator is None:
             raise BackendError(f"robot {self.robot.name!r} has no gripper")
-        if self._gripper is not None and self._gripper.end[0] == value:
+        if self._gripper is not None and self._gripper.end == value:
             return  # already on its way there: a repeated command does not restart the drive
-        start = np.array([self.data.qpos[self.handles.gripper_qpos]])
-        end = np.array([float(value)])
-        self._gripper = Profile(start, end, self._sim_time, float(abs(end - start)[0]) / self.robot.gripper.max_velocity,
+        # one joint: its profile on plain floats (a kinematic cycle asks it where the gripper ends)
+        start, end = float(self.data.qpos[self.handles.gripper_qpos]), float(value)
+        self._gripper = Profile(start, end, self._sim_time, abs(end - start) / self.robot.gripper.max_velocity,
                                 smooth=False)
 
     def recover(self) -> None:
@@ -185,7 +203,7 @@ class MujocoBackend:
 
     def stop(self) -> None:
         """Hold the arm where it is now."""
-        here = self.data.qpos[self.handles.arm_qpos].copy()
+        here = self.data.qpos[self._arm_q].copy()
         self._arm = Profile(here, here, self._sim_time, 0.0)
 
     def apply_physics(self, change: PhysicsChange) -> None:
@@ -230,7 +248,7 @@ class MujocoBackend:
         change what the cycle ends with (shortcuts.py)."""
         steps = max(1, round(seconds / self.dt))
         end = self._sim_time + steps * self.dt
-        q_start = self.data.qpos[self.handles.arm_qpos].copy()
+        q_start = self.data.qpos[self._arm_q].copy()
         if self._fast and self._at_rest():
             self.counts.at_rest += 1
         elif self._fast and self._carried(end):
@@ -307,7 +325,7 @@ class MujocoBackend:
                 dofs = handles.arm_dof
                 controls[:, model.nu + dofs] = acceleration @ self._mass[np.ix_(dofs, dofs)].T
         if self._gripper is not None:
-            controls[:, handles.gripper_actuator] = self._gripper.at(times)[0][:, 0]
+            controls[:, handles.gripper_actuator] = self._gripper.at(times)[0][:, 0]  # a column: one row a time
         mujoco.mj_getState(model, data, self._state, STATE)
         # the solver's warm start is no part of the state: carried across, so that the rollout and the substeps
         # stepped in place continue one another as one run of substeps would
@@ -326,9 +344,9 @@ class MujocoBackend:
         cost more in laying out and copying a rollout's controls and states than in the substeps themselves)."""
         model, data, handles = self.model, self.data, self.handles
         if self._arm is not None:
-            data.ctrl[handles.arm_actuators] = self._arm.end  # the profile's velocity is zero: no lead
+            data.ctrl[self._arm_u] = self._arm.end  # the profile's velocity is zero: no lead
         if self._gripper is not None:
-            data.ctrl[handles.gripper_actuator] = self._gripper.end[0]
+            data.ctrl[handles.gripper_actuator] = self._gripper.end
         # (the feed-forward forces go into the rollout's own controls: this data's qfrc_applied stays zero)
         step = mujoco.mj_step
         for _ in range(steps):
@@ -336,34 +354,35 @@ class MujocoBackend:
 
     def _at_rest(self) -> bool:
         """Whether a cycle would change nothing: every body at rest and every command already reached."""
-        if not self._settled or not self._scene_at_rest():
+        if not self._settled:
             return False  # a scene just placed is not at rest before its contacts have carried its weight
+        # the commands first: most cycles have the arm on its way, which settles it without reading velocities
         here = self.data.qpos
-        if self._arm is not None and np.max(np.abs(self._arm.end - here[self.handles.arm_qpos])) > REST_GAP:
+        if self._arm is not None and max(map(abs, (self._arm.end - here[self._arm_q]).tolist())) > REST_GAP:
             return False
         gripper = self._gripper
         if gripper is not None and self._sim_time < gripper.t0 + gripper.length and \
-                abs(gripper.end[0] - gripper.start[0]) > REST_GAP:
+                abs(gripper.end - gripper.start) > REST_GAP:
             return False  # still on its way (one stopped short of its target squeezes something: that is rest)
-        return True
+        return self._scene_at_rest()
 
     def _scene_at_rest(self) -> bool:
         handles = self.handles
         return shortcuts.objects_at_rest(self.data, handles.object_dof) and \
-            shortcuts.robot_at_rest(self.data, handles.arm_dof, handles.gripper_dof)
+            shortcuts.robot_at_rest(self.data, self._arm_v, handles.gripper_dof)
 
     def _arm_lands_unsimulated(self, end: float) -> bool:
         """What every unsimulated motion needs: a scene seen settled, the arm still now, and its profile over
         SETTLE_TIME before the cycle ends (else the servos would still be on their way at the reading)."""
         arm = self._arm
-        return self._settled and shortcuts.robot_at_rest(self.data, self.handles.arm_dof, None) and \
+        return self._settled and shortcuts.robot_at_rest(self.data, self._arm_v, None) and \
             (arm is None or arm.t0 + arm.length <= end - shortcuts.SETTLE_TIME)
 
     def _land_arm(self, q_arm: np.ndarray) -> None:
         data, handles = self.data, self.handles
-        data.qpos[handles.arm_qpos] = q_arm
-        data.qvel[handles.arm_dof] = 0.0
-        data.ctrl[handles.arm_actuators] = q_arm
+        data.qpos[self._arm_q] = q_arm
+        data.qvel[self._arm_v] = 0.0
+        data.ctrl[self._arm_u] = q_arm
 
     def _carried(self, end: float) -> bool:
         """Carry a held object with the hand, without dynamics, if the carry is proven clear (held.py)."""
@@ -373,7 +392,7 @@ class MujocoBackend:
         if not self._arm_lands_unsimulated(end):
             return False
         name = self._carry.held(data)
-        plan = None if name is None else self._carry.plan(data, name, data.qpos[handles.arm_qpos].copy(), arm.end,
+        plan = None if name is None else self._carry.plan(data, name, data.qpos[self._arm_q].copy(), arm.end,
                                                           arm.length)
         if plan is None:
             return False
@@ -393,7 +412,7 @@ class MujocoBackend:
         if self._clearance is None or not shortcuts.objects_at_rest(data, handles.object_dof) or \
                 not self._arm_lands_unsimulated(end):
             return False
-        landing = self._landing(data.qpos[handles.arm_qpos].copy(), self._gripper_value(), end)
+        landing = self._landing(data.qpos[self._arm_q].copy(), self._gripper_value(), end)
         if landing is None:
             return False
         self._land(*landing)
@@ -407,10 +426,10 @@ class MujocoBackend:
         the substeps simulated (the cycle's dynamics go on from there when it was not)."""
         data, handles, arm = self.data, self.handles, self._arm
         if self._clearance is None or not self._object_bodies or \
-                not shortcuts.robot_at_rest(data, handles.arm_dof, None) or \
+                not shortcuts.robot_at_rest(data, self._arm_v, None) or \
                 not (arm is None or arm.t0 + arm.length <= end - shortcuts.SETTLE_TIME):
             return False, 0
-        q_from, g_from = data.qpos[handles.arm_qpos].copy(), self._gripper_value()
+        q_from, g_from = data.qpos[self._arm_q].copy(), self._gripper_value()
         if self._landing(q_from, g_from, end) is None:
             return False, 0
         done, rested = self._play_until_rest(0, steps, lambda: shortcuts.objects_at_rest(data, handles.object_dof))
@@ -431,8 +450,7 @@ class MujocoBackend:
         g_to = g_speed = 0.0
         if gripper is not None:
             # a gripper on its way is no obstacle: its drive's profile says where it will be
-            position, velocity, _ = gripper.at(end)
-            g_to, g_speed = float(position[0]), float(velocity[0])
+            g_to, g_speed, _ = gripper.at(end)
         if self._object_bodies and not self._clearance.motion_is_clear(
                 q_from, g_from, q_to, g_to, self.data.xpos[self._object_bodies], self._object_radii, NEAR_CONTACT):
             return None

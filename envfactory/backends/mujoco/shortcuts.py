@@ -14,8 +14,6 @@ A cycle is played one of four ways (the reference, `full`, always takes the last
 
 from __future__ import annotations
 
-import numpy as np
-
 from envfactory.backends.rest import GRIPPER_REST, JOINT_REST, OBJECT_REST, OBJECT_SPIN_REST
 
 # The servos follow the profile's quintic with a lag of a few substeps; a cycle played kinematically must
@@ -26,18 +24,18 @@ SETTLE_TIME = 0.1
 REST_CHECK_EVERY = 8
 
 
-def object_velocities(data, object_dofs: dict[str, int]) -> list[tuple[np.ndarray, np.ndarray]]:
-    """(linear, angular) velocity of each object's free joint."""
-    return [(data.qvel[dof:dof + 3], data.qvel[dof + 3:dof + 6]) for dof in object_dofs.values()]
-
-
 def objects_at_rest(data, object_dofs: dict[str, int]) -> bool:
-    # squared speeds against squared limits: the same test, without a norm call per vector
-    return all(float(linear @ linear) < OBJECT_REST ** 2 and float(angular @ angular) < OBJECT_SPIN_REST ** 2
-               for linear, angular in object_velocities(data, object_dofs))
+    """Every object's free joint slower than the rest limits (linear, then angular: its six dofs), squared speeds
+    against squared limits on plain floats: a test every cycle makes."""
+    for dof in object_dofs.values():
+        vx, vy, vz, wx, wy, wz = data.qvel[dof:dof + 6].tolist()
+        if vx * vx + vy * vy + vz * vz >= OBJECT_REST ** 2 or wx * wx + wy * wy + wz * wz >= OBJECT_SPIN_REST ** 2:
+            return False
+    return True
 
 
-def robot_at_rest(data, arm_dof: np.ndarray, gripper_dof: int | None) -> bool:
+def robot_at_rest(data, arm_dof, gripper_dof: int | None) -> bool:
+    """`arm_dof`: the arm's dof addresses (a slice or an index array)."""
     if gripper_dof is not None and abs(data.qvel[gripper_dof]) >= GRIPPER_REST:
         return False
-    return arm_dof.size == 0 or float(np.abs(data.qvel[arm_dof]).max()) < JOINT_REST
+    return max(map(abs, data.qvel[arm_dof].tolist()), default=0.0) < JOINT_REST  # a few numbers: plain floats
