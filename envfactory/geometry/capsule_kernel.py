@@ -551,10 +551,27 @@ def _sphere_gaps_at(fraction, coordinates, q_from, way, parent, placement, kind,
 
 @njit(cache=True)
 def motion_clear_of_spheres(coordinates, q_from, way, parent, placement, kind, axis, coordinate, gain, shape_joint,
-                            local_ends, moving, radius, reserve, travel, centers, radii, margin, levels):
-    """Whether every moving shape's capsule stays `margin` from every sphere along the straight arm motion
-    q_from + f way (the gripper where `coordinates` holds it): the lever bound on pieces halved where their
-    two end gaps cannot prove it, down to 2**-levels of the motion, refused at any pose measured inside."""
+                            local_ends, moving, radius, lever, gripper_change, world_centers, base_in_world, radii,
+                            margin, levels):
+    """Whether every moving shape's capsule stays `margin` from every sphere (centres in the world) along the
+    straight arm motion q_from + f way, the gripper anywhere within `gripper_change` of where `coordinates` holds
+    it: each shape's travel is its lever arms times the joints' changes, its reserve its gripper lever times half
+    the gripper's change; the lever bound on pieces halved where their two end gaps cannot prove it, down to
+    2**-levels of the motion, refused at any pose measured inside."""
+    arm = q_from.shape[0]
+    travel = np.empty(moving.shape[0])
+    reserve = np.zeros(moving.shape[0])
+    for m in range(moving.shape[0]):
+        total = 0.0
+        for j in range(arm):
+            total += lever[m, j] * abs(way[j])
+        travel[m] = total
+        if lever.shape[1] > arm:
+            reserve[m] = lever[m, arm] * (gripper_change / 2)
+    centers = np.empty_like(world_centers)
+    for s in range(world_centers.shape[0]):
+        for i in range(3):
+            centers[s, i] = world_centers[s, i] - base_in_world[i]  # base frame: the mount is a translation
     points = 2 ** levels + 1
     grid = np.empty((points, moving.shape[0], centers.shape[0]))
     frames = np.empty((parent.shape[0], 3, 4))

@@ -34,11 +34,9 @@ class ObjectClearance:
         kinematics = collision.kinematics
         self.collision = collision
         self.moving = collision.moving_shapes
-        self.radius = collision.radius[self.moving]
         self.lever = collision.lever[self.moving]
         self.arm = len(kinematics.robot.arm_joints)
         self.base_in_world = np.asarray(kinematics.robot.mount, float)
-        self._no_reserve = np.zeros(len(self.moving))
 
     def motion_is_clear(self, q_from, gripper_from, q_to, gripper_to, centers, radii, margin: float) -> bool:
         """Whether every moving shape stays `margin` from every sphere while the arm moves along the
@@ -47,21 +45,16 @@ class ObjectClearance:
         whose two end bounds cannot prove it are halved, down to 2**-LEVELS of it (one compiled pass:
         capsule_kernel.motion_clear_of_spheres)."""
         collision = self.collision
-        q_from, q_to = np.asarray(q_from, float), np.asarray(q_to, float)
-        arm_travel = self.lever[:, :self.arm] @ np.abs(q_to - q_from)
+        q_from = np.asarray(q_from, float)
         coordinates = collision._coordinates
-        reserve = self._no_reserve
         if self.lever.shape[1] > self.arm:
-            # every pose is judged over the gripper's whole range: its middle, less half its sweep
+            # every pose is judged over the gripper's whole range: its middle, less half its sweep (the reserve)
             coordinates[self.arm] = (gripper_from + gripper_to) / 2
-            reserve = self.lever[:, self.arm] * (abs(gripper_to - gripper_from) / 2)
         joints = collision._joints
-        # base frame: the mount is a translation
-        centers = np.ascontiguousarray(np.asarray(centers, float) - self.base_in_world)
         clear = capsule_kernel.motion_clear_of_spheres(
-            coordinates, q_from, q_to - q_from, joints.parent, joints.placement, joints.kind, joints.axis,
-            joints.coordinate, joints.gain, collision._shape_joint, collision._local_ends, self.moving,
-            collision.radius, reserve, arm_travel, centers, np.ascontiguousarray(radii, float), float(margin),
-            self.LEVELS)
+            coordinates, q_from, np.asarray(q_to, float) - q_from, joints.parent, joints.placement, joints.kind,
+            joints.axis, joints.coordinate, joints.gain, collision._shape_joint, collision._local_ends, self.moving,
+            collision.radius, self.lever, abs(gripper_to - gripper_from), np.asarray(centers, float),
+            self.base_in_world, np.asarray(radii, float), float(margin), self.LEVELS)
         collision.forget_pose()  # the kernel posed its coordinates along the motion
         return bool(clear)
