@@ -180,8 +180,11 @@ def _scene_bound(frames, ends, shape, o, shape_joint, local_boxes, box_half, rad
                  obstacle_high, placed, is_placed):
     """A lower bound on a moving shape's clearance from obstacle o: the separation of the obstacle from the shape's
     capsule, or from its box, along the obstacle box's own axes (which bounds the distance between two convex
-    sets), whichever is the larger. (The distance between the extents would be tighter beside the obstacle's edges,
-    but costs a third of this pass over every pose's scene pairs, more than the queries it spares.)"""
+    sets), whichever is the larger; where that is small, also the boxes' separation along the shape box's axes and
+    their cross products with the obstacle's (a tilted link beside the obstacle's edge: its capsule and its extent
+    along the base axes overlap the obstacle where the link is centimetres away). (The distance between the
+    extents would be tighter beside the obstacle's edges, but costs a third of this pass over every pose's scene
+    pairs, more than the queries it spares.)"""
     _place_box(frames, shape, shape_joint, local_boxes, box_half, placed, is_placed)
     capsule_apart, box_apart = -np.inf, -np.inf
     for k in range(3):
@@ -190,7 +193,41 @@ def _scene_bound(frames, ends, shape, o, shape_joint, local_boxes, box_half, rad
         capsule_apart = max(capsule_apart, low - obstacle_high[o, k], obstacle_low[o, k] - high)
         box_apart = max(box_apart, placed[shape, LOW, k] - obstacle_high[o, k], obstacle_low[o, k] - placed[shape, HIGH, k])
     bound = max(capsule_apart - radius[shape], box_apart - padding[shape])
+    if bound < BOX_BELOW:
+        bound = max(bound, _box_obstacle_apart(placed, box_half, shape, o, obstacle_low, obstacle_high) - padding[shape])
     return bound if bound >= 0.0 else NO_BOUND
+
+
+@njit(cache=True, inline="always")
+def _box_obstacle_apart(placed, box_half, shape, o, obstacle_low, obstacle_high):
+    """The separation of the shape's placed box from obstacle o's along the box's 3 axes and the 9 cross products of
+    those with the obstacle's axes (the base frame's): with the obstacle's own axes (the extents), the 15 axes that
+    separate two boxes wherever they are apart."""
+    dx = (obstacle_low[o, 0] + obstacle_high[o, 0]) / 2 - placed[shape, CENTER, 0]
+    dy = (obstacle_low[o, 1] + obstacle_high[o, 1]) / 2 - placed[shape, CENTER, 1]
+    dz = (obstacle_low[o, 2] + obstacle_high[o, 2]) / 2 - placed[shape, CENTER, 2]
+    hx = (obstacle_high[o, 0] - obstacle_low[o, 0]) / 2
+    hy = (obstacle_high[o, 1] - obstacle_low[o, 1]) / 2
+    hz = (obstacle_high[o, 2] - obstacle_low[o, 2]) / 2
+    apart = -np.inf
+    for axis in range(3):
+        ax, ay, az = placed[shape, AXES + axis, 0], placed[shape, AXES + axis, 1], placed[shape, AXES + axis, 2]
+        for k in range(4):  # the box's own axis, then its cross product with each of the obstacle's
+            if k == 0:
+                nx, ny, nz = ax, ay, az
+            elif k == 1:
+                nx, ny, nz = 0.0, az, -ay
+            elif k == 2:
+                nx, ny, nz = -az, 0.0, ax
+            else:
+                nx, ny, nz = ay, -ax, 0.0
+            length = np.sqrt(nx * nx + ny * ny + nz * nz)
+            if length < 1e-9:  # parallel to an obstacle axis: the extents have it
+                continue
+            nx, ny, nz = nx / length, ny / length, nz / length
+            apart = max(apart, abs(dx * nx + dy * ny + dz * nz) - _box_reach(placed, box_half, shape, nx, ny, nz)
+                        - hx * abs(nx) - hy * abs(ny) - hz * abs(nz))
+    return apart
 
 
 @njit(cache=True, inline="always")
