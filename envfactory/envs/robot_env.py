@@ -234,8 +234,7 @@ class RobotEnv(gym.Env):
     def _checked_action(self, action) -> np.ndarray:
         """The action as an array of the action space's shape; anything else is refused before it moves the arm."""
         array = np.asarray(action)
-        if array.shape != self.action_space.shape or not (np.issubdtype(array.dtype, np.floating)
-                                                           or np.issubdtype(array.dtype, np.integer)):
+        if array.shape != self.action_space.shape or array.dtype.kind not in "fiu":  # float, signed or unsigned int
             raise ValueError(f"{self.blueprint.env_id}: the action has shape {array.shape} and dtype {array.dtype}; "
                              f"the action space is {self.action_space}: nothing was sent to the arm")
         return array

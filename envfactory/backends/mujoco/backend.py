@@ -469,8 +469,9 @@ class MujocoBackend:
         mujoco.mj_camlight(self.model, data)
 
     def read_joints(self) -> JointReading:
-        return JointReading(self.data.qpos[self.handles.state_qpos].copy(),
-                            self.data.qvel[self.handles.state_dof].copy(), self._sim_time)
+        # (indexing by an address array copies already)
+        return JointReading(self.data.qpos[self.handles.state_qpos], self.data.qvel[self.handles.state_dof],
+                            self._sim_time)
 
     def read_object(self, name: str) -> ObjectReading:
         body = self.handles.object_body[name]
