@@ -16,7 +16,9 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from envfactory.geometry.damped_least_squares import damped_pseudo_inverse, damped_step
 from envfactory.geometry.frames import TaskFrame, base_rotation, place_base
+from envfactory.geometry.vectors import length
 from envfactory.schema.models import RobotSpec
 
 
@@ -154,7 +156,7 @@ class Kinematics:
             pin.forwardKinematics(model, data, q)
             placement = pin.updateFramePlacement(model, data, self.ee_frame)
             position_error = target_position - placement.translation
-            error = float(np.linalg.norm(position_error))
+            error = length(position_error)
             if error < closest - 1e-7:
                 closest, stalled = error, 0
             else:
@@ -165,10 +167,10 @@ class Kinematics:
             if target_rotation is None:
                 if error < tolerance:
                     return IkResult(q_arm, True, error)
-                step = _damped_step(jacobian[:3], position_error, damping)
+                step = damped_step(np.ascontiguousarray(jacobian[:3]), position_error, damping)
             else:
                 rotation_error = pin.log3(target_rotation @ placement.rotation.T)
-                turn = float(np.linalg.norm(rotation_error))
+                turn = length(rotation_error)
                 # on the point, and the orientation as near as the arm allows (an arm of fewer than six
                 # joints cannot hold every orientation anywhere: its rotation error stops shrinking)
                 if error < tolerance and (turn * rotation_weight < 10 * tolerance or abs(last_turn - turn) < 1e-6):
@@ -178,9 +180,11 @@ class Kinematics:
                     # the position comes first; the orientation gets what the joints can do without moving the point
                     step = self._prioritised_step(jacobian, position_error, rotation_weight * rotation_error, damping)
                 else:
-                    step = _damped_step(np.vstack([jacobian[:3], rotation_weight * jacobian[3:]]),
+                    step = damped_step(np.vstack([jacobian[:3], rotation_weight * jacobian[3:]]),
                                         np.concatenate([position_error, rotation_weight * rotation_error]), damping)
-            q_arm = np.clip(q_arm + np.clip(step, -0.3, 0.3), self.arm_lower, self.arm_upper)
+            # (np.minimum/np.maximum: np.clip's dispatch costs more than the arithmetic, a few times an iteration)
+            q_arm = np.minimum(np.maximum(q_arm + np.minimum(np.maximum(step, -0.3), 0.3), self.arm_lower),
+                               self.arm_upper)
         return IkResult(q_arm, error < tolerance, error)
 
     @staticmethod
@@ -188,14 +192,9 @@ class Kinematics:
                           damping: float) -> np.ndarray:
         """A joint step that closes the position error, plus the orientation step projected onto the joint
         motions that leave the point where it is (damped least squares for both)."""
-        position_rows, rotation_rows = jacobian[:3], jacobian[3:]
-        inverse = position_rows.T @ np.linalg.inv(position_rows @ position_rows.T + damping**2 * np.eye(3))
+        position_rows, rotation_rows = np.ascontiguousarray(jacobian[:3]), jacobian[3:]
+        inverse = damped_pseudo_inverse(position_rows, damping)
         first = inverse @ position_error
         null = np.eye(jacobian.shape[1]) - inverse @ position_rows
-        second = _damped_step(rotation_rows @ null, rotation_error - rotation_rows @ first, damping)
+        second = damped_step(rotation_rows @ null, rotation_error - rotation_rows @ first, damping)
         return first + null @ second
-
-
-def _damped_step(rows: np.ndarray, residual: np.ndarray, damping: float) -> np.ndarray:
-    """The damped least-squares joint step that best closes `residual` through the Jacobian `rows`."""
-    return rows.T @ np.linalg.solve(rows @ rows.T + damping**2 * np.eye(rows.shape[0]), residual)
