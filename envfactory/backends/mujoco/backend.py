@@ -357,8 +357,10 @@ class MujocoBackend:
         if not self._settled:
             return False  # a scene just placed is not at rest before its contacts have carried its weight
         # the commands first: most cycles have the arm on its way, which settles it without reading velocities
+        # (asked as "within", so that a NaN is never taken for a reached target)
         here = self.data.qpos
-        if self._arm is not None and max(map(abs, (self._arm.end - here[self._arm_q]).tolist())) > REST_GAP:
+        if self._arm is not None and \
+                not all(abs(gap) <= REST_GAP for gap in (self._arm.end - here[self._arm_q]).tolist()):
             return False
         gripper = self._gripper
         if gripper is not None and self._sim_time < gripper.t0 + gripper.length and \

@@ -29,13 +29,14 @@ def objects_at_rest(data, object_dofs: dict[str, int]) -> bool:
     against squared limits on plain floats: a test every cycle makes."""
     for dof in object_dofs.values():
         vx, vy, vz, wx, wy, wz = data.qvel[dof:dof + 6].tolist()
-        if vx * vx + vy * vy + vz * vz >= OBJECT_REST ** 2 or wx * wx + wy * wy + wz * wz >= OBJECT_SPIN_REST ** 2:
+        # asked as "below the limits", so that a NaN (a blown-up state) is never taken for rest
+        if not (vx * vx + vy * vy + vz * vz < OBJECT_REST ** 2 and wx * wx + wy * wy + wz * wz < OBJECT_SPIN_REST ** 2):
             return False
     return True
 
 
 def robot_at_rest(data, arm_dof, gripper_dof: int | None) -> bool:
     """`arm_dof`: the arm's dof addresses (a slice or an index array)."""
-    if gripper_dof is not None and abs(data.qvel[gripper_dof]) >= GRIPPER_REST:
+    if gripper_dof is not None and not abs(data.qvel[gripper_dof]) < GRIPPER_REST:
         return False
-    return max(map(abs, data.qvel[arm_dof].tolist()), default=0.0) < JOINT_REST  # a few numbers: plain floats
+    return all(abs(speed) < JOINT_REST for speed in data.qvel[arm_dof].tolist())  # a few numbers: plain floats
