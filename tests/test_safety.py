@@ -223,6 +223,21 @@ def test_motion_proof_proves_only_motions_coal_finds_clear(env):
     assert reused > 0
 
 
+def test_a_non_finite_reading_is_refused(env):
+    """A reading with a NaN or an infinity in it (a blown-up simulation, a corrupt message) leaves every bound NaN,
+    and a NaN compares false with every threshold: the check must refuse it, not call it clear."""
+    check, kin = env.safety, env.kinematics
+    home = np.asarray(kin.robot.home, float)
+    assert check.check(home, home).accepted
+    for bad in (np.nan, np.inf):
+        reading = home.copy()
+        reading[1] = bad
+        verdict = check.check(reading, home)
+        assert not verdict.accepted and "non-finite" in verdict.reason
+        assert not check.check(home, home, gripper_now=bad).accepted
+        assert not check.path_is_clear(reading, home).accepted
+
+
 def test_levers_bound_every_shape_move_by_bullet(env):
     """No point of any link moves farther than lever · |Δ coordinates|: judged on Bullet's link AABBs,
     whose corners move with the links' collision shapes."""

@@ -140,6 +140,10 @@ class SafetyCheck:
             return Verdict(False, "joint target outside the joint bounds")
         delta = q_arm_target - q_arm_now
         largest = float(np.abs(delta).max())
+        # (the target is finite: a NaN or infinite change comes from the reading; every bound would be NaN, and
+        # a NaN compares false with every threshold, so it would pass for clear)
+        if not (math.isfinite(largest) and math.isfinite(gripper_now)):
+            return Verdict(False, "non-finite joint reading: where the arm is now is unknown")
         if largest > self.settings.max_joint_delta + 1e-12:
             return Verdict(False, f"joint change {largest:.3f} rad exceeds max_joint_delta {self.settings.max_joint_delta}")
         if gripper_target is not None and not np.isfinite(gripper_target):
@@ -152,8 +156,11 @@ class SafetyCheck:
                       gripper_to: float | None = None) -> Verdict:
         """Clearance along a long joint-space move (a real arm driving home), with no joint-change limit."""
         gripper_to = gripper_from if gripper_to is None else gripper_to
-        return self._motion_verdict(np.asarray(q_from, float), np.asarray(q_to, float), gripper_from, gripper_to,
-                                    self.FINEST_PIECE / 8, remember=False)
+        q_from, q_to = np.asarray(q_from, float), np.asarray(q_to, float)
+        if not (np.isfinite(q_from).all() and np.isfinite(q_to).all() and math.isfinite(gripper_from)
+                and math.isfinite(gripper_to)):
+            return Verdict(False, "non-finite joint reading or target")
+        return self._motion_verdict(q_from, q_to, gripper_from, gripper_to, self.FINEST_PIECE / 8, remember=False)
 
     def forget(self) -> None:
         """The arm moved without a check (a reset): the remembered end pose no longer applies."""
