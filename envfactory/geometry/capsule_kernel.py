@@ -586,6 +586,24 @@ def _sphere_gaps_at(fraction, coordinates, q_from, way, parent, placement, kind,
             out[m, s] = _segment_point_distance(ends, shape, centers[s]) - radius[shape] - radii[s] - reserve[m]
 
 
+@njit(cache=True, inline="always")
+def _travel_and_reserve(lever, way, gripper_change, travel, reserve):
+    """Per row of lever arms (a shape's or a pair's): how far the arm's motion `way` can close it (each joint's
+    lever times its change) and how far the gripper's can from its middle value (its lever times half the
+    gripper's change; zero without a gripper column). Whether any reserve is not zero."""
+    arm = way.shape[0]
+    has_gripper = lever.shape[1] > arm
+    moves = False
+    for row in range(lever.shape[0]):
+        total = 0.0
+        for j in range(arm):
+            total += lever[row, j] * abs(way[j])
+        travel[row] = total
+        reserve[row] = lever[row, arm] * (gripper_change / 2) if has_gripper else 0.0
+        moves = moves or reserve[row] != 0.0
+    return moves
+
+
 @njit(cache=True)
 def motion_clear_of_spheres(coordinates, q_from, way, parent, placement, kind, axis, coordinate, gain, shape_joint,
                             local_ends, moving, radius, lever, gripper_change, world_centers, base_in_world, radii,
@@ -595,16 +613,8 @@ def motion_clear_of_spheres(coordinates, q_from, way, parent, placement, kind, a
     it: each shape's travel is its lever arms times the joints' changes, its reserve its gripper lever times half
     the gripper's change; the lever bound on pieces halved where their two end gaps cannot prove it, down to
     2**-levels of the motion, refused at any pose measured inside."""
-    arm = q_from.shape[0]
-    travel = np.empty(moving.shape[0])
-    reserve = np.zeros(moving.shape[0])
-    for m in range(moving.shape[0]):
-        total = 0.0
-        for j in range(arm):
-            total += lever[m, j] * abs(way[j])
-        travel[m] = total
-        if lever.shape[1] > arm:
-            reserve[m] = lever[m, arm] * (gripper_change / 2)
+    travel, reserve = np.empty(moving.shape[0]), np.empty(moving.shape[0])
+    _travel_and_reserve(lever, way, gripper_change, travel, reserve)
     centers = np.empty_like(world_centers)
     for s in range(world_centers.shape[0]):
         for i in range(3):
@@ -673,15 +683,8 @@ def motion_proof(coordinates, q_from, way, gripper_middle, gripper_change, pair_
     whether the gripper's motion closes any pair)."""
     pairs, arm = pair_lever.shape[0], q_from.shape[0]
     has_gripper = pair_lever.shape[1] > arm
-    moves = False
-    for p in range(pairs):
-        total = 0.0
-        for j in range(arm):
-            total += pair_lever[p, j] * abs(way[j])
-        travel[p] = total
-        reserve[p] = pair_lever[p, arm] * gripper_change / 2.0 if has_gripper else 0.0
-        moves = moves or reserve[p] != 0.0
-        unproven[p] = False
+    moves = _travel_and_reserve(pair_lever, way, gripper_change, travel, reserve)
+    unproven[:] = False
     if has_gripper:
         coordinates[arm] = gripper_middle
     frames = np.empty((parent.shape[0], 3, 4))
@@ -710,23 +713,20 @@ def motion_proof(coordinates, q_from, way, gripper_middle, gripper_change, pair_
     capsule_bounds(frames, shape_joint, local_ends, radius, local_boxes, box_half, padding, moving, obstacle_low,
                    obstacle_high, self_a, self_b, end_bound)
     doubt_at_ends = False
+    asked = np.empty(pairs, dtype=np.int64)  # the pairs the two ends leave in doubt between them
     weak = 0
     for p in range(pairs):
         end_bound[p] -= reserve[p]
         if start_bound[p] < margin[p] or end_bound[p] < margin[p]:
             doubt_at_ends = True
         if start_bound[p] + end_bound[p] - travel[p] * 1.0 < 2 * margin[p]:
+            asked[weak] = p
             weak += 1
     if doubt_at_ends:
         return DOUBT_AT_ENDS, moves
     if weak == 0:
         return PROVEN, moves
-    asked = np.empty(weak, dtype=np.int64)
-    row = 0
-    for p in range(pairs):
-        if start_bound[p] + end_bound[p] - travel[p] * 1.0 < 2 * margin[p]:
-            asked[row] = p
-            row += 1
+    asked = asked[:weak]
     left = np.empty(weak, dtype=np.bool_)
     capsule_motion_unproven(coordinates, q_from, way, asked, start_bound, end_bound, travel, reserve, margin, levels,
                             deeper, parent, placement, kind, axis, coordinate, gain, shape_joint, local_ends,

@@ -167,7 +167,7 @@ class Kinematics:
             if target_rotation is None:
                 if error < tolerance:
                     return IkResult(q_arm, True, error)
-                step = damped_step(np.ascontiguousarray(jacobian[:3]), position_error, damping)
+                step = damped_step(jacobian[:3], position_error, damping)
             else:
                 rotation_error = pin.log3(target_rotation @ placement.rotation.T)
                 turn = length(rotation_error)
@@ -192,7 +192,7 @@ class Kinematics:
                           damping: float) -> np.ndarray:
         """A joint step that closes the position error, plus the orientation step projected onto the joint
         motions that leave the point where it is (damped least squares for both)."""
-        position_rows, rotation_rows = np.ascontiguousarray(jacobian[:3]), jacobian[3:]
+        position_rows, rotation_rows = jacobian[:3], jacobian[3:]
         inverse = damped_pseudo_inverse(position_rows, damping)
         first = inverse @ position_error
         null = np.eye(jacobian.shape[1]) - inverse @ position_rows

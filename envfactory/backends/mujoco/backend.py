@@ -325,7 +325,7 @@ class MujocoBackend:
                 dofs = handles.arm_dof
                 controls[:, model.nu + dofs] = acceleration @ self._mass[np.ix_(dofs, dofs)].T
         if self._gripper is not None:
-            controls[:, handles.gripper_actuator] = self._gripper.at(times)[0][:, 0]  # a column: one row a time
+            controls[:, handles.gripper_actuator] = self._gripper.at(times)[0][:, 0]  # (times, 1): its one joint
         mujoco.mj_getState(model, data, self._state, STATE)
         # the solver's warm start is no part of the state: carried across, so that the rollout and the substeps
         # stepped in place continue one another as one run of substeps would
@@ -374,10 +374,14 @@ class MujocoBackend:
             shortcuts.robot_at_rest(self.data, self._arm_v, handles.gripper_dof)
 
     def _arm_lands_unsimulated(self, end: float) -> bool:
-        """What every unsimulated motion needs: a scene seen settled, the arm still now, and its profile over
-        SETTLE_TIME before the cycle ends (else the servos would still be on their way at the reading)."""
+        """What every unsimulated motion needs: a scene seen settled, and the arm able to land by `end`."""
+        return self._settled and self._arm_can_land(end)
+
+    def _arm_can_land(self, end: float) -> bool:
+        """The arm still now, and its profile over SETTLE_TIME before `end` (else the servos would still be on
+        their way at the reading)."""
         arm = self._arm
-        return self._settled and shortcuts.robot_at_rest(self.data, self._arm_v, None) and \
+        return shortcuts.robot_at_rest(self.data, self._arm_v, None) and \
             (arm is None or arm.t0 + arm.length <= end - shortcuts.SETTLE_TIME)
 
     def _land_arm(self, q_arm: np.ndarray) -> None:
@@ -426,10 +430,8 @@ class MujocoBackend:
         arm on its way along a path proven clear of the objects, only until they rest; then the proof is renewed
         where they came to rest and the arm is placed as a kinematic cycle places it. Whether it was placed, and
         the substeps simulated (the cycle's dynamics go on from there when it was not)."""
-        data, handles, arm = self.data, self.handles, self._arm
-        if self._clearance is None or not self._object_bodies or \
-                not shortcuts.robot_at_rest(data, self._arm_v, None) or \
-                not (arm is None or arm.t0 + arm.length <= end - shortcuts.SETTLE_TIME):
+        data, handles = self.data, self.handles
+        if self._clearance is None or not self._object_bodies or not self._arm_can_land(end):
             return False, 0
         q_from, g_from = data.qpos[self._arm_q].copy(), self._gripper_value()
         if self._landing(q_from, g_from, end) is None:
