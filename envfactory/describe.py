@@ -121,7 +121,10 @@ def randomization_table(compiled: Blueprint) -> Table:
     for slot in compiled.events:
         table.add_row(slot.name, slot.term.name, _event_values(slot), _when(slot))
     for slot in compiled.sensing:
-        params = ", ".join(f"{key}={value}" for key, value in slot.params.model_dump().items() if value not in ([], 0.0))
+        fields = type(slot.params).model_fields
+        # a value left at its default (no bias, every observation) says nothing; a required one always shows
+        params = ", ".join(f"{key}={value}" for key, value in slot.params.model_dump().items()
+                           if fields[key].is_required() or value not in ([], 0.0))
         table.add_row(slot.name, slot.term.name, params, "every step")
     return table
 

@@ -11,7 +11,7 @@ from envfactory import registry, verdicts
 from envfactory.compiler import compile_blueprint
 from envfactory.envs import GoalRobotEnv, RobotEnv
 from envfactory.registry import BUILTIN_SOURCE, CALL_SOURCE, IdRecord
-from envfactory.schema.compose import load_env_spec
+from envfactory.schema.compose import composed_config, kwarg_aliases, load_env_spec
 from envfactory.schema.errors import SpecError
 
 
@@ -104,3 +104,16 @@ def make_env(env_id: str, overrides: Iterable[str] = (), render_mode: str | None
     compiled = blueprint(env_id, overrides, **kwargs)
     env_class = GoalRobotEnv if compiled.goal_env else RobotEnv
     return env_class(compiled, render_mode=render_mode)
+
+
+# What only a simulator has: its engine, rate and fidelity, and the sampled physics and imitated sensing of
+# randomization. A model trained in simulation carries these kwargs; its Real ID runs without them.
+SIMULATION_ONLY_PATHS = ("sim.", "task.randomization.enabled")
+
+
+def simulation_only_kwargs(env_id: str, kwargs: dict[str, Any]) -> list[str]:
+    """The kwargs that set, in the ID's family, something only a simulator has."""
+    config, _ = composed_config(registry.records()[env_id].family)
+    aliases = kwarg_aliases(config)
+    return sorted(name for name in kwargs
+                  if any(aliases.get(name, "").startswith(prefix) for prefix in SIMULATION_ONLY_PATHS))

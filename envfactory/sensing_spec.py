@@ -44,16 +44,13 @@ def sensing_terms(records: list[dict[str, float]], cycle_time: float) -> tuple[d
     facts = [f"{len(records)} steps, cycle {cycle_time:g} s",
              f"joint reading age: median {np.median(ages):.3f} s, 90th percentile {np.percentile(ages, 90):.3f} s",
              f"joint reading repeated the step before's: {repeated:.1%} of steps"]
-    terms: dict[str, dict] = {}
-    age_steps = round(float(np.median(ages)) / cycle_time)
-    if age_steps >= 1:
-        terms["late_observation"] = {"term": "observation_delay", "params": {"steps": min(age_steps, 10)}}
+    # both delays are stated even when they round to zero steps: a robot YAML declares what was measured
+    terms: dict[str, dict] = {"late_observation": {"term": "observation_delay", "params": {
+        "steps": min(round(float(np.median(ages)) / cycle_time), 10)}}}
     if latencies.size:
         median = float(np.median(latencies))
         facts.append(f"command latency: median {median:.3f} s over {latencies.size} commands")
-        latency_steps = round(median / cycle_time)
-        if latency_steps >= 1:
-            terms["late_action"] = {"term": "action_delay", "params": {"steps": min(latency_steps, 10)}}
+        terms["late_action"] = {"term": "action_delay", "params": {"steps": min(round(median / cycle_time), 10)}}
     else:
         facts.append("command latency: no command that asked for motion was seen to start")
     if repeated > 0:
@@ -64,11 +61,9 @@ def sensing_terms(records: list[dict[str, float]], cycle_time: float) -> tuple[d
 
 
 def sensing_yaml(terms: dict, facts: list[str], source: str) -> str:
-    """The terms as a block to paste under `task.randomization:` in a task or family spec."""
+    """The terms as a block to paste into a robot YAML (its real path's timing, joined to every task's
+    randomization) or under `task.randomization:` in a task or family spec."""
     lines = [f"# measured on the real path ({source}):"] + [f"#   {fact}" for fact in facts]
-    if not terms:
-        lines.append("# every delay rounds to zero steps and no reading repeated: no sensing term is called for")
-        return "\n".join(lines + ["sensing: {}"]) + "\n"
     lines.append("sensing:")
     for name, term in terms.items():
         params = ", ".join(f"{key}: {json.dumps(value)}" for key, value in term["params"].items())

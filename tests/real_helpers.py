@@ -9,6 +9,8 @@ UR5E_ARM = "/scaled_pos_joint_traj_controller/command"
 UR5E_JOINTS = "/ur5e/joint_states"
 VX300S_ARM = "/vx300s/commands/joint_group"
 VX300S_JOINTS = "/vx300s/joint_states"
+NED2_ARM = "/niryo_robot_follow_joint_trajectory_controller/command"
+NED2_JOINTS = "/joint_states"
 
 
 def make_real(make, env_id, stand_in, **kwargs):

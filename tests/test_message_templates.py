@@ -63,6 +63,7 @@ USER_ROS = """ros:
     encoding:
       type: std_msgs/Float64MultiArray
       message: {layout: {dim: [], data_offset: 0}, data: $positions}
+    profile_time_s: 0.1     # a position controller takes no duration: how long it takes for a command
   gripper_command:
     topic: /gripper_position/command
     type: std_msgs/Float64
@@ -131,8 +132,7 @@ def test_a_user_template_runs_end_to_end_against_the_twin(tmp_path, twin, make):
 
 
 def test_the_twin_plays_a_command_without_a_duration_over_the_declared_profile_time(tmp_path, twin):
-    arm_topic = "topic: /arm_position_controller/command\n"
-    folder = _user_robot(tmp_path, USER_ROS.replace(arm_topic, arm_topic + "    profile_time_s: 0.3\n", 1))
+    folder = _user_robot(tmp_path, USER_ROS.replace("profile_time_s: 0.1", "profile_time_s: 0.3", 1))
     try:
         assert register_specs(folder)[1] == []
         assert twin("templated", "pnp").group_move_s == 0.3
@@ -140,12 +140,16 @@ def test_the_twin_plays_a_command_without_a_duration_over_the_declared_profile_t
         unregister_folder(folder)
 
 
-def test_a_twin_refuses_commands_without_a_duration_and_without_a_profile_time(tmp_path):
-    folder = _user_robot(tmp_path, USER_ROS)
+def test_commands_without_a_duration_and_without_a_profile_time_are_refused(tmp_path):
+    """A real step waits for the motion its driver was given: a driver that takes no duration must say how long
+    it takes, or neither the env nor the twin can know when a step's motion is done."""
+    folder = _user_robot(tmp_path, USER_ROS.replace("    profile_time_s: 0.1     # a position controller takes no "
+                                                    "duration: how long it takes for a command\n", ""))
     try:
-        assert register_specs(folder)[1] == []
-        with pytest.raises(ValueError, match="carry no \\$duration; declare ros.arm_command.profile_time_s"):
-            Twin("templated", "pnp")
+        added, problems = register_specs(folder)
+        assert added == [] and len(problems) == 1
+        assert "templated.yaml:" in str(problems[0]) and "robot.ros.arm_command.profile_time_s" in str(problems[0])
+        assert "declare that time (its stock profile), as profile_time_s" in str(problems[0])
     finally:
         unregister_folder(folder)
 

@@ -73,7 +73,8 @@ def test_interbotix_group_commands_on_the_wire(twin, make, robot, env_id, arm_jo
     gripper = on(stand_in, f"/{robot}/commands/joint_single")
     assert arm[-1]["name"] == "arm" and len(arm[-1]["cmd"]) == arm_joints
     assert arm[-1]["cmd"][0] == pytest.approx(0.05, abs=1e-3)  # waist: delta 1.0 × delta_coeff 0.05 from home 0
-    assert gripper[-1] == {"name": "gripper", "cmd": pytest.approx(0.03)}
+    # xs_sdk's linear_position mode takes the distance between the fingers: twice the left finger's 0.03 m
+    assert gripper[-1] == {"name": "gripper", "cmd": pytest.approx(0.06)}
 
 
 def test_ned2_trajectory_on_the_niryo_topic(twin, make):
@@ -229,23 +230,26 @@ NED2_GRIPPER = "/niryo_robot_tools_commander/action_server/goal"
 
 def test_ned2_gripper_takes_open_and_close_goals(twin, make):
     """The Ned2's Gripper 1 only opens and closes: a command nearer closed sends CLOSE_GRIPPER (2), the
-    twin's rosbridge server accepts the goal as the driver's own type, and its jaws close."""
+    twin's rosbridge server accepts the goal as Niryo's own type, its tools commander drives the jaws to Niryo's
+    own ends and answers on the result topic, and the step returns once the goal succeeded, its jaws read as the
+    robot YAML's end of that side (the hardware publishes no jaw joint)."""
     stand_in = twin("ned2", "pnp")
     env = make_real(make, "NED2PnPReal-v0", stand_in, max_episode_steps=4)
     env.reset(seed=0)
     jaws = lambda: stand_in.sim.read_joints().position[-2]  # noqa: E731  (joint_base_to_mors_1)
-    assert wait_for(lambda: jaws() > 0.009)  # the reset opened them
-    for value, cmd_type in ((-0.004, 2), (0.003, 1)):
+    assert abs(jaws() - 0.007) < 1e-3  # the reset's open goal was carried out before reset returned
+    for value, cmd_type, niryo_end, reading in ((-0.004, 2, -0.01, -0.01), (0.003, 1, 0.007, 0.01)):
         action = np.zeros(7, dtype=np.float32)
         action[-1] = value
         env.step(action)
         goals = on(stand_in, NED2_GRIPPER)
         assert goals[-1]["goal"]["cmd"] == {"cmd_type": cmd_type, "tool_id": 11, "max_torque_percentage": 100,
                                             "hold_torque_percentage": 30}
-        end = -0.01 if cmd_type == 2 else 0.01
-        assert wait_for(lambda: abs(jaws() - end) < 1e-3), jaws()  # the twin drove them to that end
+        assert abs(jaws() - niryo_end) < 1e-3, jaws()  # done when the step returned
+        np.testing.assert_allclose(env.unwrapped.state.joint_positions[-2:], [reading, reading])
     ids = [goal["goal_id"]["id"] for goal in on(stand_in, NED2_GRIPPER)]
-    assert len(set(ids)) == len(ids)
+    assert len(set(ids)) == len(ids) == 3  # the reset's open, one close, one open
+    assert [status for _, status in stand_in.driver.finished] == [3, 3, 3]  # every goal SUCCEEDED
     assert stand_in.server.errors == []
     env.close()
 

@@ -7,13 +7,15 @@ import numpy as np
 import pytest
 
 from envfactory.backends.base import CommandRefused, ConnectionLost
-from real_helpers import (UR5E_ARM, UR5E_JOINTS, VX300S_ARM, VX300S_JOINTS, is_stop, make_real, on, settled,
-                          wait_for)
+from real_helpers import (NED2_ARM, NED2_JOINTS, UR5E_ARM, UR5E_JOINTS, VX300S_ARM, VX300S_JOINTS, is_stop,
+                          make_real, on, settled, wait_for)
 
 ROBOTS = {  # robot -> (env ID, arm command topic, joint states topic)
     "ur5e": ("UR5eReacherReal-v0", UR5E_ARM, UR5E_JOINTS),
     "vx300s": ("VX300SReacherReal-v0", VX300S_ARM, VX300S_JOINTS),
+    "ned2": ("NED2ReacherReal-v0", NED2_ARM, NED2_JOINTS),
 }
+TRAJECTORIES = ("ur5e", "ned2")  # trajectory controllers: their stop is the empty trajectory
 NUDGE = np.array([0.6, 0.0, 0.0, 0.0, 0.0, 0.0], dtype=np.float32)  # a small waist move (delta action)
 
 
@@ -35,14 +37,14 @@ def play(env, steps=3, seed=None):
 
 
 def arm_position(stand_in):
-    return stand_in.sim.read_joints().position[stand_in._arm_in_states]
+    return stand_in.sim.read_joints().position[stand_in.arm_in_states]
 
 
 def assert_one_hold(stand_in, robot, after):
     """Exactly one message reached the arm since `after`, and it holds the arm where it is."""
     received = on(stand_in, ROBOTS[robot][1])[after:]
     assert len(received) == 1, received
-    if robot == "ur5e":
+    if robot in TRAJECTORIES:
         assert is_stop(received[0])  # the trajectory controller's own stop
     else:
         np.testing.assert_allclose(received[0]["cmd"], arm_position(stand_in), atol=0.02)
@@ -77,7 +79,7 @@ def test_the_server_killed_mid_episode_comes_back_and_the_next_episode_runs(twin
     env.reset(seed=1)  # reconnects with backoff, then drives home
     settled(stand_in, quiet=0.15)
     received = on(stand_in, arm)[sent:]
-    if robot == "ur5e":
+    if robot in TRAJECTORIES:
         assert is_stop(received[0]) and not any(is_stop(m) for m in received[1:])  # the owed stop, once
         assert received[1]["points"][0]["time_from_start"]["secs"] >= 1  # then the drive home
     else:  # the owed hold where the arm stands, then the drive home in segments
@@ -104,7 +106,7 @@ def test_a_frozen_driver_ends_the_episode_as_stale_and_reset_waits_for_it(twin, 
     received = on(stand_in, arm)[sent:]
     assert 1 <= len(received) <= 2
     stop, last_motion = received[-1], (received[:-1] or [last])[-1]
-    if robot == "ur5e":
+    if robot in TRAJECTORIES:
         assert is_stop(stop) and not any(map(is_stop, received[:-1]))
     else:  # no fresh reading to hold at: the last target, never the stale reading
         assert stop == last_motion
@@ -141,14 +143,15 @@ def test_without_rosapi_a_refused_command_is_caught_by_the_watchdog(twin, make):
     assert any("std_msgs/Float64MultiArray" in error for error in stand_in.server.errors)
 
 
-def test_a_controller_that_executes_nothing_is_caught_and_the_next_episode_runs(twin, make):
-    stand_in, env, arm, _ = start(twin, make, "ur5e")
+@pytest.mark.parametrize("robot", TRAJECTORIES)  # the VX300S's: tests/test_real_drivers.py, under a long profile
+def test_a_controller_that_executes_nothing_is_caught_and_the_next_episode_runs(twin, make, robot):
+    stand_in, env, arm, _ = start(twin, make, robot)
     stand_in.faults.ignore_commands = True
     for _ in range(30):
         _, _, _, truncated, info = env.step(NUDGE)
         if truncated:
             break
-    assert info["abort_reason"].startswith(f"the arm did not follow the command on {UR5E_ARM}")
+    assert info["abort_reason"].startswith(f"the arm did not follow the command on {arm}")
     settled(stand_in, quiet=0.15)
     received = on(stand_in, arm)
     assert is_stop(received[-1]) and sum(map(is_stop, received)) == 1
@@ -170,8 +173,10 @@ def test_vx300s_drives_home_in_segments_no_faster_than_reset_speed(twin, make):
     env.reset(seed=1)
     settled(stand_in, quiet=0.15)
     targets = np.array([m["cmd"] for m in on(stand_in, VX300S_ARM)[sent:]])
-    reset_speed, segment_s = 0.3, 0.2
-    assert len(targets) == int(np.ceil(0.45 / reset_speed / segment_s))  # 1.5 s in 0.2 s segments
+    # each segment lasts the time profile the env set in the driver at connect (xs_sdk's own is 2 s)
+    reset_speed, segment_s = 0.3, stand_in.group_move_s
+    assert segment_s < 2.0 and segment_s == pytest.approx(env.unwrapped.backend.motion_s, abs=1e-3)
+    assert len(targets) == int(np.ceil(0.45 / reset_speed / segment_s))  # 1.5 s in segments of the profile
     steps = np.abs(np.diff(np.vstack([away, targets]), axis=0)).max(axis=1)
     assert np.all(steps <= reset_speed * segment_s + 1e-6)
     np.testing.assert_allclose(targets[-1], home, atol=1e-6)

@@ -29,10 +29,13 @@ def test_measurements_become_terms_in_whole_steps():
     assert any("20 commands" in fact for fact in facts)
 
 
-def test_prompt_readings_call_for_no_term():
+def test_prompt_readings_give_delays_of_zero_steps():
+    """What a robot YAML declares is what was measured, a delay that rounds to no step included."""
     records = [{"joint_reading_age_s": 0.01, "joint_reading_repeated": 0.0, "command_latency_s": 0.02}] * 5
     terms, facts = sensing_terms(records, cycle_time=0.5)
-    assert terms == {} and "sensing: {}" in sensing_yaml(terms, facts, "log")
+    assert terms == {"late_observation": {"term": "observation_delay", "params": {"steps": 0}},
+                     "late_action": {"term": "action_delay", "params": {"steps": 0}}}
+    assert "  late_action: {term: action_delay, params: {steps: 0}}" in sensing_yaml(terms, facts, "log")
 
 
 def test_a_twin_that_answers_late_gives_an_action_delay(twin, make, tmp_path):

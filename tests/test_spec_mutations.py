@@ -51,6 +51,11 @@ ACCEPTED = [
     (r"task\.randomization\.events\.\w+\.params\.range\.\d", {"zero"},
      "a sampled friction or damping that reaches zero"),
     (r"task\.randomization\.sensing\.\w+\.params\.(std|bias_std|drift_std)", {"zero"}, "no noise of that kind"),
+    (r"robot\.sensing\.\w+\.params\.steps", {"zero"}, "a delay measured as under half a step"),
+    (r"robot\.ros\.setup\.\d+\.request\.\w+", {"negative", "zero", "huge"},
+     "a setup request's values are the driver's to take or refuse at connect (DriverRefused stops the env)"),
+    (r"robot\.ros\.driver_config\.\w+", {"negative", "zero", "huge"},
+     "the driver's own configuration, read by the twin alone, which plays what it says"),
 ]
 
 

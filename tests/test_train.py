@@ -379,3 +379,18 @@ def test_collect_warns_of_nothing_and_records_what_it_is_given(tmp_path, monkeyp
     assert metadata["author"] == {"Ada"} and metadata["author_email"] == {"ada@example.org"}
     assert metadata["code_permalink"].startswith("envfactory ")
     assert metadata["eval_env_spec"] == metadata["env_spec"]  # evaluated where it was collected
+
+
+@needs_train
+def test_a_model_trained_in_simulation_runs_on_the_real_id_without_its_simulation_only_kwargs(tmp_path, twin):
+    """A model trained on MuJoCo with randomization runs on the Real ID as it is: `run` leaves out the kwargs only
+    a simulator has, says which, and keeps the rest (the action and observation settings it was trained with)."""
+    assert _tiny_run(tmp_path / "run", "-k", "engine=mujoco", "-k", "randomize=true").exit_code == 0
+    stand_in = twin("vx300s", "reach")
+    result = runner.invoke(app, ["run", "VX300SReacherGoalReal-v0", "--policy", str(tmp_path / "run" / "model.zip"),
+                                 "-n", "1", "--allow-real-robot-motion", "-k", f"rosbridge_port={stand_in.port}",
+                                 "-k", "max_episode_steps=2"])
+    assert result.exit_code == 0, result.output
+    assert "simulation-only kwargs are left out: engine='mujoco', randomize=True" in " ".join(result.output.split())
+    assert "success rate" in result.output
+    assert stand_in.received  # it drove the twin

@@ -71,6 +71,10 @@ class CommandRefused(BackendError):
     """A command topic that nothing of the expected type subscribes to: refused before any motion."""
 
 
+class DriverRefused(BackendError):
+    """The driver refused a setup call (its timing, a mode): the env stops rather than run on another timing."""
+
+
 class MotionRefused(BackendError):
     """The real-robot motion gate is closed."""
 

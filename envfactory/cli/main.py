@@ -265,6 +265,13 @@ def run(
     saved = None
     if policy not in ("scripted", "random"):
         saved, trained_kwargs = _saved_policy(policy)
+        if registry.records()[env_id].backend == "rosbridge":
+            # a model trained in simulation runs on the real arm as it is: what only a simulator has goes
+            dropped = factory.simulation_only_kwargs(env_id, trained_kwargs)
+            if dropped:
+                console.print(f"{env_id} is a real arm: the model's simulation-only kwargs are left out: "
+                              f"{', '.join(f'{name}={trained_kwargs[name]!r}' for name in dropped)}", highlight=False)
+            trained_kwargs = {name: value for name, value in trained_kwargs.items() if name not in dropped}
         kwargs = {**trained_kwargs, **kwargs}  # the env it was trained on, unless -k says otherwise
     if video is not None:
         _check_output(video, VIDEO_SUFFIXES)
@@ -333,7 +340,7 @@ def sensing_spec(
 ):
     """Sensing terms from what the real path measured: a timing log of joint reading ages, repeats and command
     latencies becomes observation_delay, action_delay and repeated_readings terms in whole steps, printed as a
-    block to paste under task.randomization."""
+    block to paste into the robot YAML (or under task.randomization)."""
     _known(env_id)
     try:
         records = read_log(log_file)
@@ -416,8 +423,11 @@ def twin(
     port: int = typer.Option(9090, help="Port of the rosbridge websocket; 0 picks a free one"),
     host: str = typer.Option("127.0.0.1", help="Interface to listen on (loopback by default)"),
     group_move: Optional[float] = typer.Option(None, help="Seconds every command without a duration takes (the "
-                                                          "driver's time profile); default: the robot YAML's "
-                                                          "ros.arm_command.profile_time_s"),
+                                                          "driver's stock time profile, until the env sets its "
+                                                          "own); default: the driver's (xs_sdk: 2.0), else the "
+                                                          "robot YAML's ros.arm_command.profile_time_s"),
+    speed_scaling: float = typer.Option(1.0, min=0.0, max=1.0, help="The UR trajectory controller's speed scaling "
+                                                                     "(the pendant's slider: 1.0 is 100%)"),
     delay: float = typer.Option(0.0, help="Fault: latency added to every published message, s"),
     stop_joint_states_after: Optional[float] = typer.Option(None, help="Fault: stop publishing joint states after S s"),
     stop_object_poses_after: Optional[float] = typer.Option(None, help="Fault: stop publishing the cube pose after S s"),
@@ -448,12 +458,14 @@ def twin(
             _fail(f"--topic-type {item!r}: write TOPIC=TYPE")
         types[topic] = type_name
     try:
-        stand_in = Twin(robot, task, host=host, port=port, topic_types=types, group_move_s=group_move).start()
+        stand_in = Twin(robot, task, host=host, port=port, topic_types=types, group_move_s=group_move,
+                        speed_scaling=speed_scaling).start()
     except (ValueError, OSError) as exc:
         _fail(str(exc))
     ros, faults = stand_in.ros, stand_in.faults
     faults.delay_s, faults.no_rosapi = delay, no_rosapi
-    console.print(f"twin of {robot} ({task}) at ws://{host}:{stand_in.port}; "
+    console.print(f"twin of {robot} ({task}) at ws://{host}:{stand_in.port}, playing "
+                  f"{ros.driver or 'the topic map as declared'}; "
                   f"publishing {ros.joint_states.topic} and {[t.topic for t in ros.object_poses.values()]}, "
                   f"executing {ros.arm_command.topic}"
                   f"{' and ' + ros.gripper_command.topic if ros.gripper_command else ''}. Ctrl-C stops it.")

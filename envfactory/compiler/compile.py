@@ -155,10 +155,11 @@ def _randomization(spec: EnvSpec, layout: Layout, observation, goal_env: bool, e
                    for name, ref, term, params, bound in _resolved_terms(declared.events, EVENTS, f"{path}.events",
                                                                         "event", layout, found, inert))
     sensed = replace(layout, observation_slots=policy_slots(observation, goal_env))
+    robot_sensing = {name: ref for name, ref in spec.robot.sensing.items() if name not in declared.sensing}
     sensing = tuple(SensingSlot(name, term, params, bound)
-                    for name, ref, term, params, bound in _resolved_terms(declared.sensing, SENSING,
-                                                                         f"{path}.sensing", "sensing", sensed, found,
-                                                                         inert))
+                    for refs, where in ((robot_sensing, "robot.sensing"), (declared.sensing, f"{path}.sensing"))
+                    for name, ref, term, params, bound in _resolved_terms(refs, SENSING, where, "sensing", sensed,
+                                                                         found, inert))
     if declared.enabled and backend not in SIMULATORS:
         found.add(f"{path}.enabled", f"{env_id} runs on backend {backend!r}: events set a simulator's physics and "
                                      f"sensing terms imitate a real arm's sensing, so neither applies to a real arm "

@@ -9,6 +9,7 @@ from pydantic import Field, model_validator
 from envfactory.schema.base import Model, Position, Rgba, Rpy, in_unit_range, located, ordered
 from envfactory.schema.errors import suggest
 from envfactory.schema.numbers import Friction, Length, NonNegative, Positive, Real
+from envfactory.schema.randomization import SensingRef
 from envfactory.schema.ros import RosSpec
 from envfactory.schema.units import out_of_range_hint
 
@@ -103,6 +104,22 @@ class ArmJoint(Model):
         return (-self.delta, self.delta) if isinstance(self.delta, float) else self.delta
 
 
+class HornLinkage(Model):
+    """An Interbotix gripper's motor horn and the arm that links it to the fingers: xs_sdk publishes the horn's
+    angle, π/2 - acos((r² + f² - a²) / (2 r f)) for a finger at f; a simulator, which drives the finger, reads the
+    angle the driver would publish."""
+
+    finger: str  # the finger's URDF joint
+    radius: Length  # the motor config's horn_radius, m
+    arm: Length  # its arm_length, m
+
+    @model_validator(mode="after")
+    def _reaches(self) -> "HornLinkage":
+        if self.arm <= self.radius:
+            raise located("arm", f"an arm of {self.arm} m no longer than the horn ({self.radius} m) cannot link it")
+        return self
+
+
 class JointStateEntry(Model):
     """One entry of the robot's /joint_states message, in message order."""
 
@@ -111,6 +128,12 @@ class JointStateEntry(Model):
     position: tuple[StateBound, StateBound]
     velocity: tuple[StateBound, StateBound]
     unit: Literal["rad", "m"] = "rad"
+    # False: the real driver does not publish this joint (a gripper jaw that only the maker's simulation
+    # publishes); a Real ID reads the gripper's last completed command there
+    published: bool = True
+    # The driver publishes this joint's velocity as 0 whatever it does (xs_sdk's fingers): so does a simulator
+    reports_velocity: bool = True
+    horn: HornLinkage | None = None  # the joint is a gripper motor's horn, read through its linkage in simulation
 
     @model_validator(mode="after")
     def _ordered(self) -> "JointStateEntry":
@@ -216,6 +239,10 @@ class RobotSpec(Model):
     arm_max_velocity: Velocity = 3.15  # rad/s per arm joint, unless the joint declares its own velocity
     safety: RobotSafety = RobotSafety()
     ros: RosSpec | None = None
+    # How the robot's real path senses and acts, in whole steps, as `envfactory sensing-spec` measured it from
+    # a twin log: joined to every task's randomization sensing terms (a task's own of the same name wins), so a
+    # policy trained with randomize=True meets them before the arm does
+    sensing: dict[str, SensingRef] = {}
 
     @property
     def state_names(self) -> list[str]:
@@ -234,6 +261,14 @@ class RobotSpec(Model):
         if self.gripper is None:
             return None
         return [entry.urdf_joint for entry in self.joint_states].index(self.gripper.joint)
+
+    @property
+    def unpublished_gripper_gains(self) -> dict[int, float]:
+        """/joint_states index -> multiplier of the gripper value, for the joints the real driver does not
+        publish (the driven gripper joint itself, 1.0, and its mimic followers)."""
+        gains = {self.gripper.joint: 1.0, **self.gripper.mimic} if self.gripper is not None else {}
+        return {index: gains[entry.urdf_joint] for index, entry in enumerate(self.joint_states)
+                if not entry.published}
 
     @property
     def arm_state_names(self) -> list[str]:
@@ -285,4 +320,15 @@ class RobotSpec(Model):
         if self.gripper is not None and self.gripper.joint not in urdf_names:
             raise located("gripper.joint", f"gripper joint {self.gripper.joint!r} is missing from joint_states"
                                            f"{suggest(self.gripper.joint, urdf_names)}")
+        for index, entry in enumerate(self.joint_states):
+            if entry.horn is not None and entry.horn.finger not in urdf_names:
+                raise located(f"joint_states.{index}.horn.finger", f"finger {entry.horn.finger!r} is missing from "
+                                                                   f"joint_states{suggest(entry.horn.finger, urdf_names)}")
+        gripper_joints = {self.gripper.joint, *self.gripper.mimic} if self.gripper is not None else set()
+        for index, entry in enumerate(self.joint_states):
+            if not entry.published and entry.urdf_joint not in gripper_joints:
+                raise located(f"joint_states.{index}.published",
+                              f"{entry.name!r} is not published by the driver, but only the gripper's joints "
+                              f"({', '.join(sorted(gripper_joints)) or 'none: no gripper'}) can be read from "
+                              f"its commands; every other joint must be measured")
         return self

@@ -7,11 +7,13 @@ names a shipped one or writes one in place.
 from __future__ import annotations
 
 import re
-from typing import Annotated, Any, ClassVar
+from typing import Annotated, Any, ClassVar, Literal
 
 from pydantic import Field, PrivateAttr, model_validator
 
 from envfactory.schema.base import Model, Position, Rpy, located
+from envfactory.schema.errors import suggest
+from envfactory.schema.driver import DriverCall, ServiceType, Settle
 from envfactory.schema.messages import MessageTemplate, checked
 from envfactory.schema.numbers import Positive
 
@@ -74,6 +76,12 @@ class ArmCommand(_Templated):
     profile_time_s: Annotated[Positive, Field(le=60.0)] | None = None  # s
 
 
+class ActionResultTopic(RosTopic):
+    """An action server's result topic (actionlib's X/result, an XActionResult: header, status, result)."""
+
+    within_s: Annotated[Positive, Field(le=60.0)] = 5.0  # a goal with no result by then ends the episode
+
+
 class GripperStates(Model):
     """What a driver that only opens and closes takes for each: the template's $state."""
 
@@ -88,6 +96,12 @@ class GripperCommand(_Templated):
     ROLE: ClassVar[str] = "gripper"
     name: str = "gripper"  # $name
     states: GripperStates | None = None  # $state
+    # $value is the gripper joint's value times this: xs_sdk's linear_position mode takes the distance
+    # between the two fingers, twice the left finger's joint value
+    scale: Annotated[Positive, Field(le=1000.0)] = 1.0
+    # An action server's result topic (actionlib's X/result): each goal's outcome is read, the step waits for
+    # it, and a goal that does not succeed ends the episode with the driver's own reason
+    result: ActionResultTopic | None = None
 
     @model_validator(mode="after")
     def _states_declared(self) -> "GripperCommand":
@@ -109,6 +123,12 @@ class StaticTransform(Model):
 
 
 class RosSpec(Model):
+    # Which driver the robot runs: the digital twin plays that driver as its maker publishes it; None (any
+    # other driver) plays the topic map as declared
+    driver: Literal["xs_sdk", "ur_robot_driver", "ned_ros"] | None = None
+    # The driver's own configuration on the robot's side, as far as the twin needs it to play the driver (xs_sdk's
+    # motor config: the gripper's horn_radius and arm_length); the env itself never reads it
+    driver_config: dict[str, float | int | str | bool] = {}
     joint_states: JointStatesTopic
     arm_command: ArmCommand
     gripper_command: GripperCommand | None = None
@@ -119,6 +139,10 @@ class RosSpec(Model):
     # The driver's own message types (type -> field -> field type), as its ROS installation defines
     # them: the digital twin's rosbridge server knows the ROS core types and these.
     message_types: dict[str, dict[str, str]] = {}
+    # Service calls at every connection that bring the driver to the env's step (xs_sdk's operating modes)
+    setup: list[DriverCall] = []
+    service_types: dict[str, ServiceType] = {}  # the driver's own service types, as message_types
+    settle: Settle = Settle()  # when a real step's motion is done
 
     @model_validator(mode="after")
     def _message_types_well_formed(self) -> "RosSpec":
@@ -131,6 +155,41 @@ class RosSpec(Model):
                                   f"{field_type!r} is not a field type (a primitive such as float64 or uint8, "
                                   "a message type package/Type, either with [] for a list)")
         return self
+
+    @model_validator(mode="after")
+    def _setup_types_declared(self) -> "RosSpec":
+        for index, call in enumerate(self.setup):
+            if call.type not in self.service_types:
+                raise located(f"setup.{index}.type", f"service type {call.type!r} is not declared in "
+                                                     f"ros.service_types (its request and response fields)")
+            fields = self.service_types[call.type].request
+            for key in call.request:
+                if key not in fields:
+                    raise located(f"setup.{index}.request.{key}", f"{call.type} has no request field {key!r}"
+                                                                  f"{suggest(key, fields)}")
+        for type_name, service in self.service_types.items():
+            if not _MESSAGE_TYPE.fullmatch(type_name):
+                raise located(f"service_types.{type_name}", "a service type is spelled package/Type")
+            for part in ("request", "response"):
+                for field, field_type in getattr(service, part).items():
+                    if not _FIELD_TYPE.fullmatch(field_type):
+                        raise located(f"service_types.{type_name}.{part}.{field}",
+                                      f"{field_type!r} is not a field type")
+        return self
+
+    @model_validator(mode="after")
+    def _arm_timing_known(self) -> "RosSpec":
+        carries = "$duration" in self.arm_command.template.placeholders()
+        if not carries and self.arm_command.profile_time_s is None:
+            raise located("arm_command.profile_time_s", "the arm command carries no $duration, so its driver decides "
+                                                        "how long a command takes: declare that time (its stock "
+                                                        "profile), as profile_time_s")
+        return self
+
+    @property
+    def motion_set_by_setup(self) -> bool:
+        """Whether a setup call gives the driver each motion's duration (its own time profile)."""
+        return any(call.sets_motion_time for call in self.setup)
 
     @model_validator(mode="after")
     def _types_match_templates(self) -> "RosSpec":

@@ -86,7 +86,7 @@ def observation_noise(bound: tuple[np.ndarray, Noise]) -> NoiseSensor:
 
 
 class Delay(TermParams):
-    steps: int = Field(ge=1, le=MAX_DELAY_STEPS)
+    steps: int = Field(ge=0, le=MAX_DELAY_STEPS)  # 0: measured, and under half a step
 
 
 class Lag:

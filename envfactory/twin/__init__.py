@@ -22,11 +22,11 @@ from envfactory.geometry.frames import TaskFrame
 from envfactory.geometry.urdf_assembly import assemble
 from envfactory.registry import records
 from envfactory.twin import msgtypes
+from envfactory.twin.drivers import DRIVERS, DeclaredDriver, UrRobotDriver
 from envfactory.twin.server import Faults, Node, Received, RosbridgeServer
 
 __all__ = ["Faults", "Received", "Twin"]
 
-JOINT_STATE_HZ = 50.0
 POSE_HZ = 30.0
 
 
@@ -41,24 +41,21 @@ def _sim_id(robot: str, task: str) -> str:
 
 
 class Twin:
-    """`overrides` change the twin's spec (e.g. its topics); `topic_types` make its driver
-    register topics with other types (a misconfigured driver); `group_move_s` is how long the
-    driver takes for every arm command that carries no duration (its time profile), by default
-    the robot's `ros.arm_command.profile_time_s`."""
+    """`overrides` change the twin's spec (e.g. its topics); `topic_types` make its driver register topics with
+    other types (a misconfigured driver). The driver is the one the robot names (`ros.driver`), played as its
+    maker publishes it (twin/drivers.py) at its stock timing: `group_move_s` replaces that stock time for
+    commands that carry no duration (xs_sdk's 2 s profile), `speed_scaling` is the UR controller's (1.0: the
+    slider at 100%)."""
 
     def __init__(self, robot: str, task: str = "push", host: str = "127.0.0.1", port: int = 0,
                  overrides: tuple[str, ...] = (), topic_types: dict[str, str] | None = None,
-                 group_move_s: float | None = None):
+                 group_move_s: float | None = None, speed_scaling: float = 1.0):
         compiled = blueprint(_sim_id(robot, task), ["env.timing.realtime=true", *overrides])
         spec = compiled.spec
         self.spec = spec
         self.ros = spec.robot.ros
         if self.ros is None:
             raise ValueError(f"robot {robot!r} declares no 'ros:' topic map")
-        self.group_move_s = self.ros.arm_command.profile_time_s if group_move_s is None else group_move_s
-        if self.group_move_s is None and "$duration" not in self.ros.arm_command.template.placeholders():
-            raise ValueError(f"robot {robot!r}: its arm commands carry no $duration; declare "
-                             "ros.arm_command.profile_time_s, how long its driver takes for each, or pass group_move_s")
         self.sim = PyBulletBackend(spec, assemble(spec.robot.model, compiled.asset_root, spec.robot.name),
                                    TaskFrame.of(spec.robot))
         spawn = {name: (np.asarray(obj.spawn.position, float), np.array([0.0, 0.0, 0.0, 1.0]))
@@ -66,12 +63,28 @@ class Twin:
         self.sim.reset(np.asarray(spec.robot.home, float), spec.gripper_at_reset, spawn)
         self.state_names = spec.robot.state_names
         self.arm_names = spec.robot.arm_state_names
-        self._arm_in_states = spec.robot.arm_state_indices
-        self.server = RosbridgeServer(host, port, msgtypes.with_driver_types(self.ros.message_types))
+        self.arm_in_states = spec.robot.arm_state_indices
+        self.driver = self._driver(group_move_s, speed_scaling)
+        types = msgtypes.with_driver_types({**self.ros.message_types, **self.driver.message_types})
+        self.server = RosbridgeServer(host, port, types)
         self._add_nodes(robot, topic_types or {})
         self._loop = asyncio.new_event_loop()
         self._thread = threading.Thread(target=self._loop.run_forever, name="envfactory-twin", daemon=True)
         self._publishers = []
+
+    def _driver(self, group_move_s: float | None, speed_scaling: float):
+        kind = DRIVERS.get(self.ros.driver or "", DeclaredDriver)
+        if speed_scaling != 1.0 and kind is not UrRobotDriver:
+            raise ValueError(f"speed scaling is the UR trajectory controller's; {self.spec.robot.name} runs "
+                             f"{self.ros.driver or 'a driver the twin plays from its topic map'}")
+        if kind is UrRobotDriver:
+            return kind(self, group_move_s, speed_scaling)
+        return kind(self, group_move_s)
+
+    @property
+    def group_move_s(self) -> float:
+        """How long the driver now takes for a command that carries no duration."""
+        return self.driver.group_move_s
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -79,14 +92,18 @@ class Twin:
         self._thread.start()
         asyncio.run_coroutine_threadsafe(self.server.start(), self._loop).result(timeout=10)
         self._publishers = [
-            asyncio.run_coroutine_threadsafe(self._every(1.0 / JOINT_STATE_HZ, self._publish_joint_state), self._loop),
+            asyncio.run_coroutine_threadsafe(self._every(1.0 / self.driver.joint_state_hz, self._publish_joint_state),
+                                             self._loop),
             asyncio.run_coroutine_threadsafe(self._every(1.0 / POSE_HZ, self._publish_poses), self._loop),
+            asyncio.run_coroutine_threadsafe(self._every(1.0 / self.driver.extras_hz,
+                                                         lambda: self.driver.publish_extras(self.server)), self._loop),
         ]
         return self
 
     def stop(self) -> None:
         if not self._thread.is_alive():
             return
+        self.driver.close()
         for publisher in self._publishers:
             publisher.cancel()
         asyncio.run_coroutine_threadsafe(self.server.close(), self._loop).result(timeout=10)
@@ -122,6 +139,11 @@ class Twin:
         while self.server.running and time.monotonic() < deadline:
             time.sleep(0.01)
 
+    def publish_soon(self, topic: str, msg: dict) -> None:
+        """Publish from another thread (a driver's worker)."""
+        if self._loop.is_running():
+            asyncio.run_coroutine_threadsafe(self.server.publish(topic, msg), self._loop)
+
     def _add_nodes(self, robot: str, topic_types: dict[str, str]) -> None:
         ros = self.ros
         typed = lambda topic, type_name: topic_types.get(topic, type_name)  # noqa: E731
@@ -129,8 +151,10 @@ class Twin:
         if ros.gripper_command is not None:
             commands[ros.gripper_command.topic] = (typed(ros.gripper_command.topic, ros.gripper_command.type),
                                                    self._on_command)
-        self.server.add_node(Node(f"/{robot}_driver", publishes={
-            ros.joint_states.topic: typed(ros.joint_states.topic, ros.joint_states.type)}, subscribes=commands))
+        publishes = {ros.joint_states.topic: typed(ros.joint_states.topic, ros.joint_states.type),
+                     **{topic: typed(topic, type_name) for topic, type_name in self.driver.publishes().items()}}
+        self.server.add_node(Node(f"/{robot}_driver", publishes=publishes, subscribes=commands,
+                                  services=self.driver.services()), self.driver.service_types)
         self.server.add_node(Node("/cube_tracker", publishes={
             t.topic: typed(t.topic, t.type) for t in ros.object_poses.values()}))
 
@@ -146,12 +170,12 @@ class Twin:
         if self.faults.is_silenced(topic):
             return
         reading = self.sim.read_joints()
-        position, velocity = reading.position, reading.velocity.copy()
+        names, position, velocity = self.driver.joint_state(reading.position, reading.velocity.copy())
         if self.faults.take_malformed(topic):
             position = position.copy()
             position[-1] = float("nan")  # a driver glitch; the server sends it as null
-        await self.server.publish(topic, messages.encode_joint_state(self.state_names, position, velocity,
-                                                                     time.time(), self.ros.joint_states.template))
+        await self.server.publish(topic, messages.encode_joint_state(names, position, velocity, time.time(),
+                                                                     self.ros.joint_states.template))
 
     async def _publish_poses(self) -> None:
         for name, topic_spec in self.ros.object_poses.items():
@@ -168,16 +192,9 @@ class Twin:
     # ------------------------------------------------------------------ what it executes
 
     def _on_command(self, topic: str, msg: dict) -> None:
-        ros = self.ros
         if self.faults.ignore_commands:
             return  # taken, never executed: a controller that is not running
-        if topic == ros.arm_command.topic:
-            # a trajectory carries its duration; a group command moves over the driver's profile time
-            target, duration = messages.decode_arm(ros.arm_command, self.arm_names, msg, self.group_move_s)
-            if target is None:  # the stop: hold where the arm is now
-                target = self.sim.read_joints().position[self._arm_in_states]
-                duration = 0.05
-            self.sim.command_joints(target, max(duration, 0.05))
+        if topic == self.ros.arm_command.topic:
+            self.driver.on_arm(msg)
         else:
-            gripper = self.spec.robot.gripper
-            self.sim.command_gripper(messages.decode_gripper(ros.gripper_command, msg, gripper.open, gripper.closed))
+            self.driver.on_gripper(msg)

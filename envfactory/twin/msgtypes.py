@@ -37,6 +37,8 @@ MESSAGES: dict[str, dict[str, str]] = {
                                        "transform": "geometry_msgs/Transform"},
     "tf2_msgs/TFMessage": {"transforms": "geometry_msgs/TransformStamped[]"},
     "actionlib_msgs/GoalID": {"stamp": "time", "id": "string"},
+    "actionlib_msgs/GoalStatus": {"goal_id": "actionlib_msgs/GoalID", "status": "uint8", "text": "string"},
+    "actionlib_msgs/GoalStatusArray": {"header": "std_msgs/Header", "status_list": "actionlib_msgs/GoalStatus[]"},
 }
 
 # rosapi's topic services: request fields, response fields

@@ -11,7 +11,9 @@ that publish and subscribe typed topics. As on the real server:
   only after the client asked for them with `set_level`;
 - NaN and infinity go out as null;
 - rosapi answers the topic services (/rosapi/topic_type, /rosapi/subscribers,
-  /rosapi/publishers, /rosapi/topics, /rosapi/topics_for_type).
+  /rosapi/publishers, /rosapi/topics, /rosapi/topics_for_type), and the nodes
+  answer their own (a driver's); a call a service refuses answers with
+  `result: false` and the reason, as a ROS 1 service that returns false.
 It records every message its nodes receive, so tests can assert on exactly what
 reached the "robot", and it can inject faults.
 """
@@ -55,6 +57,7 @@ class Faults:
     refuse_connections: bool = False  # new clients are turned away at the handshake
     no_rosapi: bool = False  # the server runs without rosapi: its services do not exist
     ignore_commands: bool = False  # the driver takes commands but does not execute them (controller stopped)
+    refuse_services: set[str] = field(default_factory=set)  # a driver's services that refuse every call
 
     def silence(self, topic: str, seconds: float = math.inf) -> None:
         self.silenced[topic] = time.monotonic() + seconds
@@ -74,6 +77,14 @@ class Faults:
         return True
 
 
+@dataclass(frozen=True)
+class ServiceReply:
+    """What a node's service answers: ok (a ROS 1 handler's true), and the response, or the reason it logs."""
+
+    ok: bool
+    values: dict | str
+
+
 @dataclass
 class Node:
     """A node of the ROS graph behind the server: what it publishes, what it takes in."""
@@ -81,6 +92,8 @@ class Node:
     name: str
     publishes: dict[str, str] = field(default_factory=dict)  # topic -> type
     subscribes: dict[str, tuple[str, Callable[[str, dict], None]]] = field(default_factory=dict)
+    # service -> (type, handler(request) -> ServiceReply): the node's own services
+    services: dict[str, tuple[str, Callable]] = field(default_factory=dict)
 
 
 @dataclass
@@ -102,7 +115,9 @@ class RosbridgeServer:
         self.faults = Faults()
         self.received: list[Received] = []
         self.errors: list[str] = []  # what the server logged as refused
+        self.calls: list[tuple[str, dict, bool]] = []  # the nodes' services called: (service, request, answered)
         self.nodes: list[Node] = []
+        self.service_types = dict(msgtypes.SERVICES)  # rosapi's and the nodes' own
         self._types: dict[str, str] = {}  # topic -> its established type
         self._clients: dict[ServerConnection, _Client] = {}
         self._server = None
@@ -121,9 +136,11 @@ class RosbridgeServer:
 
     # ------------------------------------------------------------------ the graph
 
-    def add_node(self, node: Node) -> None:
+    def add_node(self, node: Node, service_types: dict[str, tuple[dict, dict]] | None = None) -> None:
+        """A node joins the graph; `service_types` defines the types of its services (request, response fields)."""
         for topic, type_name in [*node.publishes.items(), *((t, ty) for t, (ty, _) in node.subscribes.items())]:
             self._types.setdefault(topic, type_name)
+        self.service_types.update(service_types or {})
         self.nodes.append(node)
 
     def topic_type(self, topic: str) -> str:
@@ -305,16 +322,27 @@ class RosbridgeServer:
         reply = {"op": "service_response", "service": name}
         if "id" in message:
             reply["id"] = message["id"]
-        service = None if self.faults.no_rosapi else self._services.get(name)
+        rosapi = None if self.faults.no_rosapi else self._services.get(name)
+        offered = [node.services[name] for node in self.nodes if name in node.services]
+        service = rosapi or (offered[0] if offered else None)
         if service is None:
             self.errors.append(f"call_service: service {name} does not exist")
             return {**reply, "values": f"Service {name} does not exist", "result": False}
         type_name, answer = service
-        request_fields, _ = msgtypes.SERVICES[type_name]
+        request_fields, _ = self.service_types[type_name]
         args = message.get("args") or {}
         try:
-            msgtypes.check_fields(type_name, request_fields, args)
+            msgtypes.check_fields(type_name, request_fields, args, types=self.message_types)
         except msgtypes.FieldError as exc:
             self.errors.append(f"call_service {name}: {exc}")
             return {**reply, "values": str(exc), "result": False}
-        return {**reply, "values": answer(args), "result": True}
+        if rosapi is not None:
+            return {**reply, "values": answer(args), "result": True}
+        # a service that returns false reaches the client as rospy's error, without the node's reason (that
+        # goes to the node's own log)
+        outcome = ServiceReply(False, "refused (twin fault)") if name in self.faults.refuse_services else answer(args)
+        self.calls.append((name, args, outcome.ok))
+        if not outcome.ok:
+            self.errors.append(f"{name}: {outcome.values}")
+            return {**reply, "values": f"service [{name}] responded with an error: b''", "result": False}
+        return {**reply, "values": outcome.values, "result": True}

@@ -20,7 +20,9 @@ from envfactory.backends.base import (PHYSICS_QUANTITIES, BackendError, CameraFr
 from envfactory.backends.mujoco import shortcuts
 from envfactory.backends.mujoco.held import Carry
 from envfactory.backends.mujoco.model import CAMERA, ROBOT_PREFIX, build
+from envfactory.backends.driver_readings import DriverReadings
 from envfactory.backends.rest import CycleCounts
+from envfactory.backends.synchronous import synchronous_length
 from envfactory.geometry.frames import TaskFrame
 from envfactory.geometry.object_clearance import NEAR_CONTACT, ObjectClearance, bounding_radius
 from envfactory.geometry.obstacles import TABLE_TOP, scene_obstacles
@@ -33,11 +35,6 @@ REST_GAP = 1e-6
 _render_failure: str | None = None  # why this process cannot render, once a try has shown it
 RENDER_HELP = ("MuJoCo renders through OpenGL: set MUJOCO_GL=egl (needs libEGL and a GPU driver) or "
                "MUJOCO_GL=osmesa (needs libOSMesa, e.g. Debian's libosmesa6) before the first import of mujoco")
-
-
-# The timing law along the line: a quintic in the elapsed fraction, so velocity and acceleration start and end
-# at zero and the servos lag no step in either; its peak speed is this multiple of the mean.
-PEAK_OVER_MEAN_SPEED = 1.875
 
 
 class Profile:
@@ -67,14 +64,6 @@ class Profile:
         return self.start + fraction * way, rate * way, change * way
 
 
-def synchronous_length(start: np.ndarray, end: np.ndarray, duration: float, velocities: np.ndarray) -> float:
-    """How long a joint-synchronous move takes: the commanded duration, or longer when the joint that
-    travels furthest for its speed limit would pass that limit at the profile's peak."""
-    if not len(start):
-        return duration
-    return max(duration, PEAK_OVER_MEAN_SPEED * float((np.abs(end - start) / velocities).max()))
-
-
 def _as_slice(indices: np.ndarray):
     """Addresses that run in order (a serial arm's qpos, dofs and actuators) as a slice: a kinematic cycle reads
     and writes them a dozen times, and a slice does it several times faster than an index array."""
@@ -98,6 +87,7 @@ class MujocoBackend:
         self.data = mujoco.MjData(self.model)
         self.dt = self.model.opt.timestep
         self._velocities = np.asarray(self.robot.arm_velocities, float)
+        self._driver_readings = DriverReadings(self.robot)
         # kv / kp of each servo (the position actuator keeps kp in gainprm[0] and -kv in biasprm[2])
         gains = self.model.actuator_gainprm[:, 0]
         damping = -self.model.actuator_biasprm[:, 2]
@@ -474,8 +464,10 @@ class MujocoBackend:
 
     def read_joints(self) -> JointReading:
         # (indexing by an address array copies already)
-        return JointReading(self.data.qpos[self.handles.state_qpos], self.data.qvel[self.handles.state_dof],
-                            self._sim_time)
+        position, velocity = self.data.qpos[self.handles.state_qpos], self.data.qvel[self.handles.state_dof]
+        if self._driver_readings:
+            self._driver_readings.apply(position, velocity)
+        return JointReading(position, velocity, self._sim_time)
 
     def read_object(self, name: str) -> ObjectReading:
         body = self.handles.object_body[name]

@@ -12,6 +12,7 @@ import pybullet as p
 
 from envfactory.backends.base import (PHYSICS_QUANTITIES, BackendError, CameraFrame, JointReading, ObjectReading,
                                       PhysicsChange, window_impossible)
+from envfactory.backends.driver_readings import DriverReadings
 from envfactory.backends.pybullet import scene
 from envfactory.backends.pybullet.fast_physics import FastCycles, GripperResponse, Rig, record_gripper_response
 from envfactory.geometry.frames import TaskFrame, base_rotation
@@ -92,6 +93,7 @@ class PyBulletBackend:
         link_index = {info[12].decode(): info[0] for info in infos}
         self._arm = [index[j.name] for j in self.robot.arm_joints]
         self._efforts, self._velocities = self.robot.arm_efforts, self.robot.arm_velocities
+        self._driver_readings = DriverReadings(self.robot)
         self._state_joints = [index[e.urdf_joint] for e in self.robot.joint_states]
         # Unactuated joints would otherwise hold still under PyBullet's default velocity motors.
         for joint in index.values():
@@ -332,7 +334,10 @@ class PyBulletBackend:
         with self._lock:
             states = p.getJointStates(self.body, self._state_joints, physicsClientId=self.client)
             stamp = self._sim_time
-        return JointReading(np.array([s[0] for s in states]), np.array([s[1] for s in states]), stamp)
+        position, velocity = np.array([s[0] for s in states]), np.array([s[1] for s in states])
+        if self._driver_readings:
+            self._driver_readings.apply(position, velocity)
+        return JointReading(position, velocity, stamp)
 
     def read_object(self, name: str) -> ObjectReading:
         with self._lock:

@@ -10,6 +10,11 @@ commands cease, and close() sends the stop. Each arm command is a motion of
 bounded length, so a robot that loses this client comes to rest at the end of
 the last one on its own. reset() first recovers from whatever went wrong:
 it reconnects (bounded), clears the fault and waits for fresh readings.
+
+A step means what it means in simulation: the driver is given the motion's
+duration (in the trajectory, or as the time profile its setup calls set at
+every connection), and advance() returns once the cycle has passed and the
+arm is at its target (motion.py), with a gripper goal's result in (gripper.py).
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ import numpy as np
 from envfactory.backends.base import (
     BackendError,
     ConnectionLost,
+    DriverRefused,
     JointReading,
     MalformedFeed,
     MotionRefused,
@@ -35,8 +41,13 @@ from envfactory.backends.base import (
 from envfactory.backends.rosbridge import messages
 from envfactory.backends.rosbridge.feeds import Feed, duration
 from envfactory.backends.rosbridge.follow import FollowWatch
+from envfactory.backends.rosbridge.gripper import GripperLink
 from envfactory.backends.rosbridge.link import Link
+from envfactory.backends.rosbridge.templates import fill
+from envfactory.backends.rosbridge.motion import MotionWatch
 from envfactory.backends.rosbridge.transforms import FrameGraph
+from envfactory.backends.synchronous import synchronous_length
+from envfactory.schema.driver import RAMP_SHARE, setup_values
 from envfactory.schema.models import EnvSpec
 
 log = logging.getLogger("envfactory.rosbridge")
@@ -44,9 +55,6 @@ log = logging.getLogger("envfactory.rosbridge")
 MOTION_ENV_VAR = "ALLOW_REAL_ROBOT_MOTION"
 POLL_S = 0.02
 FIRST_CONNECT_TRIES = 3  # at construction: a robot that is not there is said so quickly
-# a group command (xs_sdk) carries no duration: the drive home goes out as segments this
-# long, each at most reset_speed x RESET_SEGMENT_S further than the last
-RESET_SEGMENT_S = 0.2
 
 
 def motion_allowed(flag: bool) -> bool:
@@ -82,6 +90,10 @@ class RosbridgeBackend:
         self.state_names = robot.state_names
         self.arm_names = robot.arm_state_names
         self._arm_in_states = robot.arm_state_indices
+        self._published = [i for i, entry in enumerate(robot.joint_states) if entry.published]
+        self._published_names = [self.state_names[i] for i in self._published]
+        self._unpublished = robot.unpublished_gripper_gains  # /joint_states index -> gain of the gripper value
+        self._velocities = np.asarray(robot.arm_velocities, float)
         missing = [name for name in spec.task.objects if name not in ros.object_poses]
         if missing:
             raise BackendError(f"robot {robot.name!r}: ros.object_poses has no topic for {missing}")
@@ -93,14 +105,25 @@ class RosbridgeBackend:
             except KeyError as exc:
                 raise BackendError(f"cube_tracker_target_frame {target!r}: {exc.args[0]}; declare it in "
                                    f"ros.static_transforms or set ros.use_tf") from None
+        # How long the driver takes for an arm command that carries no duration: the motion time its setup
+        # gives it (long enough for the largest joint change the safety check lets through, at the joints'
+        # speed limits over the profile's cruise), else its stock profile
+        self.motion_s = max(spec.env.timing.action_speed,
+                            spec.env.safety.max_joint_delta / float(self._velocities.min()) / (1.0 - RAMP_SHARE))
+        self._driver_motion_s = self.motion_s if ros.motion_set_by_setup else ros.arm_command.profile_time_s
 
         self._lock = threading.Lock()
         self.joints = Feed(ros.joint_states.topic, real.joint_state_timeout_s, self._lock)
         self.objects = {name: Feed(ros.object_poses[name].topic, real.cube_pose_timeout_s, self._lock)
                         for name in spec.task.objects}
         self.follow = FollowWatch(ros.arm_command.topic, real.follow_timeout_s)
+        self.motion = MotionWatch(ros.arm_command.topic, ros.settle)
+        self.gripper = GripperLink(ros.gripper_command, robot.gripper, spec.gripper_assumed_at_reset) \
+            if ros.gripper_command is not None and robot.gripper is not None else None
         self._reading_age, self._reading_repeated, self._last_stamp = math.nan, False, -math.inf
-        self._last_command = 0.0
+        self._step_started: float | None = None  # the first command of the step under way
+        self._last_step_s = math.nan
+        self._last_alive = 0.0  # the last command, or the last moment a step was under way (the deadman's clock)
         self._last_target: np.ndarray | None = None
         self._deadman_armed = False
         self._holding = False  # a stop went out and no motion since: another stop adds nothing
@@ -113,15 +136,31 @@ class RosbridgeBackend:
         if ros.use_tf:
             for name in ("/tf", "/tf_static"):
                 subscriptions[name] = ("tf2_msgs/TFMessage", self.frames.learn)
+        if self.gripper is not None and self.gripper.awaits_results:
+            result = ros.gripper_command.result
+            subscriptions[result.topic] = (result.type, self.gripper.on_result)
         self.link = Link(real, ros, subscriptions)
         self.link.open(FIRST_CONNECT_TRIES)
         try:
+            self._set_up_driver()
             self._wait_for_readings(since=-math.inf)
         except BackendError:
             self.link.close()
             raise
         self._deadman = threading.Thread(target=self._watch_deadman, name="envfactory-deadman", daemon=True)
         self._deadman.start()
+
+    def _set_up_driver(self) -> None:
+        """The robot's setup calls (xs_sdk's operating modes: the arm's time profile, the gripper's mode), at every
+        connection and reset: a restarted driver comes back with its stock settings. A refusal stops the env."""
+        for call in self.ros_spec.setup:
+            request = fill(call.request, setup_values(self.motion_s))
+            try:
+                self.link.call(call.service, call.type, request)
+            except DriverRefused as exc:
+                raise DriverRefused(
+                    f"the driver refused its setup, so the arm would not move on the env's step: {exc}. Check that "
+                    f"the driver is the one robots/{self.spec.robot.name}.yaml declares (ros.setup)") from None
 
     @property
     def url(self) -> str:
@@ -138,12 +177,23 @@ class RosbridgeBackend:
 
     def _on_joint_state(self, msg: dict) -> None:
         try:
-            values = messages.decode_joint_state(msg, self.state_names, self.ros_spec.joint_states.template)
+            published = messages.decode_joint_state(msg, self._published_names, self.ros_spec.joint_states.template)
         except messages.MalformedMessage as exc:
             self.joints.fail(f"malformed message on {self.joints.topic}: {exc}")
             return
-        self.joints.update(values)
-        self.follow.observe(values[0][self._arm_in_states], time.monotonic())
+        position, velocity = np.zeros(len(self.state_names)), np.zeros(len(self.state_names))
+        position[self._published], velocity[self._published] = published
+        self.joints.update((position, velocity))
+        self.follow.observe(position[self._arm_in_states], time.monotonic())
+
+    def _with_gripper_commands(self, position: np.ndarray) -> np.ndarray:
+        """The joints the driver does not publish, read from the gripper's last completed command."""
+        if self._unpublished:
+            position = position.copy()
+            value = self.gripper.completed if self.gripper is not None else 0.0
+            for index, gain in self._unpublished.items():
+                position[index] = gain * value
+        return position
 
     def _on_pose(self, name: str, msg: dict) -> None:
         feed = self.objects[name]
@@ -209,31 +259,47 @@ class RosbridgeBackend:
         require_motion_gate(self.allow_motion, "refusing to publish a command")
         self.link.publish(topic, msg)
         with self._lock:
-            self._last_command = time.monotonic()
+            self._last_alive = time.monotonic()
             self._holding = False
 
-    def _command_arm(self, q_from: np.ndarray, q_target, duration_s: float) -> None:
+    def _command_arm(self, q_from: np.ndarray, q_target, length_s: float) -> None:
+        """Send the arm to `q_target` over `length_s` (a driver with its own time profile takes that instead)."""
         target = np.asarray(q_target, float)
-        msg = messages.encode_arm(self.ros_spec.arm_command, self.arm_names, target, duration_s)
+        msg = messages.encode_arm(self.ros_spec.arm_command, self.arm_names, target, length_s)
         self._guarded(lambda: self._publish(self.ros_spec.arm_command.topic, msg))
+        now = time.monotonic()
         self._last_target = target
-        self.follow.commanded(q_from, target, time.monotonic())
+        self.follow.commanded(q_from, target, now, length_s)
+        self.motion.commanded(target, now, length_s)
+        if self._step_started is None:
+            self._step_started = now
+
+    def _motion_length(self, q_from: np.ndarray, q_target: np.ndarray, duration_s: float) -> float:
+        """How long the driver takes: the duration a simulator would play the move over, carried in the command;
+        or, for a driver that takes no duration, the time profile it was given."""
+        if messages.carries_duration(self.ros_spec.arm_command):
+            return synchronous_length(q_from, q_target, duration_s, self._velocities)
+        return self._driver_motion_s
 
     def command_joints(self, q_arm_target, duration: float) -> None:
         here = self._check_inputs()
-        self._command_arm(here, q_arm_target, duration)
+        target = np.asarray(q_arm_target, float)
+        self._command_arm(here, target, self._motion_length(here, target, duration))
         self._deadman_armed = True
 
-    def _gripper_message(self, value: float) -> dict:
-        ends = self.spec.robot.gripper
-        return messages.encode_gripper(self.ros_spec.gripper_command, value, ends.open, ends.closed)
+    def _send_gripper(self, value: float) -> None:
+        """The gripper command, if it differs from the last one the driver was sent."""
+        msg = self.gripper.message(value, time.monotonic())
+        if msg is not None:
+            self._guarded(lambda: self._publish(self.gripper.topic, msg))
+            if self._step_started is None:
+                self._step_started = time.monotonic()
 
     def command_gripper(self, value: float) -> None:
-        gripper = self.ros_spec.gripper_command
-        if gripper is None:
+        if self.gripper is None:
             raise BackendError(f"robot {self.spec.robot.name!r} declares no ros.gripper_command")
         self._check_inputs()
-        self._guarded(lambda: self._publish(gripper.topic, self._gripper_message(value)))
+        self._send_gripper(value)
 
     def stop(self) -> None:
         """Hold the arm where it is, once per event. Allowed with the gate closed: stopping is not motion."""
@@ -243,6 +309,7 @@ class RosbridgeBackend:
             self._holding = True
         self._deadman_armed = False
         self.follow.clear()
+        self.motion.clear()
         msg = messages.encode_arm_stop(self.ros_spec.arm_command, self.arm_names, self._hold_position())
         if msg is None:
             log.warning("no stop to send: no trustworthy position to hold and no command sent yet")
@@ -267,7 +334,7 @@ class RosbridgeBackend:
         while not self._closed:
             time.sleep(POLL_S * 2)
             with self._lock:
-                silent = time.monotonic() - self._last_command
+                silent = time.monotonic() - self._last_alive
             if self._deadman_armed and silent > self.real.deadman_s:
                 log.warning("deadman: no command for %.2f s, stopping the arm", silent)
                 self.stop()
@@ -275,13 +342,18 @@ class RosbridgeBackend:
     # ------------------------------------------------------------------ protocol
 
     def recover(self) -> None:
-        """Reconnect if the connection is gone, clear any fault, wait for fresh readings, and
-        deliver a stop that found no connection."""
+        """Reconnect if the connection is gone, clear any fault, set the driver up again, wait for fresh
+        readings, and deliver a stop that found no connection."""
         self._deadman_armed = False
         self.follow.clear()
+        self.motion.clear()
+        self._step_started = None
+        if self.gripper is not None:
+            self.gripper.forget()
         if not self.link.connected:
             self.link.open(self.real.reconnect_tries)
         since = min(feed.clear() for feed in self._feeds)
+        self._set_up_driver()
         self._wait_for_readings(since)
         if self._stop_owed:
             self._stop_owed = False
@@ -290,7 +362,8 @@ class RosbridgeBackend:
             self.stop()
 
     def reset(self, q_arm, gripper, objects) -> None:
-        """Drive home at reset_speed and wait there; the objects stay where the user put them."""
+        """Drive home at reset_speed and wait there (and for the gripper's goal, if its driver answers goals);
+        the objects stay where the user put them."""
         self._deadman_armed = False
         home = np.asarray(q_arm, float)
         (position, _), _ = self._fresh(self.joints)
@@ -305,11 +378,11 @@ class RosbridgeBackend:
                 _, target, segment_s = plan[sent]
                 self._command_arm(here, target, segment_s)
                 sent += 1
-                if sent == 1 and gripper is not None and self.ros_spec.gripper_command is not None:
-                    gripper_topic = self.ros_spec.gripper_command.topic
-                    self._guarded(lambda: self._publish(gripper_topic, self._gripper_message(gripper)))
+                if sent == 1 and gripper is not None and self.gripper is not None:
+                    self._send_gripper(gripper)
             self._check_follow()
-            if sent == len(plan) and np.max(np.abs(here - home)) < self.real.reset_tolerance:
+            busy = self.gripper is not None and self._guarded(lambda: self.gripper.busy(time.monotonic()))
+            if sent == len(plan) and np.max(np.abs(here - home)) < self.real.reset_tolerance and not busy:
                 break
             if time.monotonic() - started > timeout:
                 self.stop()
@@ -317,6 +390,8 @@ class RosbridgeBackend:
             time.sleep(POLL_S)
         for feed in self.objects.values():
             self._fresh(feed)
+        self.motion.clear()
+        self._step_started = None
         self._deadman_armed = False
 
     def _drive_plan(self, start: np.ndarray, home: np.ndarray) -> list[tuple[float, np.ndarray, float]]:
@@ -324,7 +399,9 @@ class RosbridgeBackend:
         total = max(1.0, float(np.max(np.abs(home - start))) / self.real.reset_speed)
         if messages.carries_duration(self.ros_spec.arm_command):
             return [(0.0, home, total)]  # the trajectory itself carries the duration
-        count = max(1, math.ceil(total / RESET_SEGMENT_S))
+        # a driver that takes no duration moves each command over its profile: segments that long, each at
+        # most reset_speed times its length further than the last
+        count = max(1, math.ceil(total / self._driver_motion_s))
         step = total / count
         return [(i * step, start + (home - start) * (i + 1) / count, step) for i in range(count)]
 
@@ -332,24 +409,41 @@ class RosbridgeBackend:
         raise BackendError(f"a real arm's physics cannot be set ({change.quantity}): randomization is for Sim IDs")
 
     def advance(self, seconds: float) -> None:
-        deadline = time.monotonic() + seconds
-        while time.monotonic() < deadline:
+        """The step's cycle: at least `seconds` from its first command, and until the commanded motion is done
+        (and a gripper goal answered). A motion or goal that is overdue stops the arm and ends the episode."""
+        started = time.monotonic() if self._step_started is None else self._step_started
+        self._step_started = None
+        while True:
+            now = time.monotonic()
+            with self._lock:
+                self._last_alive = now  # a step under way is no silence: the deadman waits for the next one
             self._check_follow()
-            time.sleep(min(POLL_S, max(0.0, deadline - time.monotonic())))
+            (position, _), _ = self._fresh(self.joints)
+            q_arm = position[self._arm_in_states]
+            self._guarded(lambda: self.motion.check(q_arm, now))
+            busy = self.gripper is not None and self._guarded(lambda: self.gripper.busy(now))
+            if now - started >= seconds and self.motion.done(q_arm, now) and not busy:
+                break
+            time.sleep(POLL_S)
+        self._last_step_s = time.monotonic() - started
 
     def read_joints(self) -> JointReading:
         (position, velocity), stamp = self._fresh(self.joints)
         self._reading_age, self._reading_repeated = time.monotonic() - stamp, stamp == self._last_stamp
         self._last_stamp = stamp
-        return JointReading(position.copy(), velocity.copy(), stamp)
+        return JointReading(self._with_gripper_commands(position), velocity.copy(), stamp)
 
     def step_timing(self) -> dict[str, float]:
-        """How the last joint reading and the arm commands were timed: the reading's age when read, whether it
-        was the one read before (a reading that did not come in time), and the command latencies measured since
-        the last call (NaN: none this step). `envfactory sensing-spec` turns a log of these into sensing terms."""
+        """How the last step was timed on the real path: the joint reading's age when read, whether it was the one
+        read before (a reading that did not come in time), the command latencies measured since the last call,
+        the motion's time from command to target and the step's wall time (NaN: none this step).
+        `envfactory sensing-spec` turns a log of these into sensing terms."""
         latencies = self.follow.take_latencies()
-        return {"joint_reading_age_s": float(self._reading_age), "joint_reading_repeated": float(self._reading_repeated),
-                "command_latency_s": float(np.mean(latencies)) if latencies else math.nan}
+        timing = {"joint_reading_age_s": float(self._reading_age), "joint_reading_repeated": float(self._reading_repeated),
+                  "command_latency_s": float(np.mean(latencies)) if latencies else math.nan,
+                  "motion_s": self.motion.motion_time(), "step_s": self._last_step_s}
+        self._last_step_s = math.nan
+        return timing
 
     def read_object(self, name: str) -> ObjectReading:
         (position, quaternion), stamp = self._fresh(self.objects[name])

@@ -15,7 +15,7 @@ import logging
 import time
 from typing import Callable
 
-from envfactory.backends.base import CommandRefused, ConnectionLost
+from envfactory.backends.base import CommandRefused, ConnectionLost, DriverRefused
 from envfactory.schema.models import RealSettings, RosSpec, RosTopic
 
 log = logging.getLogger("envfactory.rosbridge")
@@ -145,6 +145,19 @@ class Link:
         return dict(reply)
 
     # ------------------------------------------------------------------ use
+
+    def call(self, service: str, type_name: str, request: dict) -> dict:
+        """A driver's service, answered within connect_timeout_s; DriverRefused says why not."""
+        import roslibpy
+
+        if not self.connected:
+            raise ConnectionLost(f"lost the rosbridge connection to {self.url}: {service} not called")
+        try:
+            reply = roslibpy.Service(self.ros, service, type_name).call(
+                roslibpy.ServiceRequest(request), timeout=self.real.connect_timeout_s)
+        except Exception as exc:  # roslibpy raises its own for a failed call and a bare one for a timeout
+            raise DriverRefused(f"{service} ({type_name}) refused {request}: {exc or type(exc).__name__}") from None
+        return dict(reply)
 
     def publish(self, topic: str, msg: dict) -> None:
         import roslibpy

@@ -180,14 +180,25 @@ def decode_arm(command: ArmCommand, joints: list[str], msg: dict, default_durati
 _goal_ids = itertools.count()
 
 
-def encode_gripper(command: GripperCommand, value: float, open_value: float, closed_value: float) -> dict:
-    """The command for a gripper position; a driver that only opens and closes gets the end the value is
-    nearer (a value halfway opens: the safer side for whatever the jaws hold is not knowable here)."""
-    values = {"$value": float(value), "$name": command.name,
-              "$goal_id": f"envfactory-{os.getpid()}-{next(_goal_ids)}-{time.time_ns()}"}
-    if command.states is not None:
-        closes = abs(value - closed_value) < abs(value - open_value)
-        values["$state"] = command.states.closed if closes else command.states.open
+def new_goal_id() -> str:
+    """A goal_id unique across processes and time, as actionlib clients make them."""
+    return f"envfactory-{os.getpid()}-{next(_goal_ids)}-{time.time_ns()}"
+
+
+def gripper_state(command: GripperCommand, value: float, open_value: float, closed_value: float):
+    """What an open/close driver takes for a gripper position: the end the value is nearer (a value halfway
+    opens: the safer side for whatever the jaws hold is not knowable here); None for a position driver."""
+    if command.states is None:
+        return None
+    closes = abs(value - closed_value) < abs(value - open_value)
+    return command.states.closed if closes else command.states.open
+
+
+def encode_gripper(command: GripperCommand, value: float, open_value: float, closed_value: float,
+                   goal_id: str | None = None) -> dict:
+    """The command for a gripper position, in the driver's units (`command.scale` times the joint value)."""
+    values = {"$value": float(value) * command.scale, "$name": command.name, "$goal_id": goal_id or new_goal_id(),
+              "$state": gripper_state(command, value, open_value, closed_value)}
     return fill(command.template.message, values)
 
 
@@ -207,4 +218,33 @@ def decode_gripper(command: GripperCommand, msg: dict, open_value: float, closed
             return float(closed_value)
         raise MalformedMessage(f"gripper command state {state!r} is neither open ({command.states.open!r}) "
                                f"nor closed ({command.states.closed!r})")
-    return float(_finite_floats([values["$value"]], "gripper command", 1)[0])
+    return float(_finite_floats([values["$value"]], "gripper command", 1)[0]) / command.scale
+
+
+# ------------------------------------------------------------------ action results (actionlib)
+
+# actionlib_msgs/GoalStatus.status, by value
+GOAL_STATUS = {0: "PENDING", 1: "ACTIVE", 2: "PREEMPTED", 3: "SUCCEEDED", 4: "ABORTED", 5: "REJECTED",
+               6: "PREEMPTING", 7: "RECALLING", 8: "RECALLED", 9: "LOST"}
+SUCCEEDED = 3
+
+
+def decode_action_result(msg: dict) -> tuple[str, int, str]:
+    """(goal id, status, what the driver said) of an actionlib ActionResult: its GoalStatus and the text of the
+    result's own fields."""
+    status = msg.get("status") if isinstance(msg, dict) else None
+    goal = status.get("goal_id") if isinstance(status, dict) else None
+    if not isinstance(goal, dict) or not isinstance(goal.get("id"), str) or not isinstance(status.get("status"), int):
+        raise MalformedMessage("action result without status.goal_id.id and status.status")
+    said = [str(status.get("text") or "")]
+    result = msg.get("result")
+    if isinstance(result, dict) and result:
+        said.append(", ".join(f"{key} {value!r}" for key, value in result.items()))
+    return goal["id"], status["status"], "; ".join(part for part in said if part)
+
+
+def encode_action_result(goal_id: str, status: int, text: str, result: dict, stamp: float) -> dict:
+    """An actionlib ActionResult (the twin's drivers answer their goals with it)."""
+    return {"header": {"seq": 0, "stamp": _stamp(stamp), "frame_id": ""},
+            "status": {"goal_id": {"stamp": _stamp(stamp), "id": goal_id}, "status": status, "text": text},
+            "result": result}

@@ -1,0 +1,70 @@
+"""A real step's arm motion: what was commanded, how long the driver was given for it, and when it is done.
+
+A step ends as it does in simulation: with the commanded motion done, then the observation. The driver is
+given the motion's duration (a trajectory's time_from_start, or the time profile set at connect), and the
+motion is done once every arm joint reads within the robot's settle tolerance of the target. One that is
+not done `margin_s` after its duration is overdue: the arm is stopped and the episode ends with the reason.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from envfactory.backends.base import EpisodeAbort
+from envfactory.schema.driver import Settle
+
+
+class MotionUnfinished(EpisodeAbort):
+    """The arm moved but did not reach its target within the time its driver was given, plus the margin."""
+
+
+@dataclass(frozen=True)
+class Motion:
+    target: np.ndarray
+    sent_at: float  # time.monotonic()
+    length_s: float  # how long the driver was given for it
+
+
+class MotionWatch:
+    def __init__(self, topic: str, settle: Settle):
+        self.topic, self.settle = topic, settle
+        self.motion: Motion | None = None
+        self.done_at: float | None = None  # when the last motion was first read done
+
+    def commanded(self, target: np.ndarray, now: float, length_s: float) -> None:
+        self.motion, self.done_at = Motion(np.asarray(target, float), now, length_s), None
+
+    def done(self, q_arm: np.ndarray, now: float) -> bool:
+        """Whether the commanded motion is done (or nothing was commanded), judged on a fresh reading."""
+        if self.motion is None:
+            return True
+        if float(np.max(np.abs(q_arm - self.motion.target))) <= self.settle.tolerance:
+            self.done_at = now if self.done_at is None else self.done_at
+            return True
+        return False
+
+    def check(self, q_arm: np.ndarray, now: float) -> None:
+        """MotionUnfinished once the motion is overdue and still not done."""
+        motion = self.motion
+        if motion is None or self.done(q_arm, now):
+            return
+        allowed = motion.length_s + self.settle.margin_s
+        if now - motion.sent_at > allowed:
+            off = np.abs(q_arm - motion.target)
+            worst = int(np.argmax(off))
+            raise MotionUnfinished(
+                f"the arm did not finish the command on {self.topic} within {allowed:.2f} s (its driver was given "
+                f"{motion.length_s:.2f} s, plus a margin of {self.settle.margin_s:.2f} s): joint {worst} is still "
+                f"{off[worst]:.3f} rad from its target (settle tolerance {self.settle.tolerance:g} rad). The "
+                f"driver's timing is not the one it was given, or the arm is blocked.")
+
+    def motion_time(self) -> float:
+        """Seconds from the last command to the reading that found it done; NaN if none was."""
+        if self.motion is None or self.done_at is None:
+            return float("nan")
+        return self.done_at - self.motion.sent_at
+
+    def clear(self) -> None:
+        self.motion = self.done_at = None
