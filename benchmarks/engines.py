@@ -16,8 +16,8 @@ import time
 import gymnasium as gym
 import yaml
 
-from envfactory import registry
-from envfactory.episodes import run_episodes
+from envfactory.registration import registry
+from envfactory.envs.episodes import run_episodes
 from envfactory.experts import make_policy
 from report import Report, add_markdown_option
 

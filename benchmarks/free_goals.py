@@ -11,7 +11,7 @@ import argparse
 
 import gymnasium as gym
 
-from envfactory import registry
+from envfactory.registration import registry
 from report import Report, add_markdown_option
 
 ALLOWED = ["++task.goal.allow_achieved_at_reset=true"]  # a key the task files leave to its default

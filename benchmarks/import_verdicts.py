@@ -38,7 +38,7 @@ def main(rounds: int, report: Report) -> None:
             (folder / f"fam{i}.yaml").write_text(GOOD.replace("BrokenKey-v0", f"BenchFam{i}-v0")
                                                  .replace("tolerence", "tolerance"))
         (folder / "broken.yaml").write_text(GOOD.replace("BrokenKey-v0", "BenchBroken-v0"))
-        subprocess.run([sys.executable, "-m", "envfactory.cli.main", "validate", str(folder)],
+        subprocess.run([sys.executable, "-m", "envfactory.cli", "validate", str(folder)],
                        env={**os.environ, "ENVFACTORY_CONFIG_DIR": str(checked)}, capture_output=True)
         ways = {"no user folder": {"ENVFACTORY_CONFIG_DIR": str(empty)},
                 "user folder, no verdicts": {"ENVFACTORY_CONFIG_DIR": str(empty), "ENVFACTORY_SPEC_PATH": str(folder)},

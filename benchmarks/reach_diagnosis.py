@@ -25,7 +25,7 @@ import gymnasium as gym
 import numpy as np
 
 import envfactory  # noqa: F401  (registers the IDs)
-from envfactory.episodes import run_episodes
+from envfactory.envs.episodes import run_episodes
 from envfactory.experts import make_policy
 
 IDS = ["UR5eReacherGoalSim-v0", "VX300SReacherGoalSim-v0"]

@@ -48,7 +48,7 @@ def _start_twin(robot: str, task: str, log: Path) -> tuple[subprocess.Popen, int
     """`envfactory twin` in a process of its own, as a user runs it; its output goes to `log`."""
     port = _free_port()
     with log.open("w") as out:
-        twin = subprocess.Popen([sys.executable, "-m", "envfactory.cli.main", "twin", robot, "--task", task,
+        twin = subprocess.Popen([sys.executable, "-m", "envfactory.cli", "twin", robot, "--task", task,
                                  "--port", str(port)], stdout=out, stderr=subprocess.STDOUT, text=True)
     deadline = time.monotonic() + 60
     while "twin of" not in log.read_text():  # it says where it serves once it does

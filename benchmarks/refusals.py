@@ -19,7 +19,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the independent judge is a test helper
 
 from bullet_oracle import BulletJudge  # noqa: E402
-from envfactory import registry  # noqa: E402
+from envfactory.registration import registry  # noqa: E402
 from report import Report, add_markdown_option  # noqa: E402
 
 # a refused motion sampled this finely by the judge (per straight joint-space segment)

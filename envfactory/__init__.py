@@ -8,7 +8,7 @@ geometry, the physics and the term library, which an import that only lists IDs 
 
 from importlib import import_module
 
-from envfactory.registry import records, register_on_import
+from envfactory.registration.registry import records, register_on_import
 from envfactory.schema.errors import SpecError
 from envfactory.version import __version__
 

@@ -7,10 +7,10 @@ import functools
 from pathlib import Path
 from typing import Any, Iterable
 
-from envfactory import registry, verdicts
+from envfactory.registration import registry, validation_cache
 from envfactory.compiler import compile_blueprint
 from envfactory.envs import GoalRobotEnv, RobotEnv
-from envfactory.registry import BUILTIN_SOURCE, CALL_SOURCE, IdRecord
+from envfactory.registration.registry import BUILTIN_SOURCE, CALL_SOURCE, IdRecord
 from envfactory.schema.compose import composed_config, kwarg_aliases, load_env_spec
 from envfactory.schema.errors import SpecError
 
@@ -47,7 +47,7 @@ def check_family(records: list[IdRecord], whole: bool = True) -> None:
             _remember_failure(records[0], exc)
         raise
     if records and whole:
-        verdicts.remember(records[0].family.path, True)
+        validation_cache.remember(records[0].family.path, True)
 
 
 # Problems that are not the family's to remember as broken: one a command fixes without editing the family (its
@@ -64,7 +64,7 @@ def _remember_failure(record: IdRecord, error: SpecError) -> None:
     # the family's own line first: that is where the user looks
     own = [p for p in error.problems if p.file and Path(p.file).resolve() == record.family.path.resolve()]
     first = (own or error.problems)[0]
-    verdicts.remember(record.family.path, False, {"path": first.path, "message": first.message,
+    validation_cache.remember(record.family.path, False, {"path": first.path, "message": first.message,
                                                   "file": first.file, "line": first.line})
 
 

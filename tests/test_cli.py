@@ -2,7 +2,7 @@ from pathlib import Path
 
 from typer.testing import CliRunner
 
-from envfactory.cli.main import app
+from envfactory.cli.app import app
 
 runner = CliRunner()
 
@@ -98,7 +98,8 @@ def test_twin_of_an_unknown_robot_fails_clearly():
 
 
 def test_twin_help_lists_every_robot_with_a_real_path():
-    from envfactory import factory, registry
+    from envfactory import factory
+    from envfactory.registration import registry
 
     real = {factory.blueprint(env_id).spec.robot.name for env_id, record in registry.records().items()
             if record.backend == "rosbridge"}
@@ -176,7 +177,8 @@ def test_validate_reports_a_user_id_that_clashes_with_a_builtin(tmp_path):
 
 def test_terms_lists_every_term_and_expert_with_params_size_and_unit():
     from envfactory.experts import EXPERTS
-    from envfactory.terms import IMAGES, OBSERVATIONS, REWARDS, TERMINATIONS, catalog
+    from envfactory.terms import IMAGES, OBSERVATIONS, REWARDS, TERMINATIONS
+    from envfactory.views import term_catalog as catalog
 
     result = runner.invoke(app, ["terms"])
     assert result.exit_code == 0, result.output

@@ -17,12 +17,12 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from envfactory import registry
+from envfactory.registration import registry
 from envfactory.learn import extra
 
 ray = pytest.importorskip("ray", reason="the [ray] extra is not installed (pip install 'envfactory[ray]')")
 
-from envfactory.cli.main import app  # noqa: E402
+from envfactory.cli.app import app  # noqa: E402
 from envfactory.cluster import pool, trials  # noqa: E402
 from envfactory.cluster.work import Evaluation, Workspace, run_here  # noqa: E402
 from envfactory.factory import unregister_folder  # noqa: E402

@@ -17,8 +17,9 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from envfactory import cluster, registry
-from envfactory.cli.main import app
+from envfactory import cluster
+from envfactory.registration import registry
+from envfactory.cli.app import app
 from envfactory.cluster import bundles, trials
 from envfactory.cluster.work import Collection, Evaluation, Workspace, WorkspaceError, run_here, split
 from envfactory.experts import make_policy
@@ -55,7 +56,7 @@ def test_only_the_cluster_wing_imports_ray():
 
 
 def test_the_command_does_not_import_ray():
-    done = subprocess.run([sys.executable, "-c", "import sys, envfactory.cli.main; print('ray' in sys.modules)"],
+    done = subprocess.run([sys.executable, "-c", "import sys, envfactory.cli.app; print('ray' in sys.modules)"],
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "False"

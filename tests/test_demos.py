@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from envfactory.cli.main import app
+from envfactory.cli.app import app
 from envfactory.learn import extra
 from envfactory.learn.hyperparams import HyperparameterError, load
 

@@ -61,7 +61,7 @@ def test_the_readmes_lift_example_validates_and_its_expert_lifts_the_cube(tmp_pa
     (folder / "specs").mkdir()
     (folder / "tasks" / "lift.yaml").write_text(_yaml_block_after(text, "`my_specs/tasks/lift.yaml`"))
     (folder / "specs" / "vx300s_lift.yaml").write_text(_yaml_block_after(text, "`my_specs/specs/vx300s_lift.yaml`"))
-    cli = [sys.executable, "-c", "from envfactory.cli.main import app; app()"]
+    cli = [sys.executable, "-c", "from envfactory.cli.app import app; app()"]
     validated = subprocess.run([*cli, "validate", str(folder)], capture_output=True, text=True, timeout=300)
     assert validated.returncode == 0, validated.stdout + validated.stderr
     ran = subprocess.run([*cli, "run", "VX300SLiftSim-v0", "--specs", str(folder), "-n", "3"], capture_output=True,

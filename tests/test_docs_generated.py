@@ -22,7 +22,7 @@ import reference_pages  # noqa: E402
 from report import Report, add_markdown_option, changed_settings, read_run_facts  # noqa: E402
 
 from envfactory import factory  # noqa: E402
-from envfactory.describe import description_parts, render_description  # noqa: E402
+from envfactory.views.describe import description_parts, render_description  # noqa: E402
 
 
 def test_generated_pages_are_up_to_date():

@@ -2,7 +2,7 @@
 
 import pytest
 
-from envfactory.episodes import run_episodes, success_rate
+from envfactory.envs.episodes import run_episodes, success_rate
 from envfactory.experts import make_policy
 
 REACH_IDS = ["UR5eReacherSim-v0", "UR5eReacherGoalSim-v0", "VX300SReacherSim-v0", "VX300SReacherGoalSim-v0",

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from typer.testing import CliRunner
 
-from envfactory.cli.main import app
+from envfactory.cli.app import app
 
 BROKEN = Path(__file__).parent / "broken_specs"
 GOOD = (BROKEN / "unknown_key.yaml").read_text().replace("tolerence", "tolerance")
@@ -73,7 +73,7 @@ def test_register_persists_for_later_processes(tmp_path, monkeypatch):
                     "env = gym.make('Persisted-v0'); env.reset(seed=1); env.close(); print('made')",
                     ENVFACTORY_CONFIG_DIR=str(config))
     assert later.returncode == 0 and "made" in later.stdout, later.stderr
-    sources = _python("from envfactory.cli.main import app; app(['list', '--sources'])", ENVFACTORY_CONFIG_DIR=str(config))
+    sources = _python("from envfactory.cli.app import app; app(['list', '--sources'])", ENVFACTORY_CONFIG_DIR=str(config))
     assert "config" in sources.stdout and "Persisted-v0" in sources.stdout, sources.stdout + sources.stderr
 
     assert runner.invoke(app, ["unregister", str(folder)]).exit_code == 0

@@ -1,5 +1,5 @@
 """The package's import graph: no cycle, no import hidden inside a function, and every import points down
-the layers (schema -> registry -> geometry -> terms -> backends -> compiler -> envs -> factory -> tools -> CLI).
+the layers (schema -> registration -> geometry -> terms -> backends -> compiler -> envs -> factory -> tools -> CLI).
 
 The graph is read from the source with `ast`, so a new module joins the check without being listed; a module
 that matches no layer fails the test until it is given one."""
@@ -15,17 +15,17 @@ PACKAGE = Path(__file__).resolve().parents[1] / "envfactory"
 
 # Lowest first. A module may import its own layer's modules and any lower layer's, never a higher one's.
 LAYERS: list[tuple[str, ...]] = [
-    ("envfactory.version", "envfactory.state", "envfactory.scaling", "envfactory.user_config"),  # leaves
+    ("envfactory.version", "envfactory.step_state", "envfactory.compiler.normalization", "envfactory.registration.user_config"),  # leaves
     ("envfactory.schema",),  # pydantic models, loading, Hydra composition, located problems
-    ("envfactory.registry", "envfactory.verdicts"),  # which IDs the spec folders declare (no compile)
+    ("envfactory.registration.registry", "envfactory.registration.validation_cache"),  # which IDs the spec folders declare (no compile)
     ("envfactory.geometry",),  # the robot model built once per process, the safety proof
     ("envfactory.terms", "envfactory.experts"),  # the term library and the scripted policies
     ("envfactory.backends",),  # PyBullet, rosbridge: everything the env calls
     ("envfactory.compiler",),  # spec -> Blueprint
     ("envfactory.envs",),  # the gymnasium envs, generic over blueprints and backends
     ("envfactory.factory",),  # ID -> blueprint -> env
-    ("envfactory.describe", "envfactory.episodes", "envfactory.safety_view", "envfactory.twin",
-     "envfactory.learn", "envfactory.cluster", "envfactory.sensing_spec"),  # tools over envs (cluster: the only wing that imports ray)
+    ("envfactory.views.describe", "envfactory.envs.episodes", "envfactory.views.safety_picture", "envfactory.twin",
+     "envfactory.learn", "envfactory.cluster", "envfactory.terms.sensing_from_log"),  # tools over envs (cluster: the only wing that imports ray)
     ("envfactory.cli", "envfactory"),  # the command, and the package's own facade
 ]
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from envfactory.episodes import run_episodes
+from envfactory.envs.episodes import run_episodes
 from envfactory.experts import make_policy
 
 CUBE = slice(30, 33)  # cube position columns of the UR5e Push observation

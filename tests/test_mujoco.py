@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import envfactory  # noqa: F401  (registers the IDs)
-from envfactory import registry
+from envfactory.registration import registry
 from envfactory.backends.base import BackendError
 from envfactory.backends.mujoco.backend import MujocoBackend
 

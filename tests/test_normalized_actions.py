@@ -5,8 +5,8 @@ The oracle is the seed pages' action tables (numbers copied here, not read from 
 import numpy as np
 import pytest
 
-from envfactory.describe import action_table
-from envfactory.episodes import run_episodes, success_rate
+from envfactory.views.describe import action_table
+from envfactory.envs.episodes import run_episodes, success_rate
 from envfactory.experts import make_policy
 
 # seed pages: Action Space, joint mode (Min, Max per row); delta_coeff 0.05

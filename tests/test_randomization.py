@@ -11,7 +11,7 @@ import pybullet as p
 import pytest
 
 import envfactory
-import envfactory.state
+import envfactory.step_state
 from envfactory.geometry.obstacles import TABLE_TOP
 
 ENGINES = ["pybullet", "mujoco"]
@@ -108,7 +108,7 @@ def _coast(env, damping: float) -> float:
     vertical: gravity neither speeds nor slows it)."""
     backend = env.unwrapped.backend
     c, body, joint = backend.client, backend.body, backend._arm[0]
-    backend.apply_physics(envfactory.state.PhysicsChange("arm_damping", "", damping))
+    backend.apply_physics(envfactory.step_state.PhysicsChange("arm_damping", "", damping))
     p.setJointMotorControl2(body, joint, p.VELOCITY_CONTROL, force=0.0, physicsClientId=c)
     p.resetJointState(body, joint, p.getJointState(body, joint, physicsClientId=c)[0], 2.0, physicsClientId=c)
     for _ in range(24):
@@ -275,7 +275,7 @@ def test_randomization_is_refused_on_a_real_id():
 
 
 def test_describe_shows_every_event_with_its_range(make):
-    from envfactory.describe import randomization_table
+    from envfactory.views.describe import randomization_table
     from rich.console import Console
 
     console = Console(width=200, record=True)

@@ -189,7 +189,7 @@ def test_auto_launch_cube_tracker_is_refused_clearly(make):
 @pytest.mark.slow
 def test_ctrl_c_during_run_sends_the_stop(twin):
     stand_in = twin(task="reach")
-    command = [sys.executable, "-m", "envfactory.cli.main", "run", "UR5eReacherReal-v0", "-n", "50",
+    command = [sys.executable, "-m", "envfactory.cli", "run", "UR5eReacherReal-v0", "-n", "50",
                "--policy", "random", "--allow-real-robot-motion", "-k", f"rosbridge_port={stand_in.port}",
                # the seeds' 0.5 s cycle: the first episode lasts 50 s, so the Ctrl-C lands in it (a random
                # episode may end where the next drive home is rightly refused); the twin shares this busy

@@ -185,7 +185,7 @@ def test_vx300s_drives_home_in_segments_no_faster_than_reset_speed(twin, make):
 def run_cli(stand_in, *extra):
     from typer.testing import CliRunner
 
-    from envfactory.cli.main import app
+    from envfactory.cli.app import app
 
     command = ["run", "UR5eReacherReal-v0", "-n", "3", "--policy", "random", "--allow-real-robot-motion",
                "-k", f"rosbridge_port={stand_in.port}", "-k", "max_episode_steps=10",

@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 
 from conftest import ALL_IDS
 from envfactory import factory
-from envfactory.cli.main import app
+from envfactory.cli.app import app
 
 runner = CliRunner()
 WIDTH, HEIGHT = 800, 600  # render_clearance's default size

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from envfactory.cli.main import app
-from envfactory.sensing_spec import sensing_terms, sensing_yaml
+from envfactory.cli.app import app
+from envfactory.terms.sensing_from_log import sensing_terms, sensing_yaml
 from envfactory.terms import SENSING
 from real_helpers import FAST, make_real
 

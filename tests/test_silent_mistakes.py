@@ -15,7 +15,7 @@ from typer.testing import CliRunner
 
 import envfactory
 from envfactory.backends.base import BackendError
-from envfactory.cli.main import app
+from envfactory.cli.app import app
 from envfactory.factory import register_specs, unregister_folder
 from envfactory.geometry.collision_pairs import checksum, write_pairs
 from envfactory.schema.errors import SpecError

@@ -15,9 +15,9 @@ import minari
 import pytest
 from typer.testing import CliRunner
 
-from envfactory import registry
-from envfactory.cli.app import NAMING_PARAMETERS
-from envfactory.cli.main import app
+from envfactory.registration import registry
+from envfactory.cli.common import NAMING_PARAMETERS
+from envfactory.cli.app import app
 from envfactory.factory import unregister_folder
 from envfactory.learn.demonstrations import SPEC_FOLDER_KEY, UnrecoverableEnv, _user_spec_folder, load_env
 from test_robot_folder import _robot_folder

@@ -6,9 +6,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from envfactory import factory, registry
+from envfactory import factory
+from envfactory.registration import registry
 from envfactory.compiler import Blueprint
-from envfactory.describe import Part, description_parts, env_kind, id_summary, kwarg_paths, value_at
+from envfactory.views.describe import Part, description_parts, env_kind, id_summary, kwarg_paths, value_at
 
 import mdtext as md  # the helpers beside this file
 

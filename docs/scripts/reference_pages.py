@@ -12,10 +12,10 @@ from pydantic import BaseModel, create_model
 from typer import Context
 
 from envfactory import factory
-from envfactory.cli.main import app
-from envfactory.describe import kwarg_paths, value_at
+from envfactory.cli.app import app
+from envfactory.views.describe import kwarg_paths, value_at
 from envfactory.schema.models import EnvSpec
-from envfactory.terms import catalog
+from envfactory.views import term_catalog as catalog
 
 import mdtext as md  # the helpers beside this file
 from env_pages import Family

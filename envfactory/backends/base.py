@@ -13,7 +13,7 @@ from typing import Protocol
 import numpy as np
 
 from envfactory.schema.models import CameraSpec
-from envfactory.state import PHYSICS_QUANTITIES, PhysicsChange  # noqa: F401  (the protocol's vocabulary)
+from envfactory.step_state import PHYSICS_QUANTITIES, PhysicsChange  # noqa: F401  (the protocol's vocabulary)
 
 
 def window_impossible() -> bool:
@@ -80,6 +80,16 @@ class MotionRefused(BackendError):
 
 
 class Backend(Protocol):
+    """What an env needs from a simulator or a real robot; every backend, built in or joined through the
+    `envfactory.backends` entry points, keeps this contract.
+
+    Units: joint values in rad (m for a prismatic finger), in /joint_states order where a whole state vector
+    goes in or out, in action order (the robot's arm_joints) where only the arm does; positions in m in the
+    task frame; quaternions x, y, z, w; times in s. A call that moves the arm is checked by the env's safety
+    proof before it reaches the backend: a backend plays what it is given, along the joint-space line from
+    where the arm is, all joints arriving together. Every failure is a BackendError; an EpisodeAbort subclass
+    means the arm was stopped and this episode cannot go on, the env ends it with the reason."""
+
     # True when reset sets the joints directly (a simulator); False when the arm drives
     # home, so the env proves that path clear first
     teleports_on_reset: bool
@@ -89,13 +99,17 @@ class Backend(Protocol):
         may play motions the safety check proved clear without dynamics; others ignore it."""
 
     def reset(self, q_arm: np.ndarray, gripper: float | None, objects: dict[str, tuple[np.ndarray, np.ndarray]]) -> None:
-        ...
+        """Put the arm at `q_arm` (action order) and the gripper at `gripper` (None: leave it as it is), and each
+        named object at its (position, quaternion). Blocks until done: a simulator sets the state at once; a
+        real arm drives home at its reset speed, and its objects stay where people put them."""
 
     def command_joints(self, q_arm_target: np.ndarray, duration: float) -> None:
-        ...
+        """Send the arm towards `q_arm_target` (action order), the motion to take `duration` s (longer where a
+        joint's speed limit needs it). Returns at once: the motion happens over the following advance()."""
 
     def command_gripper(self, value: float) -> None:
-        ...
+        """Send the gripper's driven joint towards `value` (its joint units). Returns at once; the finger drive
+        runs at the gripper's max_velocity over the following advance() and, in simulation, beyond it."""
 
     def recover(self) -> None:
         """Make the backend usable again after any fault (reconnect, clear the fault, wait for
@@ -110,26 +124,31 @@ class Backend(Protocol):
 
     def step_timing(self) -> dict[str, float]:
         """How this step's readings and commands were timed on a real path (reading age, repeats, command
-        latency; recorded in info["timing"]); a simulator has nothing to report: {}."""
+        latency, motion and step time; recorded in info["timing"]); a simulator has nothing to report: {}."""
 
     def advance(self, seconds: float) -> None:
-        """Let `seconds` pass: simulated time in sim, wall time on hardware."""
+        """The step's cycle, `seconds` long. Blocks until it is over and the commanded motion is done: a
+        simulator plays `seconds` of simulated time (a motion of `duration` <= `seconds` ends inside it); a
+        real arm waits at least `seconds` of wall time from the step's first command and until the arm is at
+        its target, or stops the arm and raises an EpisodeAbort saying why. The step's observation is read
+        after it."""
 
     def read_joints(self) -> JointReading:
-        ...
+        """The newest joint state, in /joint_states order, as the robot's driver publishes it. Does not
+        block; on a real path a reading older than its limit raises StaleFeed."""
 
     def read_object(self, name: str) -> ObjectReading:
-        ...
+        """The newest pose of a task object, in the task frame. Does not block; stale raises StaleFeed."""
 
     def mark_goal(self, position: np.ndarray) -> None:
         """Show the goal to people watching (a marker in sim); never part of an observation."""
 
     def render(self, width: int, height: int) -> np.ndarray:
-        ...
+        """An RGB picture of the scene, (height, width, 3) uint8, for people and videos; a real arm has none and
+        raises BackendError."""
 
     def capture(self, camera: CameraSpec) -> CameraFrame:
         """One frame of a fixed scene camera, for image observation terms."""
 
     def close(self) -> None:
-        ...
-
+        """Release the engine or the connection; a real arm is stopped first. Safe to call twice."""

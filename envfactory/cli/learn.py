@@ -10,8 +10,8 @@ from typing import List, Optional
 
 import typer
 
-from envfactory.cli.app import KWARG_HELP, _fail, _known, _parse_kwargs, command, console, errors
-from envfactory.cli.scale import (SEEDS_HELP, SWEEP_HELP, address_option, cluster_module, cluster_size,
+from envfactory.cli.common import KWARG_HELP, fail, known_id, parse_kwargs, command, console, errors
+from envfactory.cli.evaluate import (SEEDS_HELP, SWEEP_HELP, address_option, cluster_module, cluster_size,
                                   parse_seeds, simulated_only, train_trials, workers_option)
 from envfactory.learn import extra
 from envfactory.learn.demo_replay import DemonstrationError
@@ -29,7 +29,7 @@ def _require(modules: dict, what: str) -> None:
     try:
         require(modules, what)
     except MissingExtra as exc:
-        _fail(str(exc))
+        fail(str(exc))
 
 
 @command()
@@ -70,14 +70,14 @@ def train(
     _require({**extra.TRAIN_MODULES, **extra.PLOT_MODULES}, "envfactory train")
     if seeds is not None or sweep:
         if resume is not None or (seeds is not None and seed is not None) or env_id is None:
-            _fail("--seeds and --sweep start new runs of an ID: give the ID, and drop --resume and --seed")
-        _known(env_id)
+            fail("--seeds and --sweep start new runs of an ID: give the ID, and drop --resume and --seed")
+        known_id(env_id)
         train_trials(env_id, algo or "sac", parse_seeds(seeds) if seeds is not None else [seed or 0], sweep or [],
-                     out, tuple(hyperparameter or ()), steps, _parse_kwargs(kwarg), eval_every, eval_episodes, demos,
+                     out, tuple(hyperparameter or ()), steps, parse_kwargs(kwarg), eval_every, eval_episodes, demos,
                      workers, address, progress)
         return
     if workers is not None or address is not None:
-        _fail("--workers and --address spread several runs: give --seeds (or --sweep) too")
+        fail("--workers and --address spread several runs: give --seeds (or --sweep) too")
 
     def report(row) -> None:
         console.print(f"step {row.timesteps:>7}: success {row.success_rate:6.1%}  return {row.mean_return:8.2f}  "
@@ -91,28 +91,28 @@ def train(
         start = partial(resume_training, folder, steps=steps, progress_bar=progress, on_evaluation=report)
     else:
         if env_id is None:
-            _fail("give the ID to train, or --resume RUN_FOLDER")
-        _known(env_id)
+            fail("give the ID to train, or --resume RUN_FOLDER")
+        known_id(env_id)
         algo, seed = algo or "sac", 0 if seed is None else seed
         try:
             load(algo, env_id, hyperparameter or ())  # bad names or values fail before anything is built
         except HyperparameterError as exc:
-            _fail(str(exc))
+            fail(str(exc))
         asked = out or Path("runs") / f"{env_id}-{algo.lower()}-seed{seed}"
         if asked.exists() and not asked.is_dir():
-            _fail(f"{asked}: is a file; give a folder for the run")
+            fail(f"{asked}: is a file; give a folder for the run")
         folder = fresh_folder(asked)
         if folder != asked:
             console.print(f"{asked} holds an earlier run, which is never overwritten: this run goes to {folder} "
                           f"(`envfactory train --resume {asked}` would continue that one)")
         start = partial(
             run_training, env_id, folder, algo=algo, seed=seed, steps=steps, overrides=tuple(hyperparameter or ()),
-            env_kwargs=_parse_kwargs(kwarg), eval_every=eval_every, eval_episodes=eval_episodes, demos=demos,
+            env_kwargs=parse_kwargs(kwarg), eval_every=eval_every, eval_episodes=eval_episodes, demos=demos,
             progress_bar=progress, on_evaluation=report)
     try:
         result = start()
     except (HyperparameterError, RunFolderError, DemonstrationError) as exc:
-        _fail(str(exc))
+        fail(str(exc))
     except KeyboardInterrupt:
         _stopped(folder)
     env_id = RunRecord.read(folder).data["env_id"]
@@ -129,14 +129,14 @@ def _resumable(folder: Path, env_id: str | None, settings: dict) -> Path:
     """The run folder to resume, refused with the reason before anything is built."""
     given = [name for name, value in settings.items() if value not in (None, [], ())]
     if given:
-        _fail(f"--resume continues the run with the settings it was started with ({folder / META_FILE}); "
+        fail(f"--resume continues the run with the settings it was started with ({folder / META_FILE}); "
               f"drop {', '.join(given)}")
     try:
         record = RunRecord.read(folder)
     except RunFolderError as exc:
-        _fail(str(exc))
+        fail(str(exc))
     if env_id is not None and env_id != record.data["env_id"]:
-        _fail(f"--resume {folder}: that run trains {record.data['env_id']}, not {env_id}")
+        fail(f"--resume {folder}: that run trains {record.data['env_id']}, not {env_id}")
     return folder
 
 
@@ -177,10 +177,10 @@ def collect(
     envfactory.learn.demonstrations.load_env(dataset), which also registers a user folder's IDs. With
     --workers the episodes run as Ray tasks; the dataset is the same."""
 
-    _known(env_id)
+    known_id(env_id)
     _require(extra.COLLECT_MODULES, "envfactory collect")
 
-    kwargs = _parse_kwargs(kwarg)
+    kwargs = parse_kwargs(kwarg)
     simulated_only(env_id, "collect")
     size = cluster_size(workers, address)
     pool = None if size is None else cluster_module("pool", "collect --workers/--address")
@@ -191,7 +191,7 @@ def collect(
                                     data_path=data_path, overwrite=overwrite, author=author,
                                     author_email=author_email, recorder=recorder)
     except FileExistsError as exc:
-        _fail(str(exc))
+        fail(str(exc))
     console.print(f"dataset {result.dataset_id}: {result.episodes} episodes run to the env's end, {result.steps} "
                   f"steps, {result.successes} reach the goal; written to {result.path}")
     console.print(f"load it with: import minari; minari.load_dataset({result.dataset_id!r})"

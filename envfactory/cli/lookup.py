@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from envfactory import registry
+from envfactory.registration import registry
 from envfactory.schema.compose import composed_config
 from envfactory.schema.errors import SpecError, suggest
 

@@ -6,12 +6,13 @@ from pathlib import Path
 
 import typer
 
-from envfactory import factory, registry
-from envfactory.cli.app import KWARG_HELP, _fail, _known, _parse_kwargs, command, console
+from envfactory import factory
+from envfactory.registration import registry
+from envfactory.cli.common import KWARG_HELP, fail, known_id, parse_kwargs, command, console
 from envfactory.cli.lookup import robot_ids, unknown_robot
 from envfactory.geometry.robot_model import regenerate_pairs
-from envfactory.registry import record
-from envfactory.safety_view import render_clearance
+from envfactory.registration.registry import record
+from envfactory.views.safety_picture import render_clearance
 from envfactory.schema.compose import load_env_spec
 from envfactory.schema.errors import SpecError
 
@@ -24,10 +25,10 @@ def _robot_blueprint(name: str):
         try:
             return factory.blueprint(name)
         except SpecError as exc:
-            return _only_pairs_stale(name, exc) or _fail(str(exc))
+            return _only_pairs_stale(name, exc) or fail(str(exc))
     robots = robot_ids()
     if name not in robots:
-        _fail(unknown_robot(name, list(robots), ids=tuple(records)))
+        fail(unknown_robot(name, list(robots), ids=tuple(records)))
     first_error = None
     for env_id in robots[name]:
         if records[env_id].backend != "pybullet":
@@ -39,7 +40,7 @@ def _robot_blueprint(name: str):
             if compiled is not None:
                 return compiled
             first_error = first_error or exc
-    _fail(str(first_error) if first_error else f"robot {name!r} has no simulated (pybullet) ID to build it from")
+    fail(str(first_error) if first_error else f"robot {name!r} has no simulated (pybullet) ID to build it from")
 
 
 class _Unchecked:
@@ -79,7 +80,7 @@ def collision_pairs(
     try:
         path = regenerate_pairs(compiled.spec, compiled.asset_root, samples, seed)
     except ValueError as exc:
-        _fail(str(exc))
+        fail(str(exc))
     console.print(f"{path}: {samples} samples in {time.perf_counter() - start:.1f} s")
 
 
@@ -92,18 +93,18 @@ def safety_view(
 ):
     """Render the arm with its checked collision shapes, coloured by clearance (red near, green clear)."""
 
-    _known(env_id)
+    known_id(env_id)
     if not out.parent.exists():
-        _fail(f"--out {out}: the folder {out.parent} does not exist")
-    compiled = factory.blueprint(env_id, **_parse_kwargs(kwarg))
+        fail(f"--out {out}: the folder {out.parent} does not exist")
+    compiled = factory.blueprint(env_id, **parse_kwargs(kwarg))
     q_arm = None
     if joints:
         try:
             q_arm = [float(v) for v in joints.split(",")]
         except ValueError:
-            _fail(f"--joints {joints!r}: write comma-separated numbers")
+            fail(f"--joints {joints!r}: write comma-separated numbers")
     try:
         lowest = render_clearance(compiled, out, q_arm)
     except ValueError as exc:
-        _fail(str(exc))
+        fail(str(exc))
     console.print(f"{out}: lowest clearance {lowest:.3f} m")

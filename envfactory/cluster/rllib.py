@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import gymnasium as gym
 from ray.tune.registry import register_env
 
-from envfactory import registry
+from envfactory.registration import registry
 from envfactory.cluster.work import Workspace
 
 # keys RLlib itself puts into env_config (a vector env's size), which are no kwargs of the env

@@ -18,9 +18,9 @@ from typing import Callable
 
 import gymnasium as gym
 
-from envfactory import registry
+from envfactory.registration import registry
 from envfactory.cluster.bundles import FolderCopy
-from envfactory.episodes import EpisodeResult, iter_episodes
+from envfactory.envs.episodes import EpisodeResult, iter_episodes
 from envfactory.experts import make_policy
 from envfactory.learn.demonstrations import Recording, _user_spec_folder, record
 from envfactory.learn.trainer import NORMALIZER_FILE, load_policy, read_meta

@@ -15,7 +15,7 @@ import numpy as np
 from pydantic import BaseModel
 
 from envfactory.geometry.point_boxes import PointBoxes
-from envfactory.scaling import ActionScale
+from envfactory.compiler.normalization import ActionScale
 from envfactory.schema.models import EnvSpec
 from envfactory.schema.randomization import Every
 from envfactory.terms.library import (Description, EventTerm, ImageTerm, ObservationTerm, RewardTerm, SensingTerm,
@@ -135,6 +135,10 @@ class ActionLayout:
 
 @dataclass(frozen=True)
 class Blueprint:
+    """One compiled ID: its spec, the backend that runs it, every resolved term with its slice and bounds, the
+    action layout and the spaces. Immutable and physics-free: describe, the docs pages, the snapshots and the
+    env's spaces all read it, and gym.make caches it per (ID, overrides, kwargs)."""
+
     env_id: str
     family: str
     backend: str

@@ -16,7 +16,7 @@ from envfactory.compiler import ActionLayout
 from envfactory.geometry.frames import nearest_top_down
 from envfactory.geometry.kinematics import Kinematics
 from envfactory.schema.models import RobotSpec, Workspace
-from envfactory.state import EnvState
+from envfactory.step_state import EnvState
 
 
 TURN_PER_STEP = 0.3  # rad: how far one EE-mode step turns the tool toward its declared orientation

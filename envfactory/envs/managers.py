@@ -8,7 +8,7 @@ import numpy as np
 from gymnasium import spaces
 
 from envfactory.compiler import ImageSlot, ObservationSlot, TerminationSlot, WeightedTerm
-from envfactory.state import EnvState
+from envfactory.step_state import EnvState
 
 
 class ObservationManager:

@@ -14,7 +14,7 @@ from envfactory.geometry.frames import TaskFrame
 from envfactory.geometry.kinematics import quaternion_to_matrix
 from envfactory.geometry.obstacles import table_bounds_xy
 from envfactory.schema.models import ObjectSpec, TableSpec
-from envfactory.state import ObjectState
+from envfactory.step_state import ObjectState
 
 IDENTITY_QUATERNION = np.array([0.0, 0.0, 0.0, 1.0])
 

@@ -25,14 +25,18 @@ from envfactory.geometry.frames import TaskFrame
 from envfactory.geometry.object_press import ObjectPressGuard
 from envfactory.geometry.robot_model import robot_geometry
 from envfactory.geometry.vectors import length
-from envfactory.scaling import AffineScale
-from envfactory.state import EnvState
+from envfactory.compiler.normalization import AffineScale
+from envfactory.step_state import EnvState
 from envfactory.terms.rewards import STEP_FLAGS
 
 log = logging.getLogger("envfactory")
 
 
 class RobotEnv(gym.Env):
+    """A gymnasium env over one blueprint and one backend, generic: it names no robot and no task. A step
+    translates the action (ActionAdapter), has the safety check and the object guard judge it, plays it on the
+    backend for one action cycle, reads the state, and computes the observation, reward and termination from the
+    blueprint's terms. Box observation; GoalRobotEnv gives the Dict one for HER."""
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 2}
 
     def __init__(self, blueprint: Blueprint, render_mode: str | None = None, **backend_options):

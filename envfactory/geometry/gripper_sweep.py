@@ -23,6 +23,8 @@ from envfactory.geometry import capsule_kernel
 
 
 class GripperSweep:
+    """Each finger's box tabulated once in its mount's frame over the gripper's range, and the bound it gives on
+    a finger's clearance from an obstacle or an arm link anywhere in a gripper range, at one pose."""
     # no point of a finger's box is farther than this from its place at the nearest tabulated gripper value
     PAD = 0.0005
     DENSE_SAMPLES = 401  # the corners' speed is measured on this many values across the range

@@ -36,6 +36,8 @@ class IkResult:
 
 
 class Kinematics:
+    """Pinocchio FK, Jacobians and damped least-squares IK of one robot, in the task frame. Holds its own
+    pinocchio data (a measuring copy per env), so it is not shared between threads."""
     def __init__(self, urdf_path: Path, robot: RobotSpec, task_frame: TaskFrame | None = None):
         """`task_frame`: where results are expressed; None for the model's own frame."""
         self.robot = robot

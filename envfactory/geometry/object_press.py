@@ -22,7 +22,7 @@ from envfactory.geometry.collision import CollisionModel
 from envfactory.geometry.frames import TaskFrame
 from envfactory.geometry.safety import ACCEPTED, Verdict
 from envfactory.schema.models import ObjectSpec
-from envfactory.state import ObjectState
+from envfactory.step_state import ObjectState
 
 
 class ObjectPressGuard:

@@ -27,8 +27,8 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-from envfactory import registry
-from envfactory.episodes import EpisodeResult, iter_episodes
+from envfactory.registration import registry
+from envfactory.envs.episodes import EpisodeResult, iter_episodes
 from envfactory.experts import make_policy
 from envfactory.learn import extra
 from envfactory.schema.folders import folder_of

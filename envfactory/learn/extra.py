@@ -9,9 +9,8 @@ TRAIN_MODULES = {"torch": "torch", "stable_baselines3": "stable-baselines3", "sb
 COLLECT_MODULES = {"minari": "minari"}
 PLOT_MODULES = {"matplotlib": "matplotlib"}
 
-# the extra pins the CPU build of torch (torch==2.13.0+cpu on Linux): pip must find that wheel
-# (--find-links or the PyTorch CPU package index) and never falls back to a CUDA build
-INSTALL_HINT = "pip install -e '.[train]' (from the envfactory checkout; it needs the torch 2.13.0+cpu wheel)"
+# the extra asks for torch below 2.14 from whatever index pip uses (pyproject.toml says why the bound)
+INSTALL_HINT = "pip install -e '.[train]' (from the envfactory checkout)"
 
 
 class MissingExtra(RuntimeError):

@@ -23,8 +23,8 @@ from pathlib import Path
 
 import yaml
 
-from envfactory import registry
-from envfactory.registry import BUILTIN_SOURCE
+from envfactory.registration import registry
+from envfactory.registration.registry import BUILTIN_SOURCE
 from envfactory.schema.folders import builtin_root
 
 ALGORITHMS = ("sac", "td3", "tqc")

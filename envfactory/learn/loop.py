@@ -18,7 +18,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from envfactory.episodes import run_episodes
+from envfactory.envs.episodes import run_episodes
 from envfactory.learn.curve import CurveWriter, Evaluation, plot
 from envfactory.learn.models import ModelPolicy, save
 from envfactory.learn.runs import RunRecord, release

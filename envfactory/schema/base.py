@@ -9,7 +9,6 @@ from envfactory.schema.numbers import Angle, Coordinate, Real
 Vec3 = tuple[Real, Real, Real]
 Position = tuple[Coordinate, Coordinate, Coordinate]  # metres, within the scene extent
 Rpy = tuple[Angle, Angle, Angle]
-Interval = tuple[Real, Real]
 Rgba = tuple[Real, Real, Real, Real]
 
 

@@ -10,7 +10,9 @@ from pathlib import Path
 FAMILY_SUFFIX = ".yaml"
 # A family file declares the IDs it registers; a shared file (defaults, a robot, a task) never does.
 _DECLARES_IDS = re.compile(r"^registration\s*:", re.MULTILINE)
-_SNIFF_BYTES = 256 * 1024  # a family file is at most this large (registry.MAX_SPEC_BYTES)
+# Bounded work: a family file is read whole at import (and sniffed for its registration block), so its size is
+# capped; the registry refuses a larger one, naming the cap (docs: concepts/specs-and-overrides)
+MAX_SPEC_BYTES = 256 * 1024
 
 
 def builtin_root() -> Path:
@@ -82,7 +84,7 @@ def _why_skipped(path: Path) -> str:
 def _declares_ids(path: Path) -> bool:
     try:
         with open(path, encoding="utf-8", errors="replace") as handle:
-            return bool(_DECLARES_IDS.search(handle.read(_SNIFF_BYTES)))
+            return bool(_DECLARES_IDS.search(handle.read(MAX_SPEC_BYTES)))
     except OSError:
         return False
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import functools
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 from pydantic import ValidationError, model_validator
 
@@ -20,7 +20,6 @@ from envfactory.schema.folders import builtin_root
 from envfactory.schema.sources import SourceMap, load_plain
 from envfactory.schema.validation import validation_problems
 
-Role = Literal["arm", "gripper", "joint_state", "pose"]
 
 # The placeholders each kind of message may hold, and those it must hold.
 PLACEHOLDERS: dict[str, set[str]] = {

@@ -36,8 +36,10 @@ NonNegative = Annotated[Real, Field(ge=0)]
 SCENE_EXTENT = 10.0
 Coordinate = Annotated[Real, Field(ge=-SCENE_EXTENT, le=SCENE_EXTENT)]
 Length = Annotated[Real, Field(gt=0, le=SCENE_EXTENT)]
+# 2π rounded up in the fourth decimal, so that a full turn written to four places (6.2832) passes as one
+TWO_PI = 6.2832
 # Angles in radians: more than a full turn either way is never meant.
-Angle = Annotated[Real, Field(ge=-6.2832, le=6.2832)]
+Angle = Annotated[Real, Field(ge=-TWO_PI, le=TWO_PI)]
 # Friction coefficients of real materials stay well below this.
 Friction = Annotated[Real, Field(ge=0, le=10.0)]
 

@@ -8,7 +8,7 @@ from pydantic import Field, model_validator
 
 from envfactory.schema.base import Model, Position, Rgba, Rpy, in_unit_range, located, ordered
 from envfactory.schema.errors import suggest
-from envfactory.schema.numbers import Friction, Length, NonNegative, Positive, Real
+from envfactory.schema.numbers import TWO_PI, Friction, Length, NonNegative, Positive, Real
 from envfactory.schema.randomization import SensingRef
 from envfactory.schema.ros import RosSpec
 from envfactory.schema.units import out_of_range_hint
@@ -24,7 +24,7 @@ Effort = Annotated[Positive, Field(le=MAX_EFFORT)]
 StateBound = Annotated[Real, Field(ge=-100.0, le=100.0)]
 Velocity = Annotated[Positive, Field(le=MAX_JOINT_VELOCITY)]
 # One unit of action in a delta row times delta_coeff (at most 1) is the step: past a full turn it is a typo.
-DeltaBound = Annotated[Real, Field(ge=-6.2832, le=6.2832)]
+DeltaBound = Annotated[Real, Field(ge=-TWO_PI, le=TWO_PI)]
 
 
 class UrdfPart(Model):
@@ -73,7 +73,7 @@ class ArmJoint(Model):
     label: str = ""
     # The joint-delta action row: ± one number, or [min, max] around zero. Independent of
     # the position limits, which bound the target, not the step.
-    delta: Annotated[Positive, Field(le=6.2832)] | tuple[DeltaBound, DeltaBound] = DEFAULT_JOINT_DELTA
+    delta: Annotated[Positive, Field(le=TWO_PI)] | tuple[DeltaBound, DeltaBound] = DEFAULT_JOINT_DELTA
     effort: Effort | None = None  # N·m (N for a prismatic joint); the robot's arm_force if unset
     velocity: Velocity | None = None  # rad/s (m/s); the robot's arm_max_velocity if unset
 
@@ -216,6 +216,8 @@ class PedestalSpec(Model):
 
 
 class RobotSpec(Model):
+    """A robot YAML: its model parts and mount, arm joints and home, the /joint_states layout, the gripper,
+    safety additions, the ROS topic map of its real path and its measured sensing."""
     name: str
     label: str
     model: ModelSpec

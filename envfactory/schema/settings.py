@@ -7,10 +7,10 @@ from typing import Any, Literal
 from pydantic import Field, field_validator, model_validator
 
 from envfactory.schema.base import Model, Position, Rgba, in_unit_range, located, ordered
-from envfactory.schema.numbers import Coordinate, Length, NonNegative, Positive
+from envfactory.schema.numbers import TWO_PI, Coordinate, Length, NonNegative, Positive
 
 # Largest joint change one action may command: a full turn (no revolute joint can travel further).
-MAX_JOINT_DELTA_LIMIT = 6.2832  # 2π
+MAX_JOINT_DELTA_LIMIT = TWO_PI
 # A registration entry beyond this many steps per episode is a typo, not a task.
 MAX_EPISODE_STEPS_LIMIT = 1_000_000
 
@@ -20,12 +20,12 @@ class ActionSettings(Model):
     delta: bool = True
     # The action box times delta_coeff is the step: above 1 the step outgrows the box.
     delta_coeff: Positive = Field(default=0.05, le=1.0)
-    normalize: bool = False  # normalize_actions: the policy acts in [-1, 1] (envfactory.scaling)
+    normalize: bool = False  # normalize_actions: the policy acts in [-1, 1] (envfactory.compiler.normalization)
 
 
 class ObservationSettings(Model):
     # normalize_observations: every vector column and goal scaled by its declared bounds
-    # (envfactory.scaling)
+    # (envfactory.compiler.normalization)
     normalize: bool = False
     camera_images: bool = False  # use_kinect: the scene camera's image terms join the observation
 

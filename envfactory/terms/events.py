@@ -11,7 +11,7 @@ from typing import Literal
 import numpy as np
 from pydantic import model_validator
 
-from envfactory.state import PhysicsChange
+from envfactory.step_state import PhysicsChange
 from envfactory.schema.numbers import Real
 from envfactory.terms.library import Layout, TermParams, UnknownReference, event_term
 

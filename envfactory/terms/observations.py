@@ -7,6 +7,7 @@ from pydantic import ConfigDict, Field
 
 from envfactory.geometry.point_boxes import Box
 from envfactory.geometry.vectors import length
+from envfactory.schema.numbers import TWO_PI
 from envfactory.terms.library import (
     Description,
     TermParams,
@@ -15,8 +16,6 @@ from envfactory.terms.library import (
     observation_term,
     size_of,
 )
-
-TWO_PI = 6.2832
 
 
 def box_bounds(box) -> tuple[np.ndarray, np.ndarray]:

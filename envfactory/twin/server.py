@@ -108,6 +108,9 @@ class ProtocolError(Exception):
 
 
 class RosbridgeServer:
+    """A rosbridge v2 server over websockets with the graph of nodes behind it: it keeps each topic's type,
+    checks what is published against it, forwards to subscribers and nodes, answers rosapi's and the nodes'
+    services, records what the nodes received, and injects the faults in `faults`."""
     def __init__(self, host: str = "127.0.0.1", port: int = 0,
                  message_types: dict[str, dict[str, str]] = msgtypes.MESSAGES):
         self.host, self.port = host, port

@@ -21,7 +21,7 @@ from envfactory.backends.mujoco import shortcuts
 from envfactory.backends.mujoco.held import Carry
 from envfactory.backends.mujoco.model import CAMERA, ROBOT_PREFIX, build
 from envfactory.backends.driver_readings import DriverReadings
-from envfactory.backends.rest import CycleCounts
+from envfactory.backends.at_rest import CycleCounts
 from envfactory.backends.synchronous import synchronous_length
 from envfactory.geometry.frames import TaskFrame
 from envfactory.geometry.object_clearance import NEAR_CONTACT, ObjectClearance, bounding_radius
@@ -74,6 +74,11 @@ def _as_slice(indices: np.ndarray):
 
 
 class MujocoBackend:
+    """The Backend protocol on MuJoCo: one model and data per env, built from the robot's URDF and the scene.
+    Arm commands follow a joint-synchronous quintic profile that the position servos track substep by substep;
+    with the fast fidelity, cycles the safety proof shows cannot touch an object are played without dynamics
+    (the arm placed along its profile) and a held object rides with the hand. Not thread-safe: one env, one
+    thread."""
     teleports_on_reset = True  # reset sets the joints directly; no path is driven
 
     def __init__(self, spec: EnvSpec, urdf_path, task_frame: TaskFrame, render_mode: str | None = None):

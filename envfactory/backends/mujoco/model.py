@@ -45,9 +45,9 @@ SURFACE_FRICTION = (0.5, 0.0, 0.0)  # lateral, spinning, rolling of the table, o
 # here a damper stops it, or the arm's swings would spin it on forever and the scene would never be at rest.
 UNDRIVEN_DAMPING = 0.01  # N m s / rad
 # The mimic constraints' time constant (s; never under two timesteps, below which MuJoCo's integration is
-# unstable) and impedance: with these a UR5e squeezing its cube keeps the linkage within 0.03 rad and the pads
-# flat on it; its expert's cube no longer swings in the hand, and closed hard on the cube (the hold of
-# tests/test_manipulation.py, on MuJoCo) it drifts 4 mm instead of 19.
+# unstable) and impedance: stiff enough that a UR5e squeezing its cube keeps the linkage within 0.03 rad and
+# the pads flat on it, so the held cube neither swings in the hand nor drifts more than 4 mm in the hold of
+# tests/test_manipulation.py on MuJoCo.
 MIMIC_TIMECONST = 0.008
 MIMIC_IMPEDANCE = (0.99, 0.99, 0.001, 0.5, 2.0)
 CAMERA = "scene_camera"

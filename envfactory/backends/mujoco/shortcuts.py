@@ -14,7 +14,7 @@ A cycle is played one of four ways (the reference, `full`, always takes the last
 
 from __future__ import annotations
 
-from envfactory.backends.rest import GRIPPER_REST, JOINT_REST, OBJECT_REST, OBJECT_SPIN_REST
+from envfactory.backends.at_rest import GRIPPER_REST, JOINT_REST, OBJECT_REST, OBJECT_SPIN_REST
 
 # The servos follow the profile's quintic with a lag of a few substeps; a cycle played kinematically must
 # leave them this long after the profile ends, as the dynamic cycle would (the tracking test in

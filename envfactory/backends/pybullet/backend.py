@@ -29,6 +29,11 @@ _GRIPPER_RESPONSES: dict[tuple, GripperResponse] = {}
 
 
 class PyBulletBackend:
+    """The Backend protocol on PyBullet: one client per env (DIRECT, or GUI on request), the robot from its
+    assembled URDF with gear-constrained mimic joints, the scene and the task's objects. Arm motors move all
+    joints together along the commanded line; with the fast fidelity (fast_physics.FastCycles) cycles that
+    cannot change an object are played without substeps. In realtime mode a thread steps physics at wall-clock
+    rate, guarded by a lock."""
     teleports_on_reset = True  # reset sets the joints directly; no path is driven
     def __init__(self, spec: EnvSpec, urdf_path: Path, task_frame: TaskFrame, render_mode: str | None = None,
                  headless: bool = False):

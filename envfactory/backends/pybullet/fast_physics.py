@@ -29,7 +29,7 @@ from typing import Callable
 import numpy as np
 import pybullet as p
 
-from envfactory.backends.rest import GRIPPER_REST, JOINT_REST, OBJECT_REST, OBJECT_SPIN_REST, CycleCounts
+from envfactory.backends.at_rest import GRIPPER_REST, JOINT_REST, OBJECT_REST, OBJECT_SPIN_REST, CycleCounts
 from envfactory.geometry.object_clearance import NEAR_CONTACT, ObjectClearance
 
 # After `action_speed` the position motors close the rest of a motion by a factor e about every 9

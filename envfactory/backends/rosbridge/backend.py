@@ -70,6 +70,10 @@ def require_motion_gate(flag: bool, what: str) -> None:
 
 
 class RosbridgeBackend:
+    """The Backend protocol on a real arm over rosbridge: one connection (Link), the joint-state and
+    object-pose feeds with their staleness limits, the follow watchdog, a step that waits for its motion
+    (MotionWatch) and the gripper's goals (GripperLink), and a deadman thread. Every fault stops the arm once
+    and ends the episode with its reason; reset() recovers first."""
     teleports_on_reset = False  # the arm drives home
 
     def __init__(self, spec: EnvSpec, urdf_path: Path, task_frame, render_mode: str | None = None):

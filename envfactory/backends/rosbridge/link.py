@@ -42,6 +42,9 @@ def backoff(tries: int) -> list[float]:
 
 
 class Link:
+    """One rosbridge connection, opened and reopened within bounds by this side (never by roslibpy), with the
+    command topics checked through rosapi at every connection, every subscription wired again, and a driver's
+    services called."""
     def __init__(self, real: RealSettings, ros_spec: RosSpec, subscriptions: dict[str, tuple[str, Callable]]):
         """`subscriptions`: topic -> (type, callback(msg))."""
         self.real, self.ros_spec = real, ros_spec

@@ -16,12 +16,13 @@ import typer
 from rich.table import Table
 from tqdm import tqdm
 
-from envfactory import cluster, registry
-from envfactory.cli.app import KWARG_HELP, _check_output, _fail, _known, _parse_kwargs, command, console, model_file
+from envfactory import cluster
+from envfactory.registration import registry
+from envfactory.cli.common import KWARG_HELP, check_output, fail, known_id, parse_kwargs, command, console, model_file
 from envfactory.cluster import trials as trial_runs
 from envfactory.cluster.bundles import FolderCopyError
 from envfactory.cluster.work import Evaluation, PolicySource, Workspace, run_here
-from envfactory.episodes import EpisodeResult, success_rate
+from envfactory.envs.episodes import EpisodeResult, success_rate
 from envfactory.learn.extra import MissingExtra
 from envfactory.learn.hyperparams import HyperparameterError
 from envfactory.learn.runs import fresh_folder
@@ -45,7 +46,7 @@ def cluster_module(name: str, what: str) -> ModuleType:
     try:
         return cluster.load(name, what)
     except MissingExtra as exc:
-        _fail(str(exc))
+        fail(str(exc))
 
 
 def cluster_size(workers: int | None, address: str | None) -> int | None:
@@ -58,7 +59,7 @@ def cluster_size(workers: int | None, address: str | None) -> int | None:
 
 def simulated_only(env_id: str, command_name: str) -> None:
     if registry.records()[env_id].backend != "pybullet":
-        _fail(f"{env_id}: {command_name} runs simulated IDs only (it would drive the real arm for every episode); "
+        fail(f"{env_id}: {command_name} runs simulated IDs only (it would drive the real arm for every episode); "
               f"`envfactory run {env_id} --allow-real-robot-motion` runs a real arm, one episode after another")
 
 
@@ -88,17 +89,17 @@ def evaluate(
     learner sees it (Success: is_success at the last step). With --workers the episodes run as Ray tasks."""
 
     for name in env_id:
-        _known(name)
+        known_id(name)
         simulated_only(name, "evaluate")
     if out_csv is not None:
-        _check_output(out_csv, (".csv",))
+        check_output(out_csv, (".csv",))
     source = _policy_source(policy, algo)
-    kwargs = {**source.trained_kwargs(), **_parse_kwargs(kwarg)}  # -k over the kwargs a model was trained with
+    kwargs = {**source.trained_kwargs(), **parse_kwargs(kwarg)}  # -k over the kwargs a model was trained with
     size = cluster_size(workers, address)
     try:  # the spec folders travel only to other processes: here the IDs are known already
         workspace = Workspace() if size is None else Workspace.for_ids(list(env_id))
     except FolderCopyError as exc:
-        _fail(str(exc))
+        fail(str(exc))
     works = [Evaluation(name, kwargs, workspace, source) for name in env_id]
     seeds = range(seed, seed + episodes)
     if size is None:
@@ -151,9 +152,9 @@ def parse_seeds(text: str) -> list[int]:
     try:
         seeds = [int(part) for part in text.split(",") if part.strip()]
     except ValueError:
-        _fail(f"--seeds {text!r}: write whole numbers separated by commas, e.g. 0,1,2")
+        fail(f"--seeds {text!r}: write whole numbers separated by commas, e.g. 0,1,2")
     if not seeds or len(set(seeds)) != len(seeds):
-        _fail(f"--seeds {text!r}: give one or more different seeds, e.g. 0,1,2")
+        fail(f"--seeds {text!r}: give one or more different seeds, e.g. 0,1,2")
     return seeds
 
 
@@ -169,7 +170,7 @@ def train_trials(env_id: str, algo: str, seeds: list[int], sweep_items: list[str
         planned = trial_runs.plan(env_id, group, seeds, sweep, algo, overrides, steps, env_kwargs, eval_every,
                                   eval_episodes, demos)
     except (HyperparameterError, FolderCopyError) as exc:
-        _fail(str(exc))
+        fail(str(exc))
     if group != asked:
         console.print(f"{asked} holds earlier runs, which are never overwritten: these go to {group}")
     trial_runs.open_group(group, planned)
@@ -206,4 +207,4 @@ def _print_trials(rows: list[dict], group: Path) -> None:
                   + (f"; curves: {', '.join(map(str, curves))}" if curves else ""))
     failed = sum(bool(row["error"]) for row in rows)
     if failed:
-        _fail(f"{failed} of {len(rows)} trials failed (their errors are in the table and in the summary)")
+        fail(f"{failed} of {len(rows)} trials failed (their errors are in the table and in the summary)")

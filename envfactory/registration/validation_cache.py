@@ -19,7 +19,7 @@ import json
 import os
 from pathlib import Path
 
-from envfactory import user_config
+from envfactory.registration import user_config
 from envfactory.schema.folders import builtin_root, folder_of
 from envfactory.version import __version__
 

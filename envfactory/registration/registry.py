@@ -19,10 +19,11 @@ import gymnasium as gym
 from gymnasium.envs.registration import ENV_ID_RE
 from pydantic import ValidationError
 
-from envfactory import user_config, verdicts
+from envfactory.registration import user_config, validation_cache
 from envfactory.schema.compose import FamilyFile
 from envfactory.schema.errors import Problem, SpecError, nearest, suggest
 from envfactory.schema.folders import (
+    MAX_SPEC_BYTES,
     builtin_root,
     family_files,
     folder_of,
@@ -36,9 +37,8 @@ from envfactory.schema.validation import validation_problems
 
 ENTRY_POINT = "envfactory.factory:make_env"  # gymnasium imports it at the first make
 SPEC_PATH_VARIABLE = "ENVFACTORY_SPEC_PATH"
-# Bounded work: a family file is read whole at import, and validating one compiles each
-# distinct ID, so both are capped (and stated in the README).
-MAX_SPEC_BYTES = 256 * 1024
+# Bounded work: validating a family compiles each distinct ID, so their number is capped, as the family file's
+# size is (schema.folders.MAX_SPEC_BYTES); both caps are stated in docs/concepts/specs-and-overrides.md
 MAX_IDS_PER_FAMILY = 200
 MAX_FAMILY_FILES = 500  # per folder
 
@@ -141,7 +141,7 @@ def _location(path: Path, env_id: str) -> tuple[str, int | None]:
 
 def _remembered_problem(path: Path, known: dict, stats) -> SpecError | None:
     """The problem an earlier check found in this family, if the family has not changed since."""
-    remembered = verdicts.recall(path, known, stats)
+    remembered = validation_cache.recall(path, known, stats)
     if remembered is None or remembered[0]:
         return None
     problem = remembered[1]
@@ -192,8 +192,8 @@ def register_folder(folder: str | Path, check: FamilyCheck | None = None, source
         return [], [SpecError([Problem("", f"{len(paths)} family files; a spec folder may hold at most "
                                            f"{MAX_FAMILY_FILES}", str(folder))])]
     # a user family that an earlier check found broken stays out whole (import composes nothing)
-    remembered = verdicts.read() if check is None and source != BUILTIN_SOURCE else None
-    stats = verdicts.folder_stats(folder_of(paths[0])) if remembered and paths else None
+    remembered = validation_cache.read() if check is None and source != BUILTIN_SOURCE else None
+    stats = validation_cache.folder_stats(folder_of(paths[0])) if remembered and paths else None
     for path in paths:
         try:
             records = scan_family(path, roots, source)

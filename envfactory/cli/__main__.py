@@ -1,0 +1,5 @@
+"""`python -m envfactory.cli`: the `envfactory` command."""
+
+from envfactory.cli.app import main
+
+main()
