@@ -119,32 +119,33 @@ class _MujocoSnapshot:
     def __init__(self, backend):
         import mujoco
 
-        if not backend._fast:
+        if not backend.cycles.fast:
             raise ValueError("PairedSteps needs an env made with sim.fidelity fast")
-        self.backend, self.mujoco = backend, mujoco
+        self.backend, self.cycles, self.mujoco = backend, backend.cycles, mujoco
         self.kind = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
     def save(self):
         backend, mujoco = self.backend, self.mujoco
         state = np.zeros(mujoco.mj_stateSize(backend.model, self.kind))
         mujoco.mj_getState(backend.model, backend.data, state, self.kind)
-        carry = None if backend._carry is None else copy.deepcopy(backend._carry.__dict__)
-        return state, backend.data.ctrl.copy(), backend._sim_time, backend._settled, carry, copy.copy(backend.counts)
+        cycles = self.cycles
+        carry = None if cycles._carry is None else copy.deepcopy(cycles._carry.__dict__)
+        return state, backend.data.ctrl.copy(), cycles.sim_time, cycles._settled, carry, copy.copy(cycles.counts)
 
     def restore(self, saved) -> None:
-        backend = self.backend
-        state, backend.data.ctrl[:], backend._sim_time, backend._settled, carry, backend.counts = saved
+        backend, cycles = self.backend, self.cycles
+        state, backend.data.ctrl[:], cycles.sim_time, cycles._settled, carry, cycles.counts = saved
         self.mujoco.mj_setState(backend.model, backend.data, state, self.kind)
         if carry is not None:
-            backend._carry.__dict__.update(carry)
+            cycles._carry.__dict__.update(carry)
         self.mujoco.mj_forward(backend.model, backend.data)
 
     def play_full(self, advance, seconds: float) -> None:
-        self.backend._fast = False
+        self.cycles.fast = False
         try:
             advance(seconds)
         finally:
-            self.backend._fast = True
+            self.cycles.fast = True
 
 
 class PairedSteps:

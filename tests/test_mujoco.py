@@ -50,7 +50,7 @@ def _free_motions(env, seed: int, steps: int):
         if env.step(action)[4]["action_rejected"]:
             continue
         start = state.q_arm
-        q = backend._states[0][:, arm]
+        q = backend.cycles._states[0][:, arm]
         way = target - start
         # the nearest point of the segment, whatever the timing along it
         fraction = np.clip((q - start) @ way / max(way @ way, 1e-12), 0.0, 1.0)[:, None]
@@ -118,7 +118,7 @@ def _hold_still(fidelity: str, steps: int = 8):
         for _ in range(steps):
             env.step(unwrapped.actions.hold_action(unwrapped.state))
         state = unwrapped.state
-        cycle = round(unwrapped.blueprint.spec.env.timing.action_cycle_time / unwrapped.backend.dt)
+        cycle = round(unwrapped.blueprint.spec.env.timing.action_cycle_time / unwrapped.backend.cycles.dt)
         return unwrapped.backend.cycle_counts, cycle, state.joint_positions.copy(), state.objects["cube"].position.copy()
     finally:
         env.close()
@@ -171,7 +171,7 @@ def _closest_approach(env_id: str, seed: int, steps: int, saturated: bool = Fals
             if env.step(action)[4]["action_rejected"]:
                 continue
             accepted += 1
-            for row in backend._states[0][::4]:
+            for row in backend.cycles._states[0][::4]:
                 scratch.qpos[:] = row[1:1 + nq]
                 mujoco.mj_kinematics(model, scratch)
                 for geom in robot:
@@ -230,9 +230,9 @@ def test_a_kinematic_cycle_leaves_the_frames_mj_forward_would():
         model, data = backend.model, backend.data
         checked = 0
         for _ in range(40):
-            before = backend.counts.kinematic
+            before = backend.cycles.counts.kinematic
             env.step(env.action_space.sample())
-            if backend.counts.kinematic == before:
+            if backend.cycles.counts.kinematic == before:
                 continue
             full = mujoco.MjData(model)
             full.qpos[:], full.qvel[:], full.ctrl[:] = data.qpos, data.qvel, data.ctrl

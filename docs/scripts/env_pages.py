@@ -8,6 +8,7 @@ from pathlib import Path
 
 from envfactory import factory
 from envfactory.registration import registry
+from envfactory.schema.folders import family_files
 from envfactory.compiler import Blueprint
 from envfactory.views.describe import Part, description_parts, env_kind, id_summary, kwarg_paths, value_at
 
@@ -48,7 +49,7 @@ def shipped_families() -> list[Family]:
         if record.source == registry.BUILTIN_SOURCE:
             by_file.setdefault(record.family.path.resolve(), []).append(env_id)
     families = []
-    for path in registry.family_files(registry.builtin_root()):
+    for path in family_files(registry.builtin_root()):
         ids = by_file.get(path.resolve())
         if ids:
             families.append(Family(path.stem, path, tuple(ids)))

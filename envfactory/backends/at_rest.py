@@ -1,4 +1,4 @@
-"""What "at rest" means to the engines' shortcuts, and how each cycle was played: shared by PyBullet's and
+"""What "at rest" means to the engines' fast cycles, and how each cycle was played: shared by PyBullet's and
 MuJoCo's fast fidelity, so one scene counts as resting, or not, on both."""
 
 from __future__ import annotations

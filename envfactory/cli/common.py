@@ -5,7 +5,6 @@ the `command` mark that cli/app.py reads when it builds the application from its
 from __future__ import annotations
 
 import functools
-import importlib
 import inspect
 import os
 import sys

@@ -15,6 +15,7 @@ from gymnasium import spaces
 
 from envfactory.backends import backend_factory
 from envfactory.backends.base import BackendError, EpisodeAbort
+from envfactory.backends.view import RENDER_SIZE
 from envfactory.compiler import Blueprint
 from envfactory.envs.actions import ActionAdapter
 from envfactory.envs.goals import GoalSampler
@@ -278,7 +279,7 @@ class RobotEnv(gym.Env):
 
     def render(self):
         if self.render_mode == "rgb_array":
-            return self.backend.render(480, 360)
+            return self.backend.render(*RENDER_SIZE)
         return None
 
     def close(self):

@@ -25,7 +25,6 @@ from envfactory.schema.errors import Problem, SpecError, nearest, suggest
 from envfactory.schema.folders import (
     MAX_SPEC_BYTES,
     builtin_root,
-    family_files,
     folder_of,
     list_folder,
     search_roots,

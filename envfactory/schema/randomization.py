@@ -4,11 +4,11 @@ seed IDs keep the seeds' contract."""
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any
 
 from pydantic import Field, model_validator
 
-from envfactory.schema.base import Model, located
+from envfactory.schema.base import Model
 from envfactory.schema.numbers import Positive
 
 # An interval event at most this often apart, in steps or simulated seconds: beyond an episode's worth

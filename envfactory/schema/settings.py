@@ -171,7 +171,7 @@ class SimSettings(Model):
     motor_position_gain: float = Field(default=1.0, gt=0.0, le=1.0)
     # full: every step simulates the whole action cycle (the reference). fast: a motion proven clear
     # of every movable object is played kinematically and a scene at rest is not stepped
-    # (envfactory/backends/pybullet/fast_physics.py, envfactory/backends/mujoco/shortcuts.py); its distance
+    # (envfactory/backends/pybullet/fast_cycles.py, envfactory/backends/mujoco/fast_cycles.py); its distance
     # to full is measured in tests/test_fidelity.py and tests/test_mujoco_fidelity.py
     fidelity: Literal["fast", "full"] = "fast"
     mujoco: MujocoSettings = MujocoSettings()

@@ -14,7 +14,8 @@ from envfactory.backends.base import (PHYSICS_QUANTITIES, BackendError, CameraFr
                                       PhysicsChange, window_impossible)
 from envfactory.backends.driver_readings import DriverReadings
 from envfactory.backends.pybullet import scene
-from envfactory.backends.pybullet.fast_physics import FastCycles, GripperResponse, Rig, record_gripper_response
+from envfactory.backends.view import MARKER_RGBA, RENDER_SIZE, RENDER_VIEW
+from envfactory.backends.pybullet.fast_cycles import FastCycles, GripperResponse, Rig, record_gripper_response
 from envfactory.geometry.frames import TaskFrame, base_rotation
 from envfactory.geometry.object_clearance import ObjectClearance, bounding_radius
 from envfactory.geometry.obstacles import TABLE_TOP, scene_obstacles
@@ -31,7 +32,7 @@ _GRIPPER_RESPONSES: dict[tuple, GripperResponse] = {}
 class PyBulletBackend:
     """The Backend protocol on PyBullet: one client per env (DIRECT, or GUI on request), the robot from its
     assembled URDF with gear-constrained mimic joints, the scene and the task's objects. Arm motors move all
-    joints together along the commanded line; with the fast fidelity (fast_physics.FastCycles) cycles that
+    joints together along the commanded line; with the fast fidelity (fast_cycles.FastCycles) cycles that
     cannot change an object are played without substeps. In realtime mode a thread steps physics at wall-clock
     rate, guarded by a lock."""
     teleports_on_reset = True  # reset sets the joints directly; no path is driven
@@ -129,7 +130,7 @@ class PyBulletBackend:
 
     def attach_geometry(self, collision) -> None:
         """The safety check's collision model: with `sim.fidelity: fast` it proves motions clear of the
-        movable objects, so those cycles are played without dynamics (fast_physics.py)."""
+        movable objects, so those cycles are played without dynamics (fast_cycles.py)."""
         if self.spec.sim.fidelity != "fast" or self.realtime:
             return
         limits = np.array([p.getJointInfo(self.body, joint, physicsClientId=self.client)[8:10] for joint in self._arm]).T
@@ -356,11 +357,10 @@ class PyBulletBackend:
             p.resetBasePositionAndOrientation(self._goal_marker, self.task_frame.to_world(position).tolist(), [0, 0, 0, 1],
                                               physicsClientId=self.client)
 
-    def render(self, width: int = 480, height: int = 360) -> np.ndarray:
-        table = self.spec.scene.table
+    def render(self, width: int = RENDER_SIZE[0], height: int = RENDER_SIZE[1]) -> np.ndarray:
         view = p.computeViewMatrixFromYawPitchRoll(
-            cameraTargetPosition=[table.center[0] - 0.15, table.center[1], table.top_z + 0.1], distance=1.25, yaw=50,
-            pitch=-30, roll=0, upAxisIndex=2)
+            cameraTargetPosition=RENDER_VIEW.target(self.spec.scene.table), distance=RENDER_VIEW.distance,
+            yaw=RENDER_VIEW.yaw, pitch=RENDER_VIEW.pitch, roll=0, upAxisIndex=2)
         projection = p.computeProjectionMatrixFOV(fov=55, aspect=width / height, nearVal=0.05, farVal=6.0)
         with self._lock:
             _, _, rgba, _, _ = p.getCameraImage(width, height, view, projection, renderer=p.ER_TINY_RENDERER,
@@ -378,7 +378,7 @@ class PyBulletBackend:
             p.changeVisualShape(self._goal_marker, -1, rgbaColor=[0, 0, 0, 0], physicsClientId=self.client)
             _, _, rgba, depth_buffer, _ = p.getCameraImage(width, height, view, projection,
                                                            renderer=p.ER_TINY_RENDERER, physicsClientId=self.client)
-            p.changeVisualShape(self._goal_marker, -1, rgbaColor=scene.MARKER_RGBA, physicsClientId=self.client)
+            p.changeVisualShape(self._goal_marker, -1, rgbaColor=MARKER_RGBA, physicsClientId=self.client)
         rgb = np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
         # the buffer holds OpenGL depth in [0, 1]; turn it back into metres
         buffer = np.asarray(depth_buffer, dtype=np.float32).reshape(height, width)

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pybullet as p
 
+from envfactory.backends.view import MARKER_RGBA
 from envfactory.geometry.obstacles import Obstacle
 from envfactory.schema.models import ObjectSpec
 
-MARKER_RGBA = (0.1, 0.8, 0.2, 0.6)
 
 
 def _box(client: int, half_extents, position, rgba, mass: float = 0.0, orientation=(0.0, 0.0, 0.0, 1.0)) -> int:

@@ -47,6 +47,7 @@ from envfactory.backends.rosbridge.templates import fill
 from envfactory.backends.rosbridge.motion import MotionWatch
 from envfactory.backends.rosbridge.transforms import FrameGraph
 from envfactory.backends.synchronous import synchronous_length
+from envfactory.backends.view import RENDER_SIZE
 from envfactory.schema.driver import RAMP_SHARE, setup_values
 from envfactory.schema.models import EnvSpec
 
@@ -456,7 +457,7 @@ class RosbridgeBackend:
     def mark_goal(self, position) -> None:
         pass  # nothing to draw on hardware
 
-    def render(self, width: int = 480, height: int = 360) -> np.ndarray:
+    def render(self, width: int = RENDER_SIZE[0], height: int = RENDER_SIZE[1]) -> np.ndarray:
         raise BackendError("a real robot has no rendered view; record it with a camera of your own")
 
     def capture(self, camera):
