@@ -180,7 +180,7 @@ def test_motion_proof_proves_only_motions_coal_finds_clear(env):
     the start, the pass between): every motion it calls proven keeps every pair its margin by coal's exact
     clearance on a grid of 17 arm poses times 5 gripper values; the start and end bounds it reports are below coal's
     clearance at those poses over the gripper's range, reused or measured; and both outcomes occur."""
-    from envfactory.geometry import capsule_kernel
+    from envfactory.geometry.kernels.motion import DOUBT_AT_ENDS, PROVEN
 
     collision, kin, check = env.safety.collision, env.kinematics, env.safety
     gripper = kin.robot.gripper
@@ -214,12 +214,12 @@ def test_motion_proof_proves_only_motions_coal_finds_clear(env):
         grid = np.array(grid).reshape(17, 5, -1)
         assert (proof.start_bound <= grid[0].min(axis=0) + 1e-9).all(), trial
         assert (proof.end_bound <= grid[-1].min(axis=0) + 1e-9).all(), trial
-        if proof.outcome == capsule_kernel.PROVEN:
+        if proof.outcome == PROVEN:
             short = np.flatnonzero(grid.min(axis=(0, 1)) < check.margin - 1e-9)
             assert short.size == 0, [collision.pair_names(int(k)) for k in short]
         else:
-            assert proof.outcome == capsule_kernel.DOUBT_AT_ENDS or proof.unproven.size > 0
-    assert capsule_kernel.PROVEN in outcomes and len(outcomes) > 1, outcomes
+            assert proof.outcome == DOUBT_AT_ENDS or proof.unproven.size > 0
+    assert PROVEN in outcomes and len(outcomes) > 1, outcomes
     assert reused > 0
 
 

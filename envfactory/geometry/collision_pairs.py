@@ -47,7 +47,8 @@ import numpy as np
 import pinocchio as pin
 import yaml
 
-from envfactory.geometry.collision import CollisionModel, PairRules, shape_points
+from envfactory.geometry.collision import CollisionModel, PairRules
+from envfactory.geometry.collision.shapes import shape_points
 from envfactory.geometry.safety import SafetyCheck
 from envfactory.schema.errors import suggest
 from envfactory.schema.models import EnvSpec

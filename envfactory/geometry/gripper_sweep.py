@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from envfactory.geometry import capsule_kernel
+from envfactory.geometry.kernels.finger_sweep import swept_box_gap, swept_box_gaps
 
 
 class GripperSweep:
@@ -27,8 +27,6 @@ class GripperSweep:
     a finger's clearance from an obstacle or an arm link anywhere in a gripper range, at one pose."""
     # no point of a finger's box is farther than this from its place at the nearest tabulated gripper value
     PAD = 0.0005
-    DENSE_SAMPLES = 401  # the corners' speed is measured on this many values across the range
-    SAFETY_FACTOR = 1.25
 
     def __init__(self, collision):
         self.collision = collision
@@ -42,10 +40,10 @@ class GripperSweep:
             self.samples, self.spacing = 1, 1.0
             self.corners, self.pad = np.zeros((0, 1, 8, 3)), np.zeros(0)
             return
-        dense = self._mounted_corners(np.linspace(self.low, self.high, self.DENSE_SAMPLES))
-        # the fastest any corner moves per unit of gripper travel, measured on the dense table
-        step = (self.high - self.low) / (dense.shape[1] - 1)
-        rate = self.SAFETY_FACTOR * np.linalg.norm(np.diff(dense, axis=1), axis=-1).max(axis=(1, 2)) / step
+        # the fastest any corner moves per unit of gripper travel: the structure's one measurement of the fingers
+        shapes = collision.shapes
+        rate = collision.structure.finger_speeds(self.shapes, [shapes[s].corners for s in self.shapes],
+                                                 [0.0] * len(self.shapes))
         self.samples = max(int(np.ceil(rate.max() * (self.high - self.low) / (2 * self.PAD))) + 1, 2)
         values = np.linspace(self.low, self.high, self.samples)
         self.spacing = values[1] - values[0]
@@ -88,7 +86,7 @@ class GripperSweep:
             return -math.inf
         collision._place_frames()
         row = self._row_of_pair[pair]
-        return capsule_kernel.swept_box_gap(collision._frames, self.mount_joint, self.corners, first, last, row,
+        return swept_box_gap(collision._frames, self.mount_joint, self.corners, first, last, row,
                                             self._obstacle_of_pair[pair], collision.obstacle_low,
                                             collision.obstacle_high, self._other_of_pair[pair],
                                             self._other_joint_of_pair[pair], collision._local_corners) \
@@ -123,7 +121,7 @@ class GripperSweep:
         collision._place_frames()
         rows = self.pair_row[pairs]
         out = np.empty(len(pairs))
-        capsule_kernel.swept_box_gaps(collision._frames, self.mount_joint, self.corners, first, last, rows,
+        swept_box_gaps(collision._frames, self.mount_joint, self.corners, first, last, rows,
                                       self.pair_obstacle[pairs], collision.obstacle_low, collision.obstacle_high,
                                       self.pair_other[pairs], self.pair_other_joint[pairs], collision._local_corners,
                                       out)

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from envfactory.geometry import capsule_kernel
+from envfactory.geometry.kernels.motion import motion_clear_of_spheres
 from envfactory.geometry.collision import CollisionModel
 
 # Closer than this to a movable object, a motion gets full dynamics. Bullet builds contact points
@@ -43,7 +43,7 @@ class ObjectClearance:
         straight joint-space line from q_from to q_to (the motors' path: every joint lands on its
         target at the same time) and the gripper anywhere between its two values. Pieces of the line
         whose two end bounds cannot prove it are halved, down to 2**-LEVELS of it (one compiled pass:
-        capsule_kernel.motion_clear_of_spheres)."""
+        motion_clear_of_spheres)."""
         collision = self.collision
         q_from = np.asarray(q_from, float)
         coordinates = collision._coordinates
@@ -51,7 +51,7 @@ class ObjectClearance:
             # every pose is judged over the gripper's whole range: its middle, less half its sweep (the reserve)
             coordinates[self.arm] = (gripper_from + gripper_to) / 2
         joints = collision._joints
-        clear = capsule_kernel.motion_clear_of_spheres(
+        clear = motion_clear_of_spheres(
             coordinates, q_from, np.asarray(q_to, float) - q_from, joints.parent, joints.placement, joints.kind,
             joints.axis, joints.coordinate, joints.gain, collision._shape_joint, collision._local_ends, self.moving,
             collision.radius, self.lever, abs(gripper_to - gripper_from), np.asarray(centers, float),

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from envfactory.geometry import capsule_kernel
+from envfactory.geometry.kernels.motion import DOUBT_AT_ENDS, PROVEN
 from envfactory.geometry.collision import CollisionModel
 from envfactory.schema.models import SafetySettings
 
@@ -184,7 +184,7 @@ class SafetyCheck:
                                        self.DEEPER_LEVELS)
         # (the end pose as Motion.arm_at(1.0) gives it)
         end = Anchor(1.0, q_from + way, proof.end_bound, np.zeros(collision.pair_count, dtype=np.int8))
-        if proof.outcome == capsule_kernel.PROVEN:
+        if proof.outcome == PROVEN:
             if remember:
                 self._last_end = (end, gripper_range)
             return ACCEPTED
@@ -193,7 +193,7 @@ class SafetyCheck:
                         collision.gripper_sweep.bracket(gripper_from, gripper_to) if proof.gripper_moves else (0, -1))
         start = Anchor(0.0, q_from, proof.start_bound, np.zeros(collision.pair_count, dtype=np.int8))
         weak = proof.unproven
-        if proof.outcome == capsule_kernel.DOUBT_AT_ENDS:
+        if proof.outcome == DOUBT_AT_ENDS:
             verdict, weak = self._ends_in_doubt(start, end, motion)
             if not verdict.accepted:
                 return verdict

@@ -1,0 +1,127 @@
+"""The robot's collision shapes as the safety proof sees them: each URDF shape, the capsule and the box fitted
+around it (in its parent joint's frame), and the fitting itself."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import coal
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Shape:
+    """One collision shape of the robot, with the capsule and the box that enclose it (parent joint frame)."""
+
+    name: str
+    link: str
+    joint: int  # Pinocchio joint the shape rides on; 0 for the fixed base
+    capsule_start: np.ndarray
+    capsule_end: np.ndarray
+    radius: float  # capsule radius, padding included
+    padding: float
+    box: tuple[np.ndarray, np.ndarray, np.ndarray]  # around the shape: flat links (fingers, pads) fit a box far better
+
+    @cached_property  # read per gripper sample when the finger table is built
+    def corners(self) -> np.ndarray:
+        """The box's 8 corners (box_corners' order), each pushed out by BOX_ROUNDING."""
+        corners = box_corners(*self.box)
+        return corners + np.sign(corners - self.box[0]) * BOX_ROUNDING
+
+
+_AXES = {"X": np.array([1.0, 0.0, 0.0]), "Y": np.array([0.0, 1.0, 0.0]), "Z": np.array([0.0, 0.0, 1.0])}
+
+
+def revolute_axis(joint_model) -> np.ndarray | None:
+    """The unit axis of a revolute joint in its own frame, or None if it is not one we can read."""
+    kind = joint_model.shortname()
+    for prefix in ("JointModelRUB", "JointModelR"):
+        if kind.startswith(prefix) and kind[len(prefix):] in _AXES:
+            return _AXES[kind[len(prefix):]]
+    if kind in ("JointModelRevoluteUnaligned", "JointModelRevoluteUnboundedUnaligned"):
+        axis = np.asarray(joint_model.extract().axis, float)
+        return axis / np.linalg.norm(axis)
+    return None
+
+
+def shape_points(geometry) -> np.ndarray:
+    """Points whose convex hull is the shape (cylinders and spheres: their capsule's axis)."""
+    if isinstance(geometry, coal.Box):
+        half = np.asarray(geometry.halfSide)
+        return np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
+    if isinstance(geometry, coal.ConvexBase):
+        return np.asarray(geometry.points())
+    if isinstance(geometry, coal.BVHModelBase):
+        return np.asarray(geometry.vertices())
+    raise TypeError(type(geometry).__name__)
+
+
+def fit_capsule(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """A capsule containing every point, and so their convex hull: axis along the
+    principal direction, radius the largest distance from it."""
+    center = points.mean(axis=0)
+    offsets = points - center
+    axis = np.linalg.svd(offsets, full_matrices=False)[2][0]
+    along = offsets @ axis
+    across = np.linalg.norm(offsets - np.outer(along, axis), axis=1)
+    radius = float(across.max())
+    # a point at distance `across` from the axis sits inside the end cap while its
+    # projection is within sqrt(r² - across²) of the segment end
+    room = np.sqrt(np.maximum(radius**2 - across**2, 0.0))
+    low, high = float(np.min(along + room)), float(np.max(along - room))
+    if low > high:  # short and round: a sphere does
+        middle = center + axis * (low + high) / 2
+        radius = float(np.max(np.linalg.norm(points - middle, axis=1)))
+        return middle, middle.copy(), radius
+    return center + axis * low, center + axis * high, radius
+
+
+def fit_box_frame(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A box containing every point, aligned with their principal directions: its centre, its axes (rows,
+    orthonormal) and its half extents along them."""
+    center = points.mean(axis=0)
+    axes = np.linalg.svd(points - center, full_matrices=False)[2]
+    along = (points - center) @ axes.T
+    low, high = along.min(axis=0), along.max(axis=0)
+    return center + ((low + high) / 2) @ axes, axes, (high - low) / 2
+
+
+# a nanometre out from the centre along each coordinate: rounding must not shrink a box
+BOX_ROUNDING = 1e-9
+
+
+def box_corners(center: np.ndarray, axes: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """The 8 corners of a box, x-, y- and z-steps 4, 2 and 1 apart in the list."""
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+    return center + (signs * half) @ axes
+
+
+def box_of(geometry_object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The box around a shape (parent joint frame): centre, axes (rows), half extents."""
+    geometry, placement = geometry_object.geometry, geometry_object.placement
+    if isinstance(geometry, (coal.Cylinder, coal.Capsule, coal.Sphere)):
+        radius = float(geometry.radius)
+        # half height along the shape's z: a cylinder's half length, a capsule's plus its cap, a sphere's radius
+        if isinstance(geometry, coal.Sphere):
+            half = radius
+        else:
+            half = float(geometry.halfLength) + (radius if isinstance(geometry, coal.Capsule) else 0.0)
+        local = np.array([[sx * radius, sy * radius, sz * half] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+    else:
+        local = shape_points(geometry)
+    return fit_box_frame(local @ placement.rotation.T + placement.translation)
+
+
+def capsule_of(geometry_object) -> tuple[np.ndarray, np.ndarray, float]:
+    geometry, placement = geometry_object.geometry, geometry_object.placement
+    if isinstance(geometry, (coal.Cylinder, coal.Capsule)):
+        half = float(geometry.halfLength)
+        start, end = placement.act(np.array([0.0, 0.0, -half])), placement.act(np.array([0.0, 0.0, half]))
+        return start, end, float(geometry.radius)
+    if isinstance(geometry, coal.Sphere):
+        center = placement.translation.copy()
+        return center, center.copy(), float(geometry.radius)
+    local = shape_points(geometry)
+    start, end, radius = fit_capsule(local @ placement.rotation.T + placement.translation)
+    return start, end, radius * (1 + 1e-9) + 1e-9

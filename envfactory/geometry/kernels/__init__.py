@@ -1,0 +1,3 @@
+"""The safety geometry's compiled kernels, in the order the proof uses them: the kinematic tree as arrays
+(joints.py), per-pose capsule bounds (pose.py), a finger's sweep over a gripper range (finger_sweep.py), and the
+proof of a whole motion (motion.py)."""
