@@ -74,10 +74,8 @@ class Motion:
 
 
 class SafetyCheck:
-    """One env's safety check: it judges every command (sim and real) against the joint bounds, the largest
-    joint change per action and the collision geometry's clearance over the whole motion, and remembers the
-    last accepted pose's bounds so the next motion's start costs nothing. Holds its own measuring copy of the
-    shared CollisionModel: one per env, never shared between threads."""
+    """One env's safety check of every command (sim and real): joint bounds, the largest joint change, and the
+    clearance over the whole motion, with its own measuring copy of the shared CollisionModel (one per env)."""
     # Bisection stops at pieces this small. Deep pieces are needed only where a pair starts
     # inside the margin and must prove it does not get closer.
     FINEST_PIECE = 1.0 / 512

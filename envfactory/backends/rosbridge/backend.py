@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import logging
 import math
-import os
 import threading
 import time
 from pathlib import Path
@@ -34,7 +33,6 @@ from envfactory.backends.base import (
     DriverRefused,
     JointReading,
     MalformedFeed,
-    MotionRefused,
     ObjectReading,
     StaleFeed,
 )
@@ -44,7 +42,8 @@ from envfactory.backends.rosbridge.follow import FollowWatch
 from envfactory.backends.rosbridge.gripper import GripperLink
 from envfactory.backends.rosbridge.link import Link
 from envfactory.backends.rosbridge.templates import fill
-from envfactory.backends.rosbridge.motion import MotionWatch
+from envfactory.backends.rosbridge.gate import require_motion_gate
+from envfactory.backends.rosbridge.motion import MotionWatch, drive_plan
 from envfactory.backends.rosbridge.transforms import FrameGraph
 from envfactory.backends.synchronous import synchronous_length
 from envfactory.backends.view import RENDER_SIZE
@@ -53,21 +52,8 @@ from envfactory.schema.models import EnvSpec
 
 log = logging.getLogger("envfactory.rosbridge")
 
-MOTION_ENV_VAR = "ALLOW_REAL_ROBOT_MOTION"
 POLL_S = 0.02
 FIRST_CONNECT_TRIES = 3  # at construction: a robot that is not there is said so quickly
-
-
-def motion_allowed(flag: bool) -> bool:
-    return flag or os.environ.get(MOTION_ENV_VAR, "") == "1"
-
-
-def require_motion_gate(flag: bool, what: str) -> None:
-    if not motion_allowed(flag):
-        raise MotionRefused(
-            f"{what}: real-robot motion is not allowed. Pass allow_real_robot_motion=True, set "
-            f"{MOTION_ENV_VAR}=1, or use the CLI's --allow-real-robot-motion once the workspace is clear."
-        )
 
 
 class RosbridgeBackend:
@@ -372,7 +358,8 @@ class RosbridgeBackend:
         self._deadman_armed = False
         home = np.asarray(q_arm, float)
         (position, _), _ = self._fresh(self.joints)
-        plan = self._drive_plan(position[self._arm_in_states], home)
+        plan = drive_plan(position[self._arm_in_states], home, self.real.reset_speed,
+                          None if messages.carries_duration(self.ros_spec.arm_command) else self._driver_motion_s)
         timeout = max(self.real.reset_timeout_s, plan[-1][0] + plan[-1][2] + 2.0)
         started = time.monotonic()
         sent = 0
@@ -398,17 +385,6 @@ class RosbridgeBackend:
         self.motion.clear()
         self._step_started = None
         self._deadman_armed = False
-
-    def _drive_plan(self, start: np.ndarray, home: np.ndarray) -> list[tuple[float, np.ndarray, float]]:
-        """(send at s, target, duration s) for each command of the drive home at reset_speed."""
-        total = max(1.0, float(np.max(np.abs(home - start))) / self.real.reset_speed)
-        if messages.carries_duration(self.ros_spec.arm_command):
-            return [(0.0, home, total)]  # the trajectory itself carries the duration
-        # a driver that takes no duration moves each command over its profile: segments that long, each at
-        # most reset_speed times its length further than the last
-        count = max(1, math.ceil(total / self._driver_motion_s))
-        step = total / count
-        return [(i * step, start + (home - start) * (i + 1) / count, step) for i in range(count)]
 
     def apply_physics(self, change) -> None:
         raise BackendError(f"a real arm's physics cannot be set ({change.quantity}): randomization is for Sim IDs")

@@ -8,6 +8,7 @@ not done `margin_s` after its duration is overdue: the arm is stopped and the ep
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -68,3 +69,17 @@ class MotionWatch:
 
     def clear(self) -> None:
         self.motion = self.done_at = None
+
+
+def drive_plan(start: np.ndarray, home: np.ndarray, speed: float, segment_s: float | None
+               ) -> list[tuple[float, np.ndarray, float]]:
+    """(send at s, target, duration s) of each command of a drive from `start` home at `speed` rad/s: one
+    command when the command carries its duration (`segment_s` None); else, for a driver that moves each command
+    over its own profile, segments of that profile, each at most `speed` times its length further than the
+    last. At least a second in all."""
+    total = max(1.0, float(np.max(np.abs(home - start))) / speed)
+    if segment_s is None:
+        return [(0.0, home, total)]
+    count = max(1, math.ceil(total / segment_s))
+    step = total / count
+    return [(i * step, start + (home - start) * (i + 1) / count, step) for i in range(count)]
