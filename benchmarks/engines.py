@@ -15,15 +15,16 @@ import time
 
 import gymnasium as gym
 import yaml
-
-from envfactory.registration import registry
-from envfactory.envs.episodes import run_episodes
-from envfactory.experts import make_policy
 from report import Report, add_markdown_option
 
+from envfactory.envs.episodes import run_episodes
+from envfactory.experts import make_policy
+from envfactory.registration import registry
 
-def measure(env_id: str, engine: str, episodes: int, kwargs: dict, overrides: list[str],
-            policy: str = "scripted") -> tuple[int, float]:
+
+def measure(
+    env_id: str, engine: str, episodes: int, kwargs: dict, overrides: list[str], policy: str = "scripted"
+) -> tuple[int, float]:
     env = gym.make(env_id, engine=engine, overrides=overrides, **kwargs)
     try:
         start = time.perf_counter()
@@ -38,20 +39,32 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=10)
     parser.add_argument("--engines", nargs="*", default=["pybullet", "mujoco"])
-    parser.add_argument("--ids", nargs="*", default=sorted(
-        env_id for env_id, record in registry.records().items()
-        if record.backend == "pybullet" and not record.goal_env and ("Push" in env_id or "PnP" in env_id)))
+    parser.add_argument(
+        "--ids",
+        nargs="*",
+        default=sorted(
+            env_id
+            for env_id, record in registry.records().items()
+            if record.backend == "pybullet" and not record.goal_env and ("Push" in env_id or "PnP" in env_id)
+        ),
+    )
     parser.add_argument("-k", "--kwarg", action="append", default=[], help="name=value for every env")
     parser.add_argument("-o", "--override", action="append", default=[], help="a spec override for every env")
-    parser.add_argument("--policy", choices=["scripted", "random"], default="scripted",
-                        help="the task's scripted expert, or random actions (seeded 0)")
+    parser.add_argument(
+        "--policy",
+        choices=["scripted", "random"],
+        default="scripted",
+        help="the task's scripted expert, or random actions (seeded 0)",
+    )
     add_markdown_option(parser)
     args = parser.parse_args()
     report = Report.start(parser, args, __doc__)
     kwargs = {name: yaml.safe_load(value) for name, _, value in (pair.partition("=") for pair in args.kwarg)}
     settings = ", ".join([*(f"{k}={v!r}" for k, v in kwargs.items()), *args.override]) or "no kwargs"
-    table = report.table(["ID"] + [f"{engine} {what}" for engine in args.engines for what in ("success", "steps/s")],
-                         title=f"{args.policy} policy, seeds 0–{args.episodes - 1}, {settings}")
+    table = report.table(
+        ["ID"] + [f"{engine} {what}" for engine in args.engines for what in ("success", "steps/s")],
+        title=f"{args.policy} policy, seeds 0–{args.episodes - 1}, {settings}",
+    )
     for env_id in args.ids:
         cells = []
         for engine in args.engines:

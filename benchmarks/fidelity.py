@@ -41,8 +41,16 @@ def row(env_id: str, what: str, gaps: Gaps) -> list[str]:
     kinds = Counter(gaps.kinds)
     total = max(1, sum(kinds.values()))
     share = " ".join(f"{kind} {100 * kinds[kind] / total:.0f}%" for kind in PairedSteps.KINDS) if kinds else "—"
-    return [env_id, what, str(len(gaps.ee)), spread(gaps.ee, 1e3), spread(gaps.joint, 1e3),
-            spread(gaps.object_position, 1e3), spread(gaps.object_angle, 180 / np.pi), share]
+    return [
+        env_id,
+        what,
+        str(len(gaps.ee)),
+        spread(gaps.ee, 1e3),
+        spread(gaps.joint, 1e3),
+        spread(gaps.object_position, 1e3),
+        spread(gaps.object_angle, 180 / np.pi),
+        share,
+    ]
 
 
 def main() -> None:
@@ -55,10 +63,11 @@ def main() -> None:
     report = Report.start(parser, args, __doc__)
     kwargs = {name: yaml.safe_load(value) for name, _, value in (pair.partition("=") for pair in args.kwarg)}
     ids = args.ids or sorted(i for i, r in envfactory.records().items() if r.backend == "pybullet" and "Goal" not in i)
-    table = report.table(["ID", "measure", "steps", "EE mm", "arm joint mrad", "object mm", "object °",
-                          "cycles played"],
-                         title=f"gaps to full dynamics: median / p99 / max; EE, object in mm; joints in mrad; object "
-                               f"angle in degrees; {args.episodes} episodes per measure; kwargs: {kwargs or 'none'}")
+    table = report.table(
+        ["ID", "measure", "steps", "EE mm", "arm joint mrad", "object mm", "object °", "cycles played"],
+        title=f"gaps to full dynamics: median / p99 / max; EE, object in mm; joints in mrad; object "
+        f"angle in degrees; {args.episodes} episodes per measure; kwargs: {kwargs or 'none'}",
+    )
     for env_id in ids:
         for policy in ("random", "scripted"):
             gaps = Gaps()
@@ -72,8 +81,16 @@ def main() -> None:
         seeds = list(range(args.episodes * 2))
         fast, full = expert_success(env_id, "fast", seeds, **kwargs), expert_success(env_id, "full", seeds, **kwargs)
         changed = [s for s, a, b in zip(seeds, fast, full) if a != b]
-        table.add(env_id, "expert success fast / full", f"{len(seeds)} episodes", f"{sum(fast)} / {sum(full)}",
-                  f"seeds that differ: {changed or 'none'}", "", "", "")
+        table.add(
+            env_id,
+            "expert success fast / full",
+            f"{len(seeds)} episodes",
+            f"{sum(fast)} / {sum(full)}",
+            f"seeds that differ: {changed or 'none'}",
+            "",
+            "",
+            "",
+        )
     report.finish()
 
 

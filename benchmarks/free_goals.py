@@ -10,9 +10,9 @@ from __future__ import annotations
 import argparse
 
 import gymnasium as gym
+from report import Report, add_markdown_option
 
 from envfactory.registration import registry
-from report import Report, add_markdown_option
 
 ALLOWED = ["++task.goal.allow_achieved_at_reset=true"]  # a key the task files leave to its default
 
@@ -31,10 +31,13 @@ def main() -> None:
     add_markdown_option(parser)
     args = parser.parse_args()
     report = Report.start(parser, args, __doc__)
-    ids = sorted(env_id for env_id, record in registry.records().items()
-                 if record.goal_env and record.backend == "pybullet")
-    table = report.table(["goal env", "successful at reset, drawn as before", "now"],
-                         title=f"share of {args.resets} resets (seeds 0–{args.resets - 1}) that start successful")
+    ids = sorted(
+        env_id for env_id, record in registry.records().items() if record.goal_env and record.backend == "pybullet"
+    )
+    table = report.table(
+        ["goal env", "successful at reset, drawn as before", "now"],
+        title=f"share of {args.resets} resets (seeds 0–{args.resets - 1}) that start successful",
+    )
     for env_id in ids:
         before, now = free_share(env_id, args.resets, ALLOWED), free_share(env_id, args.resets, [])
         table.add(env_id, f"{before:.1%}", f"{now:.1%}")

@@ -37,20 +37,30 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 import yaml
+from report import RUN_HEADINGS, machine, revision  # beside this script
 
 from envfactory.learn.curve import Evaluation, plot, read_csv
 from envfactory.learn.demonstrations import collect, default_dataset_id
 from envfactory.learn.hyperparams import load
-from envfactory.learn.runs import RunFolderError, RunRecord
 from envfactory.learn.loop import EVAL_SEED
+from envfactory.learn.runs import RunFolderError, RunRecord
 from envfactory.learn.trainer import CSV_FILE, resume, train
-from report import RUN_HEADINGS, machine, revision  # beside this script
 
 SUITES = {
-    "reach": dict(ids=["UR5eReacherGoalSim-v0", "VX300SReacherGoalSim-v0"], steps=30_000, every=5_000,
-                  variants=["plain"], docs=None),
-    "push": dict(ids=["VX300SPushGoalSim-v0", "UR5ePushGoalSim-v0"], steps=200_000, every=10_000,
-                 variants=["plain", "demos"], docs=Path("docs")),
+    "reach": dict(
+        ids=["UR5eReacherGoalSim-v0", "VX300SReacherGoalSim-v0"],
+        steps=30_000,
+        every=5_000,
+        variants=["plain"],
+        docs=None,
+    ),
+    "push": dict(
+        ids=["VX300SPushGoalSim-v0", "UR5ePushGoalSim-v0"],
+        steps=200_000,
+        every=10_000,
+        variants=["plain", "demos"],
+        docs=Path("docs"),
+    ),
 }
 GOAL = 0.8  # the done-criterion of the Push runs: 80% success on the 50 evaluation goals
 
@@ -80,12 +90,16 @@ def demonstrations(env_id: str, args) -> str:
     folder = root / default_dataset_id(env_id)
     if not (folder / "data" / "metadata.json").is_file():
         result = collect(env_id, args.demo_episodes, env_kwargs=env_kwargs(env_id, args), data_path=root)
-        print(f"{env_id}: {result.episodes} expert episodes, {result.steps} steps, {result.successes} reach the goal",
-              flush=True)
+        print(
+            f"{env_id}: {result.episodes} expert episodes, {result.steps} steps, {result.successes} reach the goal",
+            flush=True,
+        )
     episodes = json.loads((folder / "data" / "metadata.json").read_text())["total_episodes"]
     if episodes != args.demo_episodes:
-        raise SystemExit(f"{folder} holds {episodes} episodes, not --demo-episodes {args.demo_episodes}: delete it "
-                         f"to collect again, or pass --demo-episodes {episodes}")
+        raise SystemExit(
+            f"{folder} holds {episodes} episodes, not --demo-episodes {args.demo_episodes}: delete it "
+            f"to collect again, or pass --demo-episodes {episodes}"
+        )
     return str(folder)
 
 
@@ -96,8 +110,10 @@ def run_one(env_id: str, variant: str, seed: int, args) -> list[Evaluation]:
         return read_csv(curve) if curve.is_file() else []
 
     def report(row: Evaluation) -> None:
-        print(f"{env_id} {variant} seed {seed} step {row.timesteps}: success {row.success_rate:.0%} "
-              f"({row.wall_s:.0f} s)", flush=True)
+        print(
+            f"{env_id} {variant} seed {seed} step {row.timesteps}: success {row.success_rate:.0%} ({row.wall_s:.0f} s)",
+            flush=True,
+        )
 
     rows = read_csv(curve) if curve.is_file() else []
     if rows and rows[-1].timesteps >= args.steps:
@@ -105,9 +121,19 @@ def run_one(env_id: str, variant: str, seed: int, args) -> list[Evaluation]:
     if folder.exists():  # stopped (Ctrl-C, SIGTERM) or shorter: go on; resume says why when it cannot
         return resume(folder, steps=args.steps, progress_bar=False, on_evaluation=report).evaluations
     demos = demonstrations(env_id, args) if variant == "demos" else None
-    return train(env_id, folder, algo=args.algo, seed=seed, steps=args.steps, overrides=tuple(args.hyperparameter),
-                 env_kwargs=cli_kwargs(args), eval_every=args.every, demos=demos, progress_bar=False,
-                 on_evaluation=report).evaluations
+    return train(
+        env_id,
+        folder,
+        algo=args.algo,
+        seed=seed,
+        steps=args.steps,
+        overrides=tuple(args.hyperparameter),
+        env_kwargs=cli_kwargs(args),
+        eval_every=args.every,
+        demos=demos,
+        progress_bar=False,
+        on_evaluation=report,
+    ).evaluations
 
 
 def step_label(steps: int) -> str:
@@ -120,8 +146,7 @@ def first_at(rows: list[Evaluation], goal: float) -> Evaluation | None:
 
 def table(results: dict, steps: list[int]) -> str:
     """Success at each evaluation step, one row per run (the Reach table)."""
-    lines = ["| ID | seed | " + " | ".join(step_label(s) for s in steps) + " |",
-             "|---|---|" + "---|" * len(steps)]
+    lines = ["| ID | seed | " + " | ".join(step_label(s) for s in steps) + " |", "|---|---|" + "---|" * len(steps)]
     for (env_id, variant, seed), rows in results.items():
         by_step = {r.timesteps: r.success_rate for r in rows}
         cells = [f"{by_step[s]:.0%}" if s in by_step else "–" for s in steps]
@@ -136,9 +161,12 @@ def goal_table(results: dict, steps: list[int], goal: float) -> str:
     shown = [s for s in steps if s <= reached_steps] or steps[:1]
     marks = [shown[round(i * (len(shown) - 1) / 7)] for i in range(8)] if len(shown) > 8 else shown
     marks = sorted(set(marks))
-    lines = ["| ID | demonstrations | seed | first ≥ {:.0%} at (steps) | (wall-clock) | ".format(goal)
-             + " | ".join(step_label(s) for s in marks) + " | best | steps done |",
-             "|---|---|---|---|---|" + "---|" * len(marks) + "---|---|"]
+    lines = [
+        "| ID | demonstrations | seed | first ≥ {:.0%} at (steps) | (wall-clock) | ".format(goal)
+        + " | ".join(step_label(s) for s in marks)
+        + " | best | steps done |",
+        "|---|---|---|---|---|" + "---|" * len(marks) + "---|---|",
+    ]
     for (env_id, variant, seed), rows in results.items():
         by_step = {r.timesteps: r.success_rate for r in rows}
         hit = first_at(rows, goal)
@@ -146,14 +174,20 @@ def goal_table(results: dict, steps: list[int], goal: float) -> str:
         cells = [f"{by_step[s]:.0%}" if s in by_step else "–" for s in marks]
         best = f"{max(r.success_rate for r in rows):.0%}" if rows else "–"
         done = f"{rows[-1].timesteps:,}" if rows else "0"
-        lines.append(f"| {env_id} | {'yes' if variant == 'demos' else 'no'} | {seed} | {reached[0]} | {reached[1]} | "
-                     + " | ".join(cells) + f" | {best} | {done} |")
+        lines.append(
+            f"| {env_id} | {'yes' if variant == 'demos' else 'no'} | {seed} | {reached[0]} | {reached[1]} | "
+            + " | ".join(cells)
+            + f" | {best} | {done} |"
+        )
     return "\n".join(lines)
 
 
 def labelled(results: dict, env_id: str) -> dict[str, list[Evaluation]]:
-    return {f"{'with' if variant == 'demos' else 'without'} demonstrations, seed {seed}": rows
-            for (run_id, variant, seed), rows in results.items() if run_id == env_id and rows}
+    return {
+        f"{'with' if variant == 'demos' else 'without'} demonstrations, seed {seed}": rows
+        for (run_id, variant, seed), rows in results.items()
+        if run_id == env_id and rows
+    }
 
 
 def docs_page(results: dict, steps: list[int], args, command: str) -> str:
@@ -171,39 +205,68 @@ def docs_page(results: dict, steps: list[int], args, command: str) -> str:
     settings = {env_id: load(args.algo, env_id, args.hyperparameter).values for env_id in args.ids}
     episodes = settings[args.ids[0]].get("eval_episodes", 50)
     commands = []
-    for (env_id, variant, seed) in results:
+    for env_id, variant, seed in results:
         try:
             commands.append(RunRecord.read(folder_of(env_id, variant, seed, args)).data["command"])
         except RunFolderError:
             pass
     date = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    facts = [f"`{command}`", "curves of the runs in " + str(args.out) + (" so far (--report-only)" if args.report_only
-                                                                           else ""),
-             f"{date} (the page; each run's own dates are in its model.json)", machine(),
-             f"{os.getloadavg()[0]:.2f} when the page was written", platform.python_version(), revision()]
+    facts = [
+        f"`{command}`",
+        "curves of the runs in " + str(args.out) + (" so far (--report-only)" if args.report_only else ""),
+        f"{date} (the page; each run's own dates are in its model.json)",
+        machine(),
+        f"{os.getloadavg()[0]:.2f} when the page was written",
+        platform.python_version(),
+        revision(),
+    ]
     lines = [
         "<!-- written by benchmarks/learning.py: run the command below again to refresh it -->",
-        "# learning.py: Manipulation from demonstrations", "",
-        "| Run | |", "|---|---|", *[f"| {name} | {value} |" for name, value in zip(RUN_HEADINGS, facts)], "",
+        "# learning.py: Manipulation from demonstrations",
+        "",
+        "| Run | |",
+        "|---|---|",
+        *[f"| {name} | {value} |" for name, value in zip(RUN_HEADINGS, facts)],
+        "",
         "Each run is `envfactory train` with the shipped hyperparameters "
         f"(`specs/train/{args.algo}.yaml`), evaluated every {args.every:,} steps on {episodes} deterministic "
-        f"episodes on the same goals each time (seeds {EVAL_SEED}…{EVAL_SEED + episodes - 1}). With demonstrations, the scripted expert's episodes "
+        f"episodes on the same goals each time (seeds {EVAL_SEED}…{EVAL_SEED + episodes - 1}). "
+        "With demonstrations, the scripted expert's episodes "
         f"({args.demo_episodes}, collected with the run's env kwargs by `envfactory collect`) seed the replay "
         "buffer and the Q-filtered behaviour-cloning term (the `demos` block). Wall-clock time is the run's own, "
-        "evaluations included, on a machine shared with other work: compare it within this page only.", "",
-        f"The goal: at least {GOAL:.0%} success within {args.steps:,} env steps, seed 0.", "",
-        goal_table(results, steps, GOAL), "",
+        "evaluations included, on a machine shared with other work: compare it within this page only.",
+        "",
+        f"The goal: at least {GOAL:.0%} success within {args.steps:,} env steps, seed 0.",
+        "",
+        goal_table(results, steps, GOAL),
+        "",
     ]
     for env_id in args.ids:
         shown = [(name, file) for run_id, name, file in pictures if run_id == env_id]
         if shown:
             lines += [f"## {env_id}", ""]
-            lines += [f"![{env_id}: success against {'env steps' if name == 'steps' else 'wall-clock time'}]"
-                      f"(../img/learning/{file})" for name, file in shown]
+            lines += [
+                f"![{env_id}: success against {'env steps' if name == 'steps' else 'wall-clock time'}]"
+                f"(../img/learning/{file})"
+                for name, file in shown
+            ]
             lines.append("")
-    lines += ["## The runs", "", "Each run's own command (its `model.json` records every setting):", "", "```bash",
-              *commands, "```", "", "The hyperparameters each ID trained with:", "", "```json",
-              json.dumps(settings, indent=1), "```", ""]
+    lines += [
+        "## The runs",
+        "",
+        "Each run's own command (its `model.json` records every setting):",
+        "",
+        "```bash",
+        *commands,
+        "```",
+        "",
+        "The hyperparameters each ID trained with:",
+        "",
+        "```json",
+        json.dumps(settings, indent=1),
+        "```",
+        "",
+    ]
     return "\n".join(lines)
 
 
@@ -221,8 +284,11 @@ def main() -> None:
     parser.add_argument("--docs", type=Path, help="Write DOCS/benchmarks/learning.md and DOCS/img/learning/*.png")
     parser.add_argument("-p", "--hyperparameter", action="append", default=[])
     parser.add_argument("-k", "--kwarg", action="append", default=[])
-    parser.add_argument("--report-only", action="store_true",
-                        help="Train nothing: tabulate and plot the curves in --out so far (runs still going too)")
+    parser.add_argument(
+        "--report-only",
+        action="store_true",
+        help="Train nothing: tabulate and plot the curves in --out so far (runs still going too)",
+    )
     args = parser.parse_args()
     suite = SUITES[args.suite]
     for name in ("ids", "steps", "every", "variants", "docs"):
@@ -233,8 +299,12 @@ def main() -> None:
     args.out.mkdir(parents=True, exist_ok=True)
     command = "python " + shlex.join(["benchmarks/learning.py", *sys.argv[1:]])
 
-    results = {(env_id, variant, seed): run_one(env_id, variant, seed, args)
-               for env_id in args.ids for variant in args.variants for seed in args.seeds}
+    results = {
+        (env_id, variant, seed): run_one(env_id, variant, seed, args)
+        for env_id in args.ids
+        for variant in args.variants
+        for seed in args.seeds
+    }
     if args.report_only:  # a run never started is no row of the page
         results = {key: rows for key, rows in results.items() if rows}
     steps = list(range(args.every, args.steps + 1, args.every))
@@ -242,13 +312,29 @@ def main() -> None:
     markdown = table(results, steps) if args.variants == ["plain"] else goal_table(results, steps, GOAL)
     print(markdown)
     (args.out / "learning.md").write_text(markdown + "\n")
-    (args.out / "learning.json").write_text(json.dumps(
-        {"algo": args.algo, "steps": args.steps, "every": args.every, "overrides": args.hyperparameter,
-         "kwargs": args.kwarg, "settings": settings,
-         "runs": [{"env_id": env_id, "variant": variant, "seed": seed, "curve": [r.__dict__ for r in rows]}
-                  for (env_id, variant, seed), rows in results.items()]}, indent=1, default=str))
-    plot({f"{env_id} {variant} seed {seed}": rows for (env_id, variant, seed), rows in results.items()},
-         args.out / "learning.png", f"{args.algo.upper()} + HER, success rate on 50 fixed goals")
+    (args.out / "learning.json").write_text(
+        json.dumps(
+            {
+                "algo": args.algo,
+                "steps": args.steps,
+                "every": args.every,
+                "overrides": args.hyperparameter,
+                "kwargs": args.kwarg,
+                "settings": settings,
+                "runs": [
+                    {"env_id": env_id, "variant": variant, "seed": seed, "curve": [r.__dict__ for r in rows]}
+                    for (env_id, variant, seed), rows in results.items()
+                ],
+            },
+            indent=1,
+            default=str,
+        )
+    )
+    plot(
+        {f"{env_id} {variant} seed {seed}": rows for (env_id, variant, seed), rows in results.items()},
+        args.out / "learning.png",
+        f"{args.algo.upper()} + HER, success rate on 50 fixed goals",
+    )
     if args.docs is not None:
         page = args.docs / "benchmarks" / "learning.md"
         page.parent.mkdir(parents=True, exist_ok=True)

@@ -28,17 +28,23 @@ print(f"{{imported - start:.3f}} {{first - imported:.3f}} {{second - first:.3f}}
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=3)
-    parser.add_argument("--ids", nargs="*", default=["UR5eReacherSim-v0", "UR5ePnPSim-v0", "VX300SPnPSim-v0",
-                                                      "RX200PnPSim-v0", "NED2PnPSim-v0"])
+    parser.add_argument(
+        "--ids",
+        nargs="*",
+        default=["UR5eReacherSim-v0", "UR5ePnPSim-v0", "VX300SPnPSim-v0", "RX200PnPSim-v0", "NED2PnPSim-v0"],
+    )
     add_markdown_option(parser)
     args = parser.parse_args()
     report = Report.start(parser, args, __doc__)
-    table = report.table(["ID", "import s", "first make s", "second make s", "second ÷ first"],
-                         title=f"each ID in {args.runs} fresh process(es), one row each")
+    table = report.table(
+        ["ID", "import s", "first make s", "second make s", "second ÷ first"],
+        title=f"each ID in {args.runs} fresh process(es), one row each",
+    )
     for env_id in args.ids:
         for _ in range(args.runs):
-            done = subprocess.run([sys.executable, "-c", WORKER.format(env_id=env_id)], capture_output=True,
-                                  text=True, check=True)
+            done = subprocess.run(
+                [sys.executable, "-c", WORKER.format(env_id=env_id)], capture_output=True, text=True, check=True
+            )
             imported, first, second = (float(v) for v in done.stdout.split()[-3:])
             table.add(env_id, f"{imported:.2f}", f"{first:.2f}", f"{second:.3f}", f"{second / first:.0%}")
     report.finish()

@@ -68,9 +68,17 @@ def random_steps(env, steps: int, seed: int) -> dict:
             env.reset()
     vectors = np.array(vectors)
     space = env.observation_space["observation"]
-    return {"refused": refused / steps, "ee_move": np.percentile(moves, [50, 90]), "reasons": reasons.most_common(4), "refused_max_joint_change": refused_move,
-            "min": vectors.min(0), "max": vectors.max(0), "std": vectors.std(0),
-            "width": space.high - space.low, "slots": u.observations.slots}
+    return {
+        "refused": refused / steps,
+        "ee_move": np.percentile(moves, [50, 90]),
+        "reasons": reasons.most_common(4),
+        "refused_max_joint_change": refused_move,
+        "min": vectors.min(0),
+        "max": vectors.max(0),
+        "std": vectors.std(0),
+        "width": space.high - space.low,
+        "slots": u.observations.slots,
+    }
 
 
 def pushing(env, steps: int = 100) -> dict:
@@ -102,9 +110,13 @@ def pushing(env, steps: int = 100) -> dict:
 def expert_lengths(env, episodes: int) -> dict:
     results = run_episodes(env, make_policy("scripted", env), episodes=episodes, seed=100)
     lengths = np.array([r.length for r in results if r.success])
-    return {"success": float(np.mean([r.success for r in results])), "mean": float(lengths.mean()),
-            "median": float(np.median(lengths)), "max": int(lengths.max()),
-            "limit": env.unwrapped.blueprint.max_episode_steps}
+    return {
+        "success": float(np.mean([r.success for r in results])),
+        "mean": float(lengths.mean()),
+        "median": float(np.median(lengths)),
+        "max": int(lengths.max()),
+        "limit": env.unwrapped.blueprint.max_episode_steps,
+    }
 
 
 def _kwargs(pairs):
@@ -130,29 +142,41 @@ def main() -> None:
         env = gym.make(env_id, **_kwargs(args.kwarg))
         print(f"== {env_id} {args.kwarg or ''}")
         reach = goal_box_reach(env, args.goals, rng)
-        print(f"goal box from the start pose ({args.goals} uniform goals): IK {reach['ik']:.1%}, "
-              f"pose clear {reach['pose_clear']:.1%}, straight joint path clear {reach['path_clear']:.1%}")
+        print(
+            f"goal box from the start pose ({args.goals} uniform goals): IK {reach['ik']:.1%}, "
+            f"pose clear {reach['pose_clear']:.1%}, straight joint path clear {reach['path_clear']:.1%}"
+        )
         steps = random_steps(env, args.steps, seed=0)
-        print(f"random actions ({args.steps} steps): refused {steps['refused']:.1%}; "
-              f"largest joint change over a refused step {steps['refused_max_joint_change']:.4f} rad")
-        print(f"    EE moves per accepted random step: median {steps['ee_move'][0]:.3f} m, "
-              f"90th percentile {steps['ee_move'][1]:.3f} m (goal tolerance "
-              f"{env.unwrapped.blueprint.spec.task.goal.tolerance:g} m)")
+        print(
+            f"random actions ({args.steps} steps): refused {steps['refused']:.1%}; "
+            f"largest joint change over a refused step {steps['refused_max_joint_change']:.4f} rad"
+        )
+        print(
+            f"    EE moves per accepted random step: median {steps['ee_move'][0]:.3f} m, "
+            f"90th percentile {steps['ee_move'][1]:.3f} m (goal tolerance "
+            f"{env.unwrapped.blueprint.spec.task.goal.tolerance:g} m)"
+        )
         for reason, count in steps["reasons"]:
             print(f"    {count:5d} × {reason}")
         print("observation columns: slot[i]  random min..max  std  declared width  std/width")
         for slot in steps["slots"]:
             for i in range(slot.start, slot.stop):
-                print(f"    {slot.name}[{i - slot.start}]  {steps['min'][i]:+.3f}..{steps['max'][i]:+.3f}  "
-                      f"{steps['std'][i]:.3f}  {steps['width'][i]:.3f}  {steps['std'][i] / steps['width'][i]:.3f}")
+                print(
+                    f"    {slot.name}[{i - slot.start}]  {steps['min'][i]:+.3f}..{steps['max'][i]:+.3f}  "
+                    f"{steps['std'][i]:.3f}  {steps['width'][i]:.3f}  {steps['std'][i] / steps['width'][i]:.3f}"
+                )
         push = pushing(env)
-        print(f"pushing one way for 100 steps (26 directions): {push['refused']:.0%} of steps refused, "
-              f"{push['clipped']:.0%} clipped to the action box; {push['stuck']} of {push['directions']} "
-              f"directions end refused")
+        print(
+            f"pushing one way for 100 steps (26 directions): {push['refused']:.0%} of steps refused, "
+            f"{push['clipped']:.0%} clipped to the action box; {push['stuck']} of {push['directions']} "
+            f"directions end refused"
+        )
         lengths = expert_lengths(env, args.episodes)
-        print(f"scripted expert ({args.episodes} episodes): success {lengths['success']:.0%}, steps to success "
-              f"mean {lengths['mean']:.1f}, median {lengths['median']:.0f}, max {lengths['max']}; "
-              f"episode limit {lengths['limit']}")
+        print(
+            f"scripted expert ({args.episodes} episodes): success {lengths['success']:.0%}, steps to success "
+            f"mean {lengths['mean']:.1f}, median {lengths['median']:.0f}, max {lengths['max']}; "
+            f"episode limit {lengths['limit']}"
+        )
         env.close()
 
 

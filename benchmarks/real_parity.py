@@ -29,11 +29,11 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+from report import Report  # beside this script
+from sb3_replay import replay_arguments, sb3_class
 
 import envfactory
 from envfactory.factory import simulation_only_kwargs
-from report import Report  # beside this script
-from sb3_replay import replay_arguments, sb3_class
 
 PARITY_SUCCESS, PARITY_LENGTH = 0.9, 1.5
 
@@ -48,8 +48,12 @@ def _start_twin(robot: str, task: str, log: Path) -> tuple[subprocess.Popen, int
     """`envfactory twin` in a process of its own, as a user runs it; its output goes to `log`."""
     port = _free_port()
     with log.open("w") as out:
-        twin = subprocess.Popen([sys.executable, "-m", "envfactory.cli", "twin", robot, "--task", task,
-                                 "--port", str(port)], stdout=out, stderr=subprocess.STDOUT, text=True)
+        twin = subprocess.Popen(
+            [sys.executable, "-m", "envfactory.cli", "twin", robot, "--task", task, "--port", str(port)],
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
     deadline = time.monotonic() + 60
     while "twin of" not in log.read_text():  # it says where it serves once it does
         if twin.poll() is not None or time.monotonic() > deadline:
@@ -76,9 +80,13 @@ def _episodes(env, model, seeds: range) -> dict:
                 aborts.append(info["abort_reason"])
         successes += bool(info["is_success"])
         lengths.append(length)
-    return {"success": successes / len(seeds), "length": float(np.mean(lengths)), "aborts": aborts,
-            "step_s": float(np.mean(steps)) if steps else math.nan,
-            "motion_s": float(np.mean(motions)) if motions else math.nan}
+    return {
+        "success": successes / len(seeds),
+        "length": float(np.mean(lengths)),
+        "aborts": aborts,
+        "step_s": float(np.mean(steps)) if steps else math.nan,
+        "motion_s": float(np.mean(motions)) if motions else math.nan,
+    }
 
 
 def _how_trained(record: dict, folder: Path) -> str:
@@ -101,8 +109,21 @@ def main() -> None:
     args = parser.parse_args()
     report = Report.start(parser, args, __doc__)
     trainings: list[str] = []
-    table = report.table(["real ID", "trained steps", "sim success", "sim length", "real success", "real length",
-                          "watchdog aborts", "other aborts", "real step s", "real motion s", "parity"])
+    table = report.table(
+        [
+            "real ID",
+            "trained steps",
+            "sim success",
+            "sim length",
+            "real success",
+            "real length",
+            "watchdog aborts",
+            "other aborts",
+            "real step s",
+            "real motion s",
+            "parity",
+        ]
+    )
     for folder in args.folders:
         record = json.loads((folder / "model.json").read_text())
         sim_id, kwargs = record["env_id"], record["env_kwargs"]
@@ -115,8 +136,9 @@ def main() -> None:
         sim = _episodes(sim_env, model_class.load(folder / "model.zip", env=sim_env, device="cpu"), seeds)
         sim_env.close()
 
-        real_kwargs = {name: value for name, value in kwargs.items()
-                       if name not in simulation_only_kwargs(real_id, kwargs)}
+        real_kwargs = {
+            name: value for name, value in kwargs.items() if name not in simulation_only_kwargs(real_id, kwargs)
+        }
         twin, port = _start_twin(spec.robot.name, spec.task.name, Path(tempfile.gettempdir()) / f"twin-{real_id}.log")
         try:
             real_env = gym.make(real_id, rosbridge_port=port, allow_real_robot_motion=True, **real_kwargs)
@@ -126,18 +148,32 @@ def main() -> None:
             twin.terminate()
             twin.wait(timeout=30)
         watchdog = [a for a in real["aborts"] if a.startswith("the arm did not follow")]
-        parity = (real["success"] >= PARITY_SUCCESS * sim["success"] and real["length"] <= PARITY_LENGTH * sim["length"]
-                  and not real["aborts"])
-        table.add(real_id, f"{record['steps']:,}", f"{sim['success']:.0%}",
-                  f"{sim['length']:.1f}", f"{real['success']:.0%}", f"{real['length']:.1f}", len(watchdog),
-                  len(real["aborts"]) - len(watchdog), f"{real['step_s']:.2f}", f"{real['motion_s']:.2f}",
-                  "yes" if parity else "no")
+        parity = (
+            real["success"] >= PARITY_SUCCESS * sim["success"]
+            and real["length"] <= PARITY_LENGTH * sim["length"]
+            and not real["aborts"]
+        )
+        table.add(
+            real_id,
+            f"{record['steps']:,}",
+            f"{sim['success']:.0%}",
+            f"{sim['length']:.1f}",
+            f"{real['success']:.0%}",
+            f"{real['length']:.1f}",
+            len(watchdog),
+            len(real["aborts"]) - len(watchdog),
+            f"{real['step_s']:.2f}",
+            f"{real['motion_s']:.2f}",
+            "yes" if parity else "no",
+        )
         for abort in real["aborts"][:3]:
             report.note(f"{real_id}: {abort}")
         trainings.append(_how_trained(record, folder))
         time.sleep(0.5)
-    report.note("How the run folders were trained (each resumed to its total of steps where the curve shows "
-                "more than the first command asked for):\n\n" + "\n".join(f"- {line}" for line in trainings))
+    report.note(
+        "How the run folders were trained (each resumed to its total of steps where the curve shows "
+        "more than the first command asked for):\n\n" + "\n".join(f"- {line}" for line in trainings)
+    )
     report.finish()
 
 

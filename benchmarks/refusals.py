@@ -19,8 +19,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the independent judge is a test helper
 
 from bullet_oracle import BulletJudge  # noqa: E402
-from envfactory.registration import registry  # noqa: E402
 from report import Report, add_markdown_option  # noqa: E402
+
+from envfactory.registration import registry  # noqa: E402
 
 # a refused motion sampled this finely by the judge (per straight joint-space segment)
 JUDGE_SAMPLES = 32
@@ -49,8 +50,9 @@ def classify(env_id: str, ee: bool, steps: int, seed: int = 0) -> Counter:
                 unwrapped.safety.forget()  # judged alone: the env's own step below checks it again
                 if not verdict.accepted:
                     gripper_to = state.gripper if command.gripper is None else command.gripper
-                    lowest, _ = judge.commanded(state.q_arm, command.q_arm, state.gripper, gripper_to,
-                                                samples=JUDGE_SAMPLES)
+                    lowest, _ = judge.commanded(
+                        state.q_arm, command.q_arm, state.gripper, gripper_to, samples=JUDGE_SAMPLES
+                    )
                     counts["truly within" if lowest < margin else "not proven"] += 1
             info = env.step(action)[4]
             if info["action_rejected"] and not command.rejection and "object" in info["rejection_reason"]:
@@ -64,16 +66,32 @@ def classify(env_id: str, ee: bool, steps: int, seed: int = 0) -> Counter:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=300)
-    parser.add_argument("--ids", nargs="*", default=sorted(
-        env_id for env_id, record in registry.records().items() if record.backend == "pybullet" and not record.goal_env))
+    parser.add_argument(
+        "--ids",
+        nargs="*",
+        default=sorted(
+            env_id
+            for env_id, record in registry.records().items()
+            if record.backend == "pybullet" and not record.goal_env
+        ),
+    )
     parser.add_argument("--modes", nargs="*", default=["joint", "ee"])
     add_markdown_option(parser)
     args = parser.parse_args()
     report = Report.start(parser, args, __doc__)
     columns = ["before the check", "truly within", "not proven", "object press"]
-    table = report.table(["ID", "mode", "refused before the check", "refused, truly within the margin",
-                          "refused, not proven", "object press", "steps"],
-                         title=f"shares of {args.steps} random steps per ID and mode (seed 0, a reset every 25 steps)")
+    table = report.table(
+        [
+            "ID",
+            "mode",
+            "refused before the check",
+            "refused, truly within the margin",
+            "refused, not proven",
+            "object press",
+            "steps",
+        ],
+        title=f"shares of {args.steps} random steps per ID and mode (seed 0, a reset every 25 steps)",
+    )
     for env_id in args.ids:
         for mode in args.modes:
             counts = classify(env_id, mode == "ee", args.steps)

@@ -31,9 +31,14 @@ RUN_HEADINGS = ("Command", "Settings", "Date", "Machine", "Load average (1 min)"
 
 
 def add_markdown_option(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--markdown", nargs="?", const=STDOUT, metavar="PATH",
-                        help="write the results as a Markdown page to PATH (with the command line, date, machine "
-                             "and git revision); without PATH, print the tables as Markdown")
+    parser.add_argument(
+        "--markdown",
+        nargs="?",
+        const=STDOUT,
+        metavar="PATH",
+        help="write the results as a Markdown page to PATH (with the command line, date, machine "
+        "and git revision); without PATH, print the tables as Markdown",
+    )
 
 
 def _cell(value: object) -> str:
@@ -50,7 +55,7 @@ class ResultsTable:
         self._widths = [max(len(column), 8) for column in self.columns]
         if title:
             print(f"\n{title}" if as_markdown else title, file=out, flush=True)
-        for line in (self.markdown_lines()[:2] if as_markdown else [self._text(self.columns)]):
+        for line in self.markdown_lines()[:2] if as_markdown else [self._text(self.columns)]:
             print(line, file=out, flush=True)
 
     def add(self, *cells: object) -> None:
@@ -73,8 +78,14 @@ class ResultsTable:
 class Report:
     """The tables and notes of one run, and the facts of the run, for the page."""
 
-    def __init__(self, markdown: str | None, doc: str, argv: list[str], out: TextIO = sys.stdout,
-                 changed: list[str] | None = None):
+    def __init__(
+        self,
+        markdown: str | None,
+        doc: str,
+        argv: list[str],
+        out: TextIO = sys.stdout,
+        changed: list[str] | None = None,
+    ):
         self.page = None if markdown in (None, STDOUT) else Path(markdown)
         self._as_markdown, self._out = markdown == STDOUT, out
         self.doc, self.argv = doc.strip(), list(argv)
@@ -116,25 +127,36 @@ class Report:
 
     def run_facts(self) -> list[tuple[str, str]]:
         took = time.monotonic() - self._started
-        settings = "the script's defaults" if not self.changed else "changed from the defaults: " + ", ".join(
-            self.changed)
-        return list(zip(RUN_HEADINGS, [
-            f"`{self.command()}`",
-            settings,
-            f"{self._date:%Y-%m-%d %H:%M} UTC, {took / 60:.1f} min",
-            machine(),
-            f"{self._load:.2f} before, {os.getloadavg()[0]:.2f} after",
-            f"{platform.python_version()} ({platform.system()} {platform.release()})",
-            revision(),
-        ]))
+        settings = (
+            "the script's defaults" if not self.changed else "changed from the defaults: " + ", ".join(self.changed)
+        )
+        return list(
+            zip(
+                RUN_HEADINGS,
+                [
+                    f"`{self.command()}`",
+                    settings,
+                    f"{self._date:%Y-%m-%d %H:%M} UTC, {took / 60:.1f} min",
+                    machine(),
+                    f"{self._load:.2f} before, {os.getloadavg()[0]:.2f} after",
+                    f"{platform.python_version()} ({platform.system()} {platform.release()})",
+                    revision(),
+                ],
+            )
+        )
 
     def markdown(self) -> str:
         script = Path(self.argv[0]).name
         prose = _prose(self.doc)
         # the heading: the first paragraph up to its first colon or full stop
         heading = re.split(r"[:.](?:\s|$)", prose, maxsplit=1)[0]
-        lines = [f"<!-- written by benchmarks/{script}: run the command below again to refresh it -->",
-                 f"# {script}: {heading}", "", prose, ""]
+        lines = [
+            f"<!-- written by benchmarks/{script}: run the command below again to refresh it -->",
+            f"# {script}: {heading}",
+            "",
+            prose,
+            "",
+        ]
         lines += ["| Run | |", "|---|---|"] + [f"| {name} | {_cell(value)} |" for name, value in self.run_facts()]
         lines += ["", "## Results"]
         for block in self.blocks:
@@ -186,9 +208,11 @@ def machine() -> str:
 
 def revision() -> str:
     """The commit the tree is at, and whether files tracked in it differ (read-only git commands)."""
+
     def git(*arguments: str) -> str:
-        done = subprocess.run(["git", "--no-optional-locks", "-C", str(REPO), *arguments], capture_output=True,
-                              text=True, check=True)
+        done = subprocess.run(
+            ["git", "--no-optional-locks", "-C", str(REPO), *arguments], capture_output=True, text=True, check=True
+        )
         return done.stdout.strip()
 
     try:

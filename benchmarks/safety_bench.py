@@ -19,22 +19,30 @@ import argparse
 import time
 
 import numpy as np
-
-import envfactory  # noqa: F401  (registers the IDs)
 from report import Report, add_markdown_option
 
-SIM_IDS = ["UR5eReacherSim-v0", "UR5ePushSim-v0", "UR5ePnPSim-v0",
-           "VX300SReacherSim-v0", "VX300SPushSim-v0", "VX300SPnPSim-v0"]
+import envfactory  # noqa: F401  (registers the IDs)
+
+SIM_IDS = [
+    "UR5eReacherSim-v0",
+    "UR5ePushSim-v0",
+    "UR5ePnPSim-v0",
+    "VX300SReacherSim-v0",
+    "VX300SPushSim-v0",
+    "VX300SPnPSim-v0",
+]
 
 
 def _timed(function, wall: list, cpu: list):
     """`function`, recording each call's wall-clock and thread CPU time."""
+
     def timed(*args):
         start, cpu_start = time.perf_counter(), time.thread_time()
         result = function(*args)
         wall.append(time.perf_counter() - start)
         cpu.append(time.thread_time() - cpu_start)
         return result
+
     return timed
 
 
@@ -74,10 +82,19 @@ def measure(env_id: str, ee: bool, steps: int) -> dict:
             env.reset()
     env.close()
     micro, cpu = np.array(times) * 1e6, np.array(cpu_times) * 1e6
-    return {"median": np.median(micro), "p90": np.percentile(micro, 90), "cpu": np.median(cpu), "all_cpu": cpu,
-            "all": micro, "poses": poses[0] / max(len(times), 1), "coal": queries[0] / max(len(times), 1),
-            "refused": refused / steps, "checks": len(times), "step": np.median(step_times) * 1e6,
-            "guard": np.median(guard_cpu) * 1e6 if guard_cpu else float("nan")}
+    return {
+        "median": np.median(micro),
+        "p90": np.percentile(micro, 90),
+        "cpu": np.median(cpu),
+        "all_cpu": cpu,
+        "all": micro,
+        "poses": poses[0] / max(len(times), 1),
+        "coal": queries[0] / max(len(times), 1),
+        "refused": refused / steps,
+        "checks": len(times),
+        "step": np.median(step_times) * 1e6,
+        "guard": np.median(guard_cpu) * 1e6 if guard_cpu else float("nan"),
+    }
 
 
 def main() -> None:
@@ -87,20 +104,45 @@ def main() -> None:
     add_markdown_option(parser)
     args = parser.parse_args()
     report = Report.start(parser, args, __doc__)
-    table = report.table(["ID", "mode", "median µs", "p90 µs", "CPU µs", "poses/check", "coal/check", "refused",
-                          "step µs", "share", "object µs"],
-                         title=f"{args.steps} random steps per ID and mode (seed 0)")
+    table = report.table(
+        [
+            "ID",
+            "mode",
+            "median µs",
+            "p90 µs",
+            "CPU µs",
+            "poses/check",
+            "coal/check",
+            "refused",
+            "step µs",
+            "share",
+            "object µs",
+        ],
+        title=f"{args.steps} random steps per ID and mode (seed 0)",
+    )
     pooled, pooled_cpu = [], []
     for env_id in args.ids:
         for ee in (False, True):
             r = measure(env_id, ee, args.steps)
             pooled.append(r["all"])
             pooled_cpu.append(r["all_cpu"])
-            table.add(env_id, "EE" if ee else "joint", f"{r['median']:.0f}", f"{r['p90']:.0f}", f"{r['cpu']:.0f}",
-                      f"{r['poses']:.2f}", f"{r['coal']:.1f}", f"{r['refused']:.1%}", f"{r['step']:.0f}",
-                      f"{r['median'] / r['step']:.1%}", f"{r['guard']:.0f}")
-    report.note(f"pooled median: {np.median(np.concatenate(pooled)):.0f} µs wall, "
-                f"{np.median(np.concatenate(pooled_cpu)):.0f} µs CPU")
+            table.add(
+                env_id,
+                "EE" if ee else "joint",
+                f"{r['median']:.0f}",
+                f"{r['p90']:.0f}",
+                f"{r['cpu']:.0f}",
+                f"{r['poses']:.2f}",
+                f"{r['coal']:.1f}",
+                f"{r['refused']:.1%}",
+                f"{r['step']:.0f}",
+                f"{r['median'] / r['step']:.1%}",
+                f"{r['guard']:.0f}",
+            )
+    report.note(
+        f"pooled median: {np.median(np.concatenate(pooled)):.0f} µs wall, "
+        f"{np.median(np.concatenate(pooled_cpu)):.0f} µs CPU"
+    )
     report.finish()
 
 

@@ -15,13 +15,20 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-import envfactory  # noqa: E402,F401  (registers the IDs)
 from bullet_oracle import POLICIES, judge_steps  # noqa: E402
-from envfactory.envs import RobotEnv  # noqa: E402
 from report import Report, add_markdown_option  # noqa: E402
 
-SIM_IDS = ["UR5eReacherSim-v0", "UR5ePushSim-v0", "UR5ePnPSim-v0",
-           "VX300SReacherSim-v0", "VX300SPushSim-v0", "VX300SPnPSim-v0"]
+import envfactory  # noqa: E402,F401  (registers the IDs)
+from envfactory.envs import RobotEnv  # noqa: E402
+
+SIM_IDS = [
+    "UR5eReacherSim-v0",
+    "UR5ePushSim-v0",
+    "UR5ePnPSim-v0",
+    "VX300SReacherSim-v0",
+    "VX300SPushSim-v0",
+    "VX300SPnPSim-v0",
+]
 
 
 def main() -> None:
@@ -31,8 +38,10 @@ def main() -> None:
     add_markdown_option(parser)
     args = parser.parse_args()
     report = Report.start(parser, args, __doc__)
-    table = report.table(["ID", "mode", "policy", "accepted", "refused", "inside margin", "lowest (m)", "s"],
-                         title=f"{args.steps} steps per ID, mode and policy (seed 7)")
+    table = report.table(
+        ["ID", "mode", "policy", "accepted", "refused", "inside margin", "lowest (m)", "s"],
+        title=f"{args.steps} steps per ID, mode and policy (seed 7)",
+    )
     total = 0
     for env_id in args.ids:
         for ee in (False, True):
@@ -42,8 +51,16 @@ def main() -> None:
                 result = judge_steps(env, policy, args.steps, seed=7)
                 env.close()
                 total += len(result["violations"])
-                table.add(env_id, "EE" if ee else "joint", policy, result["accepted"], result["rejected"],
-                          len(result["violations"]), f"{result['lowest']:.4f}", f"{time.perf_counter() - start:.0f}")
+                table.add(
+                    env_id,
+                    "EE" if ee else "joint",
+                    policy,
+                    result["accepted"],
+                    result["rejected"],
+                    len(result["violations"]),
+                    f"{result['lowest']:.4f}",
+                    f"{time.perf_counter() - start:.0f}",
+                )
     report.note(f"accepted steps inside the margin, in all: {total}")
     report.finish()
 

@@ -17,10 +17,10 @@ import time
 
 import numpy as np
 import pybullet as p
-
-import envfactory  # noqa: F401  (registers the IDs)
 from report import Report, add_markdown_option
 from safety_bench import SIM_IDS  # the same IDs the in-env timing covers
+
+import envfactory  # noqa: F401  (registers the IDs)
 
 
 def record(env, steps: int) -> list[tuple]:
@@ -75,8 +75,10 @@ def main() -> None:
     add_markdown_option(parser)
     args = parser.parse_args()
     report = Report.start(parser, args, __doc__)
-    table = report.table(["ID", "mode", "warm µs", "after physics µs", "coal/check", "accepted"],
-                         title=f"the checks of {args.steps} random steps per ID and mode (seed 0), replayed")
+    table = report.table(
+        ["ID", "mode", "warm µs", "after physics µs", "coal/check", "accepted"],
+        title=f"the checks of {args.steps} random steps per ID and mode (seed 0), replayed",
+    )
     warm_all = []
     for env_id in args.ids:
         for ee in (False, True):
@@ -88,8 +90,9 @@ def main() -> None:
             warm, queries, accepted = replay(env, calls, 0)
             cold, _, _ = replay(env, calls, substeps)
             warm_all.append(warm)
-            table.add(env_id, "EE" if ee else "joint", f"{warm:.0f}", f"{cold:.0f}", f"{queries:.1f}",
-                      f"{accepted:.1%}")
+            table.add(
+                env_id, "EE" if ee else "joint", f"{warm:.0f}", f"{cold:.0f}", f"{queries:.1f}", f"{accepted:.1%}"
+            )
             env.close()
     report.note(f"median over IDs and modes, warm: {np.median(warm_all):.0f} µs")
     report.finish()

@@ -15,9 +15,9 @@ import json
 from pathlib import Path
 
 import gymnasium as gym
+from report import Report, add_markdown_option  # beside this script
 
 import envfactory  # noqa: F401  (registers the IDs)
-from report import Report, add_markdown_option  # beside this script
 
 
 def sb3_class(algo: str):
@@ -64,14 +64,23 @@ def main() -> None:
     parser = replay_arguments(__doc__)
     args = parser.parse_args()
     report = Report.start(parser, args, __doc__)
-    table = report.table(["run", "ID", "algo", "seed", "trained steps", "episodes", "success (plain SB3)",
-                          "last evaluation of the run"])
+    table = report.table(
+        ["run", "ID", "algo", "seed", "trained steps", "episodes", "success (plain SB3)", "last evaluation of the run"]
+    )
     for folder in args.folders:
         record, successes = replay(folder, args.episodes, args.first_seed)
         curve = (folder / "curve.csv").read_text().strip().splitlines()
         last = curve[-1].split(",") if len(curve) > 1 else None
-        table.add(folder.name, record["env_id"], record["algo"], record["seed"], record["timesteps"], args.episodes,
-                  f"{successes / args.episodes:.0%}", f"{float(last[1]):.0%} at {int(last[0]):,}" if last else "-")
+        table.add(
+            folder.name,
+            record["env_id"],
+            record["algo"],
+            record["seed"],
+            record["timesteps"],
+            args.episodes,
+            f"{successes / args.episodes:.0%}",
+            f"{float(last[1]):.0%} at {int(last[0]):,}" if last else "-",
+        )
     report.finish()
 
 

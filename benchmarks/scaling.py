@@ -25,11 +25,11 @@ import time
 from pathlib import Path
 
 import ray
+from report import Report, add_markdown_option
 
 from envfactory.cluster import pool
 from envfactory.cluster.work import Collection, Evaluation, run_here
 from envfactory.learn.demonstrations import collect
-from report import Report, add_markdown_option
 
 
 def _rss_mb(pid: int) -> float:
@@ -93,8 +93,17 @@ def _collect(env_id: str, episodes: int, recorder, repeats: int = 1) -> float:
     """Seconds of a whole collect (episodes and the dataset written), into a temporary datasets folder."""
     folder = Path(tempfile.mkdtemp(prefix="scaling-datasets-"))
     try:
-        seconds, _ = _best(repeats, lambda: collect(env_id, episodes, dataset_id="bench/scaling/expert-v0",
-                                                    data_path=folder, recorder=recorder, overwrite=True))
+        seconds, _ = _best(
+            repeats,
+            lambda: collect(
+                env_id,
+                episodes,
+                dataset_id="bench/scaling/expert-v0",
+                data_path=folder,
+                recorder=recorder,
+                overwrite=True,
+            ),
+        )
     finally:
         shutil.rmtree(folder, ignore_errors=True)
     return seconds
@@ -122,16 +131,34 @@ def main() -> None:
     write_s = _collect(env_id, args.episodes, lambda *a: recording, args.repeats)
     steps = sum(r.length for r in reference)
     episode_bytes = len(pickle.dumps(recording.episodes)) / len(recording.episodes)
-    report.note(f"{env_id}, the scripted expert, seeds 0..{args.episodes - 1}: {steps} steps in all "
-                f"({steps / args.episodes:.1f} per episode); {os.cpu_count()} cores on this machine.")
+    report.note(
+        f"{env_id}, the scripted expert, seeds 0..{args.episodes - 1}: {steps} steps in all "
+        f"({steps / args.episodes:.1f} per episode); {os.cpu_count()} cores on this machine."
+    )
 
-    rate = report.table(["Run", "Workers", "evaluate episodes/s", "collect episodes/s", "evaluate speed-up",
-                         "collect speed-up"], title="episodes per second (collect: episodes and the dataset written)")
-    rate.add("one process, no Ray", "-", f"{args.episodes / evaluate_s:.1f}", f"{args.episodes / collect_s:.1f}",
-             "1.00×", "1.00×")
-    costs = report.table(["Workers", "Ray start s", "worker start-up s (import + first make), median",
-                          "make again s, median", "worker memory MB, median", "Ray's own processes MB"],
-                         title="what each worker costs")
+    rate = report.table(
+        ["Run", "Workers", "evaluate episodes/s", "collect episodes/s", "evaluate speed-up", "collect speed-up"],
+        title="episodes per second (collect: episodes and the dataset written)",
+    )
+    rate.add(
+        "one process, no Ray",
+        "-",
+        f"{args.episodes / evaluate_s:.1f}",
+        f"{args.episodes / collect_s:.1f}",
+        "1.00×",
+        "1.00×",
+    )
+    costs = report.table(
+        [
+            "Workers",
+            "Ray start s",
+            "worker start-up s (import + first make), median",
+            "make again s, median",
+            "worker memory MB, median",
+            "Ray's own processes MB",
+        ],
+        title="what each worker costs",
+    )
     warm_one_worker = {}  # evaluate, collect episodes/s of one warm worker: what each further core adds at best
     worker_costs = {}
     for workers in args.workers:
@@ -144,20 +171,33 @@ def main() -> None:
                 cold = label == "cold"
                 repeats = 1 if cold else args.repeats
                 _fresh_workers(workers, cold)
-                spent, results = _best(repeats, lambda: pool.run_episodes([evaluation], seeds, workers,
-                                                                          progress=False)[0])
+                spent, results = _best(
+                    repeats, lambda: pool.run_episodes([evaluation], seeds, workers, progress=False)[0]
+                )
                 assert results == reference, "the cluster's episodes differ from the single process's"
                 _fresh_workers(workers, cold)
                 spent_collect = _collect(env_id, args.episodes, pool.recorder(workers, progress=False), repeats)
                 if workers == 1 and not cold:
                     warm_one_worker = {"evaluate": args.episodes / spent, "collect": args.episodes / spent_collect}
-                rate.add(label, workers, f"{args.episodes / spent:.1f}", f"{args.episodes / spent_collect:.1f}",
-                         f"{evaluate_s / spent:.2f}×", f"{collect_s / spent_collect:.2f}×")
+                rate.add(
+                    label,
+                    workers,
+                    f"{args.episodes / spent:.1f}",
+                    f"{args.episodes / spent_collect:.1f}",
+                    f"{evaluate_s / spent:.2f}×",
+                    f"{collect_s / spent_collect:.2f}×",
+                )
             pids = sorted({pid for pid, _, _ in ray.get([_probe.remote(env_id) for _ in range(2 * workers)])})
             memory = sorted(_rss_mb(pid) for pid in pids)
             worker_costs = {"startup": startup, "memory": memory[len(memory) // 2], "ray": _ray_processes_mb()}
-            costs.add(workers, f"{started:.1f}", f"{startup:.1f}", f"{again:.2f}", f"{worker_costs['memory']:.0f}",
-                      f"{worker_costs['ray']:.0f}")  # one reading serves the table and the projection
+            costs.add(
+                workers,
+                f"{started:.1f}",
+                f"{startup:.1f}",
+                f"{again:.2f}",
+                f"{worker_costs['memory']:.0f}",
+                f"{worker_costs['ray']:.0f}",
+            )  # one reading serves the table and the projection
         finally:
             ray.shutdown()
 
@@ -165,13 +205,20 @@ def main() -> None:
     head.add("recorded episode sent back (collect), pickled", f"{episode_bytes / 1024:.0f} KiB")
     head.add("writing the dataset (Minari, HDF5)", f"{1000 * write_s / args.episodes:.1f} ms")
     head.add("episode in one process (evaluate)", f"{1000 * evaluate_s / args.episodes:.1f} ms")
-    _projection(report, args.cluster_cores, args.episodes / evaluate_s, write_s / args.episodes, warm_one_worker,
-                worker_costs)
+    _projection(
+        report, args.cluster_cores, args.episodes / evaluate_s, write_s / args.episodes, warm_one_worker, worker_costs
+    )
     report.finish()
 
 
-def _projection(report: Report, cores: int, one_process_rate: float, write_s_per_episode: float,
-                warm_one_worker: dict, worker_costs: dict) -> None:
+def _projection(
+    report: Report,
+    cores: int,
+    one_process_rate: float,
+    write_s_per_episode: float,
+    warm_one_worker: dict,
+    worker_costs: dict,
+) -> None:
     """A cluster of `cores` worker CPUs, one task per core, from the figures above. Evaluate's head only merges
     tables; collect's head also writes every episode into one dataset, one after another, so the rate at which
     it writes caps collect however many workers there are."""

@@ -15,21 +15,34 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from envfactory.learn.curve import plot, read_csv
 from report import Report  # beside this script
 from sb3_replay import replay, replay_arguments
+
+from envfactory.learn.curve import plot, read_csv
 
 ENGINES = ("pybullet", "mujoco")
 
 
 def main() -> None:
     parser = replay_arguments(__doc__)
-    parser.add_argument("--pictures", type=Path, help="draw each ID's training curves in this folder "
-                                                      "(the docs' img/transfer), shown on the page")
+    parser.add_argument(
+        "--pictures",
+        type=Path,
+        help="draw each ID's training curves in this folder (the docs' img/transfer), shown on the page",
+    )
     args = parser.parse_args()
     report = Report.start(parser, args, __doc__)
-    table = report.table(["run", "ID", "trained on", "randomized in training", "steps",
-                          *(f"success on {engine}" for engine in ENGINES), "curve (its own evaluations)"])
+    table = report.table(
+        [
+            "run",
+            "ID",
+            "trained on",
+            "randomized in training",
+            "steps",
+            *(f"success on {engine}" for engine in ENGINES),
+            "curve (its own evaluations)",
+        ]
+    )
     curves: dict[str, dict] = {}
     for folder in args.folders:
         record = json.loads((folder / "model.json").read_text())
@@ -37,15 +50,24 @@ def main() -> None:
         trained_on = kwargs.get("engine", "pybullet")
         curve = read_csv(folder / "curve.csv")
         curves.setdefault(record["env_id"], {})[
-            f"{trained_on}, {'randomized' if kwargs.get('randomize') else 'not randomized'}, seed {record['seed']}"] \
-            = curve
-        successes = [replay(folder, args.episodes, args.first_seed, {"engine": engine, "randomize": False})[1]
-                     for engine in ENGINES]
-        table.add(folder.name, record["env_id"], trained_on, "yes" if kwargs.get("randomize") else "no",
-                  f"{curve[-1].timesteps:,}" if curve else "-",
-                  *(f"{count / args.episodes:.0%}" + (" (other engine)" if engine != trained_on else "")
-                    for engine, count in zip(ENGINES, successes)),
-                  ", ".join(f"{row.timesteps // 1000}k {row.success_rate:.0%}" for row in curve))
+            f"{trained_on}, {'randomized' if kwargs.get('randomize') else 'not randomized'}, seed {record['seed']}"
+        ] = curve
+        successes = [
+            replay(folder, args.episodes, args.first_seed, {"engine": engine, "randomize": False})[1]
+            for engine in ENGINES
+        ]
+        table.add(
+            folder.name,
+            record["env_id"],
+            trained_on,
+            "yes" if kwargs.get("randomize") else "no",
+            f"{curve[-1].timesteps:,}" if curve else "-",
+            *(
+                f"{count / args.episodes:.0%}" + (" (other engine)" if engine != trained_on else "")
+                for engine, count in zip(ENGINES, successes)
+            ),
+            ", ".join(f"{row.timesteps // 1000}k {row.success_rate:.0%}" for row in curve),
+        )
     if args.pictures is not None:
         args.pictures.mkdir(parents=True, exist_ok=True)
         for env_id, labelled in curves.items():

@@ -41,8 +41,14 @@ from report import Report, add_markdown_option
 # untimed steps after the resets, before the timed ones (random actions, then the measured episode's reset)
 WARM_UP_STEPS = 5
 PANDA_TWIN = {"Reacher": "PandaReach-v3", "Push": "PandaPush-v3", "PnP": "PandaPickAndPlace-v3"}
-ENVFACTORY_IDS = ["UR5eReacherSim-v0", "UR5ePushSim-v0", "UR5ePnPSim-v0",
-                  "VX300SReacherSim-v0", "VX300SPushSim-v0", "VX300SPnPSim-v0"]
+ENVFACTORY_IDS = [
+    "UR5eReacherSim-v0",
+    "UR5ePushSim-v0",
+    "UR5ePnPSim-v0",
+    "VX300SReacherSim-v0",
+    "VX300SPushSim-v0",
+    "VX300SPnPSim-v0",
+]
 RESULT = "RESULT "
 
 
@@ -54,6 +60,7 @@ def panda_twin(env_id: str) -> str | None:
 
 
 # ---------------------------------------------------------------- worker (one env, one fresh process)
+
 
 class PhysicsClock:
     """Times every pybullet.stepSimulation call (and MuJoCo's rollout and mj_step calls). Both packages look
@@ -160,8 +167,9 @@ def _touching(env, env_id: str):
     if hasattr(backend, "client"):
         import pybullet
 
-        return lambda: bool(pybullet.getClosestPoints(backend.body, backend.objects["cube"], 0.002,
-                                                      physicsClientId=backend.client))
+        return lambda: bool(
+            pybullet.getClosestPoints(backend.body, backend.objects["cube"], 0.002, physicsClientId=backend.client)
+        )
     import mujoco
 
     model, data = backend.model, backend.data
@@ -249,7 +257,9 @@ def work(env_id: str, steps: int, policy: str, seed: int, kwargs: dict) -> dict:
     env.close()
     per_step = stepping / steps
     return {
-        "id": env_id, "policy": policy, "seed": seed,
+        "id": env_id,
+        "policy": policy,
+        "seed": seed,
         "steps_per_s": 1.0 / per_step,
         "physics_us": 1e6 * physics / steps,
         "outside_us": 1e6 * (stepping - physics) / steps,
@@ -260,7 +270,9 @@ def work(env_id: str, steps: int, policy: str, seed: int, kwargs: dict) -> dict:
         "make_s": make_s,
         "import_s": import_s,
         "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-        "episodes": episodes, "successes": successes, "played": played,
+        "episodes": episodes,
+        "successes": successes,
+        "played": played,
         "touching": None if touches is None else 100.0 * touching / steps,
     }
 
@@ -290,18 +302,31 @@ def work_vector(env_id: str, steps: int, num_envs: int, seed: int) -> dict:
 
 # ---------------------------------------------------------------- orchestration
 
+
 def run_one(label: str, steps: int, policy: str, seed: int, kwargs: list[str], vector: int = 0) -> dict:
     """One env in a fresh process; `label` is an ID, or an ID and an engine as 'ID [engine]'."""
     env_id, _, engine = label.partition(" [")
     if engine:
         kwargs = [*kwargs, f"engine={engine.rstrip(']')}"]
-    command = [sys.executable, os.path.abspath(__file__), "--worker", env_id, "--steps", str(steps),
-               "--policy", policy, "--seed", str(seed), "--vector-worker", str(vector),
-               *[a for k in kwargs for a in ("-k", k)]]
+    command = [
+        sys.executable,
+        os.path.abspath(__file__),
+        "--worker",
+        env_id,
+        "--steps",
+        str(steps),
+        "--policy",
+        policy,
+        "--seed",
+        str(seed),
+        "--vector-worker",
+        str(vector),
+        *[a for k in kwargs for a in ("-k", k)],
+    ]
     done = subprocess.run(command, capture_output=True, text=True)
     for line in done.stdout.splitlines():
         if line.startswith(RESULT):
-            return {**json.loads(line[len(RESULT):]), "id": label}
+            return {**json.loads(line[len(RESULT) :]), "id": label}
     raise RuntimeError(f"{env_id} ({policy}) failed:\n{done.stderr[-3000:]}")
 
 
@@ -315,13 +340,22 @@ def parse_kwargs(pairs: list[str]) -> dict:
     return out
 
 
-COLUMNS = [("steps/s", "steps_per_s", "{:,.0f}"), ("÷ panda-gym", "ratio", "{:.2f}×"),
-           ("µs outside physics", "outside_us", "{:,.0f}"), ("physics µs/step", "physics_us", "{:,.0f}"),
-           ("substeps/step", "substeps", "{:.1f}"), ("sim s / wall s", "sim_s_per_wall_s", "{:,.0f}"),
-           ("reset ms", "reset_ms", "{:.2f}"), (f"first {WARM_UP_STEPS} steps ms", "first_steps_ms", "{:.1f}"),
-           ("make s", "make_s", "{:.2f}"), ("import s", "import_s", "{:.2f}"),
-           ("peak MB", "peak_mb", "{:.0f}"), ("success", "success", "{}"), ("touching %", "touching", "{:.0f}"),
-           ("cycles kinematic/at rest/carried/dynamic %", "played", "{}")]
+COLUMNS = [
+    ("steps/s", "steps_per_s", "{:,.0f}"),
+    ("÷ panda-gym", "ratio", "{:.2f}×"),
+    ("µs outside physics", "outside_us", "{:,.0f}"),
+    ("physics µs/step", "physics_us", "{:,.0f}"),
+    ("substeps/step", "substeps", "{:.1f}"),
+    ("sim s / wall s", "sim_s_per_wall_s", "{:,.0f}"),
+    ("reset ms", "reset_ms", "{:.2f}"),
+    (f"first {WARM_UP_STEPS} steps ms", "first_steps_ms", "{:.1f}"),
+    ("make s", "make_s", "{:.2f}"),
+    ("import s", "import_s", "{:.2f}"),
+    ("peak MB", "peak_mb", "{:.0f}"),
+    ("success", "success", "{}"),
+    ("touching %", "touching", "{:.0f}"),
+    ("cycles kinematic/at rest/carried/dynamic %", "played", "{}"),
+]
 
 
 def cells(row: dict) -> list[str]:
@@ -348,23 +382,35 @@ def summarise(results: list[dict], ids: list[str]) -> list[dict]:
         row["ratio"] = None
         if twin is not None:
             # the ratio per round, then its median: both ran in the same round, back to back
-            ratios = [mine["steps_per_s"] / other["steps_per_s"]
-                      for mine in results if mine["id"] == row["id"]
-                      for other in results if other["id"] == twin["id"] and other["seed"] == mine["seed"]]
+            ratios = [
+                mine["steps_per_s"] / other["steps_per_s"]
+                for mine in results
+                if mine["id"] == row["id"]
+                for other in results
+                if other["id"] == twin["id"] and other["seed"] == mine["seed"]
+            ]
             row["ratio"] = statistics.median(ratios) if ratios else None
     return rows
 
 
 def vector_scaling(ids: list[str], args, report: Report) -> None:
     counts = sorted({1, args.vector})
-    results = [run_one(env_id, args.steps, "random", r, [], vector=n)
-               for r in range(args.rounds) for env_id in ids for n in counts]
-    table = report.table(["env", *(f"num_envs={n}" for n in counts), f"scaling {counts[-1]} ÷ 1"],
-                         title=f"async vector envs, random actions: env steps/s summed over the sub-processes "
-                               f"(medians of {args.rounds} rounds x {args.steps} vector steps; {os.cpu_count()} cores)")
+    results = [
+        run_one(env_id, args.steps, "random", r, [], vector=n)
+        for r in range(args.rounds)
+        for env_id in ids
+        for n in counts
+    ]
+    table = report.table(
+        ["env", *(f"num_envs={n}" for n in counts), f"scaling {counts[-1]} ÷ 1"],
+        title=f"async vector envs, random actions: env steps/s summed over the sub-processes "
+        f"(medians of {args.rounds} rounds x {args.steps} vector steps; {os.cpu_count()} cores)",
+    )
     for env_id in ids:
-        rates = [statistics.median(r["steps_per_s"] for r in results if r["id"] == env_id and r["num_envs"] == n)
-                 for n in counts]
+        rates = [
+            statistics.median(r["steps_per_s"] for r in results if r["id"] == env_id and r["num_envs"] == n)
+            for n in counts
+        ]
         table.add(env_id, *(f"{rate:,.0f}" for rate in rates), f"{rates[-1] / rates[0]:.2f}×")
 
 
@@ -381,8 +427,13 @@ def main() -> None:
     parser.add_argument("--worker", help=argparse.SUPPRESS)
     parser.add_argument("--seed", type=int, default=0, help=argparse.SUPPRESS)
     parser.add_argument("--vector-worker", type=int, default=0, help=argparse.SUPPRESS)
-    parser.add_argument("--vector", type=int, default=0, metavar="N",
-                        help="instead: env steps/s of gym.make_vec(ID, num_envs=1 and N, async), random actions")
+    parser.add_argument(
+        "--vector",
+        type=int,
+        default=0,
+        metavar="N",
+        help="instead: env steps/s of gym.make_vec(ID, num_envs=1 and N, async), random actions",
+    )
     args = parser.parse_args()
 
     if args.worker:
@@ -409,20 +460,26 @@ def main() -> None:
         report.finish()
         return
     policies = ["random", "scripted"] if args.policy == "both" else [args.policy]
-    report.note(f"load before: {os.getloadavg()[0]:.2f}; {args.rounds} rounds x {args.steps} steps; "
-                f"kwargs: {args.kwarg or 'none'}")
+    report.note(
+        f"load before: {os.getloadavg()[0]:.2f}; {args.rounds} rounds x {args.steps} steps; "
+        f"kwargs: {args.kwarg or 'none'}"
+    )
     raw = []
     for policy in policies:
         results = []
         for round_index in range(args.rounds):
             for env_id in ids:
                 results.append(run_one(env_id, args.steps, policy, round_index, args.kwarg))
-                print(f"  round {round_index + 1} {policy:8} {env_id:22} {results[-1]['steps_per_s']:8.0f} steps/s",
-                      file=sys.stderr, flush=True)
+                print(
+                    f"  round {round_index + 1} {policy:8} {env_id:22} {results[-1]['steps_per_s']:8.0f} steps/s",
+                    file=sys.stderr,
+                    flush=True,
+                )
         raw += results
-        table = report.table(["env"] + [c[0] for c in COLUMNS],
-                             title=f"{policy} actions (medians of {args.rounds} rounds x {args.steps} steps, "
-                                   f"fresh process each)")
+        table = report.table(
+            ["env"] + [c[0] for c in COLUMNS],
+            title=f"{policy} actions (medians of {args.rounds} rounds x {args.steps} steps, fresh process each)",
+        )
         for row in summarise(results, ids):
             table.add(*cells(row))
     report.note(f"load after: {os.getloadavg()[0]:.2f}")

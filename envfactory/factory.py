@@ -7,16 +7,17 @@ import functools
 from pathlib import Path
 from typing import Any, Iterable
 
-from envfactory.registration import registry, validation_cache
 from envfactory.compiler import compile_blueprint
 from envfactory.envs import GoalRobotEnv, RobotEnv
+from envfactory.registration import registry, validation_cache
 from envfactory.registration.registry import BUILTIN_SOURCE, CALL_SOURCE, IdRecord
 from envfactory.schema.compose import composed_config, kwarg_aliases, load_env_spec
 from envfactory.schema.errors import SpecError
 
 
-def register_specs(folder: str | Path, validate: bool = True, source: str = CALL_SOURCE
-                   ) -> tuple[list[str], list[SpecError]]:
+def register_specs(
+    folder: str | Path, validate: bool = True, source: str = CALL_SOURCE
+) -> tuple[list[str], list[SpecError]]:
     """Register every valid family in `folder`; return the new IDs and the problems of the rest. With
     `validate` each ID is composed and compiled first, as `make` would; a family registers whole or not at all."""
     return registry.register_folder(folder, check_family if validate else None, source)
@@ -64,8 +65,11 @@ def _remember_failure(record: IdRecord, error: SpecError) -> None:
     # the family's own line first: that is where the user looks
     own = [p for p in error.problems if p.file and Path(p.file).resolve() == record.family.path.resolve()]
     first = (own or error.problems)[0]
-    validation_cache.remember(record.family.path, False, {"path": first.path, "message": first.message,
-                                                  "file": first.file, "line": first.line})
+    validation_cache.remember(
+        record.family.path,
+        False,
+        {"path": first.path, "message": first.message, "file": first.file, "line": first.line},
+    )
 
 
 def _freeze(value: Any) -> Any:
@@ -115,5 +119,6 @@ def simulation_only_kwargs(env_id: str, kwargs: dict[str, Any]) -> list[str]:
     """The kwargs that set, in the ID's family, something only a simulator has."""
     config, _ = composed_config(registry.records()[env_id].family)
     aliases = kwarg_aliases(config)
-    return sorted(name for name in kwargs
-                  if any(aliases.get(name, "").startswith(prefix) for prefix in SIMULATION_ONLY_PATHS))
+    return sorted(
+        name for name in kwargs if any(aliases.get(name, "").startswith(prefix) for prefix in SIMULATION_ONLY_PATHS)
+    )

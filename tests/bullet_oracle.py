@@ -25,16 +25,27 @@ class BulletJudge:
         # a second client holds the same robot and scene, posed along commanded motions
         self.client = p.connect(p.DIRECT)
         spec = env.blueprint.spec
-        self.obstacles = [p.createMultiBody(0, p.createCollisionShape(p.GEOM_BOX, halfExtents=list(o.half_extents),
-                                                                      physicsClientId=self.client),
-                                            basePosition=list(o.center), physicsClientId=self.client)
-                          for o in scene_obstacles(spec)]
+        self.obstacles = [
+            p.createMultiBody(
+                0,
+                p.createCollisionShape(p.GEOM_BOX, halfExtents=list(o.half_extents), physicsClientId=self.client),
+                basePosition=list(o.center),
+                physicsClientId=self.client,
+            )
+            for o in scene_obstacles(spec)
+        ]
         # the base turned by PyBullet's own reading of the rpy, not by envfactory's
-        self.body = p.loadURDF(str(env.kinematics.urdf_path), basePosition=list(spec.robot.mount),
-                               baseOrientation=p.getQuaternionFromEuler(list(spec.robot.mount_rpy)),
-                               useFixedBase=True, physicsClientId=self.client)
-        infos = [p.getJointInfo(self.body, j, physicsClientId=self.client)
-                 for j in range(p.getNumJoints(self.body, physicsClientId=self.client))]
+        self.body = p.loadURDF(
+            str(env.kinematics.urdf_path),
+            basePosition=list(spec.robot.mount),
+            baseOrientation=p.getQuaternionFromEuler(list(spec.robot.mount_rpy)),
+            useFixedBase=True,
+            physicsClientId=self.client,
+        )
+        infos = [
+            p.getJointInfo(self.body, j, physicsClientId=self.client)
+            for j in range(p.getNumJoints(self.body, physicsClientId=self.client))
+        ]
         self.joint_index = {info[1].decode(): info[0] for info in infos}
         link_index = {info[12].decode(): info[0] for info in infos}
         link_index[p.getBodyInfo(self.body, physicsClientId=self.client)[0].decode()] = -1
@@ -45,14 +56,19 @@ class BulletJudge:
         exempt_links = {frozenset(shape_link[name] for name in key) for key in exempt}
         collision_links = {link_index[shape.link] for shape in env.safety.collision.shapes}
         names = {v: k for k, v in link_index.items()}
-        self.self_pairs = [(a, b) for a in sorted(collision_links) for b in sorted(collision_links)
-                           if a < b and frozenset((names[a], names[b])) not in exempt_links]
+        self.self_pairs = [
+            (a, b)
+            for a in sorted(collision_links)
+            for b in sorted(collision_links)
+            if a < b and frozenset((names[a], names[b])) not in exempt_links
+        ]
         robot = spec.robot
         self.arm = [self.joint_index[j.name] for j in robot.arm_joints]
         self.gripper = None
         if robot.gripper is not None:
             self.gripper = [(self.joint_index[robot.gripper.joint], 1.0)] + [
-                (self.joint_index[name], gain) for name, gain in robot.gripper.mimic.items()]
+                (self.joint_index[name], gain) for name, gain in robot.gripper.mimic.items()
+            ]
         self.moving = [link_index[shape.link] for shape in env.safety.collision.shapes if shape.joint != 0]
 
     def close(self):
@@ -66,8 +82,9 @@ class BulletJudge:
                     if point[8] < lowest:
                         lowest, what = point[8], f"link {link} / body {obstacle}"
         for a, b in self.self_pairs:
-            for point in p.getClosestPoints(body, body, self.margin, linkIndexA=a, linkIndexB=b,
-                                            physicsClientId=client):
+            for point in p.getClosestPoints(
+                body, body, self.margin, linkIndexA=a, linkIndexB=b, physicsClientId=client
+            ):
                 if point[8] < lowest:
                     lowest, what = point[8], f"links {a} / {b}"
         return lowest, what
@@ -134,8 +151,7 @@ class _Repeated:
         return self.action
 
 
-POLICIES = {"random": lambda: _random, "down": lambda: _down, "extremes": lambda: _extremes,
-            "repeated": _Repeated}
+POLICIES = {"random": lambda: _random, "down": lambda: _down, "extremes": lambda: _extremes, "repeated": _Repeated}
 ADVERSARIAL = ("down", "extremes", "repeated")
 
 
@@ -162,8 +178,9 @@ def judge_steps(env, policy_name: str, steps: int, seed: int = 0, episode_length
                 result["accepted"] += 1
                 gripper_to = state.gripper if command.gripper is None else command.gripper
                 for where, (value, what) in (
-                        ("simulated", judge.simulated()),
-                        ("commanded", judge.commanded(state.q_arm, command.q_arm, state.gripper, gripper_to))):
+                    ("simulated", judge.simulated()),
+                    ("commanded", judge.commanded(state.q_arm, command.q_arm, state.gripper, gripper_to)),
+                ):
                     result["lowest"] = min(result["lowest"], value)
                     if value < margin:
                         result["violations"].append((step, where, round(float(value), 4), what))

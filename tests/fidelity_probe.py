@@ -247,7 +247,9 @@ def assert_within(gaps, what: str) -> None:
     assert gaps.ee, f"{what}: no step was measured"
     assert max(gaps.ee) <= EE_TOLERANCE, f"{what}: EE {1e3 * max(gaps.ee):.3f} mm from full dynamics"
     if gaps.object_position:
-        assert max(gaps.object_position) <= OBJECT_TOLERANCE, \
+        assert max(gaps.object_position) <= OBJECT_TOLERANCE, (
             f"{what}: object {1e3 * max(gaps.object_position):.3f} mm from full dynamics"
-        assert max(gaps.object_angle) <= ANGLE_TOLERANCE, \
+        )
+        assert max(gaps.object_angle) <= ANGLE_TOLERANCE, (
             f"{what}: object turned {np.degrees(max(gaps.object_angle)):.3f}° from full dynamics"
+        )

@@ -77,12 +77,15 @@ def _link_meshes(urdf: Path, strip: str = "", links: set[str] | None = None):
             yield name, meshes
 
 
-def link_mesh_points(urdf: Path, strip: str = "", spacing: float = 0.004,
-                     links: set[str] | None = None) -> dict[str, np.ndarray]:
+def link_mesh_points(
+    urdf: Path, strip: str = "", spacing: float = 0.004, links: set[str] | None = None
+) -> dict[str, np.ndarray]:
     """Each link's collision mesh surface in the link frame (points at most `spacing` apart), by link name
     less `strip`; only the named links, if given."""
-    return {name: np.vstack([surface_points(corners, spacing) for corners in meshes])
-            for name, meshes in _link_meshes(urdf, strip, links)}
+    return {
+        name: np.vstack([surface_points(corners, spacing) for corners in meshes])
+        for name, meshes in _link_meshes(urdf, strip, links)
+    }
 
 
 def link_primitives(urdf: Path) -> dict[str, list[tuple[str, pin.SE3, np.ndarray]]]:
@@ -100,7 +103,9 @@ def link_primitives(urdf: Path) -> dict[str, list[tuple[str, pin.SE3, np.ndarray
             elif geometry.tag == "sphere":
                 size = np.array([float(geometry.get("radius"))])
             else:
-                raise ValueError(f"{urdf.name}: link {link.get('name')} has a {geometry.tag} collision, not a primitive")
+                raise ValueError(
+                    f"{urdf.name}: link {link.get('name')} has a {geometry.tag} collision, not a primitive"
+                )
             shapes.append((geometry.tag, _origin(collision), size))
         result[link.get("name")] = shapes
     return result
@@ -125,7 +130,7 @@ def configuration(model: pin.Model, values: dict[str, float]) -> np.ndarray:
         name, joint = model.names[joint_id], model.joints[joint_id]
         value = values.get(name, 0.0)
         if joint.nq == 2:
-            q[joint.idx_q:joint.idx_q + 2] = np.cos(value), np.sin(value)
+            q[joint.idx_q : joint.idx_q + 2] = np.cos(value), np.sin(value)
         else:
             q[joint.idx_q] = value
     return q
@@ -133,8 +138,9 @@ def configuration(model: pin.Model, values: dict[str, float]) -> np.ndarray:
 
 def link_triangles(urdf: Path, strip: str = "") -> dict[str, np.ndarray]:
     """Each link's collision mesh as triangles (n, 3, 3) in the link frame, by link name less `strip`."""
-    return {name: np.vstack([corners.reshape(-1, 3, 3) for corners in meshes])
-            for name, meshes in _link_meshes(urdf, strip)}
+    return {
+        name: np.vstack([corners.reshape(-1, 3, 3) for corners in meshes]) for name, meshes in _link_meshes(urdf, strip)
+    }
 
 
 class MakerMeshes:
@@ -145,8 +151,11 @@ class MakerMeshes:
     def __init__(self, urdf: Path, strip: str = ""):
         self.model = pin.buildModelFromUrdf(str(urdf))
         self.data = self.model.createData()
-        self.frames = {frame.name.removeprefix(strip): index for index, frame in enumerate(self.model.frames)
-                       if frame.type == pin.BODY}
+        self.frames = {
+            frame.name.removeprefix(strip): index
+            for index, frame in enumerate(self.model.frames)
+            if frame.type == pin.BODY
+        }
         self.meshes = {}
         for link, triangles in link_triangles(urdf, strip).items():
             mesh = coal.BVHModelOBBRSS()
@@ -159,8 +168,12 @@ class MakerMeshes:
     def pose(self, values: dict[str, float]) -> dict[str, coal.Transform3s]:
         """Every meshed link's placement at these joint values (by name; the others at zero)."""
         pin.framesForwardKinematics(self.model, self.data, configuration(self.model, values))
-        return {link: coal.Transform3s(self.data.oMf[self.frames[link]].rotation,
-                                       self.data.oMf[self.frames[link]].translation) for link in self.meshes}
+        return {
+            link: coal.Transform3s(
+                self.data.oMf[self.frames[link]].rotation, self.data.oMf[self.frames[link]].translation
+            )
+            for link in self.meshes
+        }
 
     def distance(self, placed: dict[str, coal.Transform3s], first: str, second: str) -> float:
         """The gap between two posed links' meshes; 0 when they touch or cross."""
@@ -168,5 +181,6 @@ class MakerMeshes:
         crossing = coal.CollisionResult()
         if coal.collide(a, placed[first], b, placed[second], coal.CollisionRequest(), crossing):
             return 0.0
-        return max(coal.distance(a, placed[first], b, placed[second], coal.DistanceRequest(), coal.DistanceResult()),
-                   0.0)
+        return max(
+            coal.distance(a, placed[first], b, placed[second], coal.DistanceRequest(), coal.DistanceResult()), 0.0
+        )

@@ -42,8 +42,10 @@ def _action(env, picks: list[int], fractions: list[float]) -> np.ndarray:
 
 @pytest.mark.parametrize("case", range(len(CASES)), ids=[f"{i}-{k}" for i, k in CASES])
 @settings(max_examples=12, deadline=None)
-@given(picks=st.lists(st.integers(0, 2), min_size=8, max_size=8),
-       fractions=st.lists(st.floats(0.0, 1.0), min_size=8, max_size=8))
+@given(
+    picks=st.lists(st.integers(0, 2), min_size=8, max_size=8),
+    fractions=st.lists(st.floats(0.0, 1.0), min_size=8, max_size=8),
+)
 def test_an_action_on_the_bounds_is_not_flagged(case, picks, fractions):
     env = _env(case)
     env.reset(seed=0)

@@ -22,8 +22,10 @@ from envfactory.schema.errors import SpecError
 # and a UR5e tilted on all three axes, its task frame the world
 TURNED = {
     "vx300s-yaw": ("VX300SPushSim-v0", ["+robot.mount_rpy=[0.0,0.0,0.7]"]),
-    "ur5e-tilt": ("UR5eReacherSim-v0", ["+robot.mount_rpy=[0.15,-0.1,0.5]", "robot.pedestal=null",
-                                        "task.goal.box=[[0.4,0.0,0.9],[0.7,0.3,1.1]]"]),
+    "ur5e-tilt": (
+        "UR5eReacherSim-v0",
+        ["+robot.mount_rpy=[0.15,-0.1,0.5]", "robot.pedestal=null", "task.goal.box=[[0.4,0.0,0.9],[0.7,0.3,1.1]]"],
+    ),
 }
 
 
@@ -46,8 +48,10 @@ def turned(request):
 
 def _links(env) -> dict[str, int]:
     backend = env.backend
-    return {p.getJointInfo(backend.body, j, physicsClientId=backend.client)[12].decode(): j
-            for j in range(p.getNumJoints(backend.body, physicsClientId=backend.client))}
+    return {
+        p.getJointInfo(backend.body, j, physicsClientId=backend.client)[12].decode(): j
+        for j in range(p.getNumJoints(backend.body, physicsClientId=backend.client))
+    }
 
 
 def _to_task(env, world_position) -> np.ndarray:
@@ -74,13 +78,21 @@ def test_every_link_and_the_ee_sit_where_pybullet_puts_them(turned):
         pin_data = model.createData()
         pin.framesForwardKinematics(model, pin_data, kin.full_q(q, backend.robot.gripper.open))
         for name in shared:
-            state = p.getLinkState(backend.body, links[name], computeForwardKinematics=1,
-                                   physicsClientId=backend.client)
+            state = p.getLinkState(
+                backend.body, links[name], computeForwardKinematics=1, physicsClientId=backend.client
+            )
             placement = pin_data.oMf[model.getFrameId(name)]
-            worst_link = max(worst_link, np.abs(mount + placement.translation - state[4]).max(),
-                             np.abs(placement.rotation - bullet_rotation(state[5])).max())
-        ee_state = p.getLinkState(backend.body, links[env.blueprint.spec.robot.ee_frame], computeForwardKinematics=1,
-                                  physicsClientId=backend.client)
+            worst_link = max(
+                worst_link,
+                np.abs(mount + placement.translation - state[4]).max(),
+                np.abs(placement.rotation - bullet_rotation(state[5])).max(),
+            )
+        ee_state = p.getLinkState(
+            backend.body,
+            links[env.blueprint.spec.robot.ee_frame],
+            computeForwardKinematics=1,
+            physicsClientId=backend.client,
+        )
         position, rotation = kin.ee_pose(q, backend.robot.gripper.open)
         expected = _to_task(env, ee_state[4])
         worst_ee = max(worst_ee, np.abs(position - expected).max())
@@ -109,14 +121,21 @@ def test_collision_clearances_agree_with_pybullet_distances(turned):
     collision = env.safety.collision
     judge = BulletJudge(env, 0.0)
     try:
-        links = {p.getJointInfo(judge.body, j, physicsClientId=judge.client)[12].decode(): j
-                 for j in range(p.getNumJoints(judge.body, physicsClientId=judge.client))}
+        links = {
+            p.getJointInfo(judge.body, j, physicsClientId=judge.client)[12].decode(): j
+            for j in range(p.getNumJoints(judge.body, physicsClientId=judge.client))
+        }
         links[p.getBodyInfo(judge.body, physicsClientId=judge.client)[0].decode()] = -1
         # the check widens the table top sideways; Bullet gets the same boxes the check uses
-        obstacles = [p.createMultiBody(0, p.createCollisionShape(p.GEOM_BOX, halfExtents=list(o.half_extents),
-                                                                 physicsClientId=judge.client),
-                                       basePosition=list(o.center), physicsClientId=judge.client)
-                     for o in collision.obstacles]
+        obstacles = [
+            p.createMultiBody(
+                0,
+                p.createCollisionShape(p.GEOM_BOX, halfExtents=list(o.half_extents), physicsClientId=judge.client),
+                basePosition=list(o.center),
+                physicsClientId=judge.client,
+            )
+            for o in collision.obstacles
+        ]
         compared, worst = 0, 0.0
         scene = len(collision.scene_shape)
         for _ in range(15):
@@ -133,8 +152,9 @@ def test_collision_clearances_agree_with_pybullet_distances(turned):
             for (link, obstacle), value in lowest.items():
                 if value > 0.3:
                     continue  # far pairs: Bullet answers only within its query distance
-                points = p.getClosestPoints(judge.body, obstacles[obstacle], 0.5, linkIndexA=links[link],
-                                            physicsClientId=judge.client)
+                points = p.getClosestPoints(
+                    judge.body, obstacles[obstacle], 0.5, linkIndexA=links[link], physicsClientId=judge.client
+                )
                 bullet = min(point[8] for point in points)
                 worst = max(worst, abs(bullet - value))
                 compared += 1
@@ -181,9 +201,12 @@ def test_accepted_steps_keep_the_margin_by_pybullet(name):
         env.close()
 
 
-@pytest.mark.parametrize("overrides, words", [
-    (["+robot.mount_rpy=[0.2,0.0,0.0]"], "needs 'task_frame: world'"),
-])
+@pytest.mark.parametrize(
+    "overrides, words",
+    [
+        (["+robot.mount_rpy=[0.2,0.0,0.0]"], "needs 'task_frame: world'"),
+    ],
+)
 def test_a_tilted_base_task_frame_is_refused_with_the_line(overrides, words):
     with pytest.raises(SpecError) as error:
         envfactory.blueprint("VX300SReacherSim-v0", overrides)

@@ -46,8 +46,9 @@ def test_run_prints_a_table_and_writes_video(tmp_path):
 
 def _episode_rows(output: str) -> list[list[str]]:
     """The cells of each episode row of `run`'s table."""
-    rows = [[cell.strip() for cell in line.strip("│ ").split("│")] for line in output.splitlines()
-            if line.startswith("│")]
+    rows = [
+        [cell.strip() for cell in line.strip("│ ").split("│")] for line in output.splitlines() if line.startswith("│")
+    ]
     return [row for row in rows if row and row[0].isdigit()]
 
 
@@ -101,8 +102,11 @@ def test_twin_help_lists_every_robot_with_a_real_path():
     from envfactory import factory
     from envfactory.registration import registry
 
-    real = {factory.blueprint(env_id).spec.robot.name for env_id, record in registry.records().items()
-            if record.backend == "rosbridge"}
+    real = {
+        factory.blueprint(env_id).spec.robot.name
+        for env_id, record in registry.records().items()
+        if record.backend == "rosbridge"
+    }
     assert real == {"ur5e", "vx300s", "rx200", "ned2"}
     result = runner.invoke(app, ["twin", "--help"])
     assert result.exit_code == 0
@@ -130,14 +134,19 @@ def test_bad_input_never_prints_a_traceback(tmp_path):
         assert result.exit_code == 1, (args, result.output)
         assert expected in result.output, (args, result.output)
         # an escaped exception would be an Exception; a clean exit is SystemExit (a BaseException)
-        assert "Traceback" not in result.output and not isinstance(result.exception, Exception), (args, result.exception)
+        assert "Traceback" not in result.output and not isinstance(result.exception, Exception), (
+            args,
+            result.exception,
+        )
 
 
 def test_video_path_is_checked_before_any_episode(tmp_path):
-    for path, expected in ((tmp_path / "no" / "dir" / "out.mp4", "does not exist"),
-                           (Path("/proc/out.mp4"), "cannot write here"),
-                           (tmp_path, "must end in one of"),
-                           (tmp_path / "out.txt", "must end in one of")):
+    for path, expected in (
+        (tmp_path / "no" / "dir" / "out.mp4", "does not exist"),
+        (Path("/proc/out.mp4"), "cannot write here"),
+        (tmp_path, "must end in one of"),
+        (tmp_path / "out.txt", "must end in one of"),
+    ):
         result = runner.invoke(app, ["run", "UR5eReacherSim-v0", "-n", "3", "--video", str(path)])
         assert result.exit_code == 1 and expected in result.output, result.output
         assert "success rate" not in result.output  # refused before the episodes ran
@@ -165,7 +174,9 @@ def test_describe_reflects_kwargs_and_overrides():
         assert "Lift stage" not in off.output and "multi_goal=False" in off.output, args
         assert "current goal" not in off.output
     coeff = runner.invoke(app, ["describe", "UR5eReacherSim-v0", "-k", "delta_coeff=0.03", "-k", "max_joint_delta=0.2"])
-    assert "delta × 0.03" in coeff.output and "max_joint_delta=0.2" in coeff.output and "delta_coeff=0.03" in coeff.output
+    assert (
+        "delta × 0.03" in coeff.output and "max_joint_delta=0.2" in coeff.output and "delta_coeff=0.03" in coeff.output
+    )
 
 
 def test_validate_reports_a_user_id_that_clashes_with_a_builtin(tmp_path):

@@ -17,24 +17,34 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from envfactory.registration import registry
 from envfactory.learn import extra
+from envfactory.registration import registry
 
 ray = pytest.importorskip("ray", reason="the [ray] extra is not installed (pip install 'envfactory[ray]')")
+
+from test_robot_folder import _robot_folder  # noqa: E402
 
 from envfactory.cli.app import app  # noqa: E402
 from envfactory.cluster import pool, trials  # noqa: E402
 from envfactory.cluster.work import Evaluation, Workspace, run_here  # noqa: E402
 from envfactory.factory import unregister_folder  # noqa: E402
-from test_robot_folder import _robot_folder  # noqa: E402
 
 runner = CliRunner()
 REACH, GOAL_REACH, USER_ID = "UR5eReacherSim-v0", "UR5eReacherGoalSim-v0", "MyArmReach-v0"
-TINY = ["-p", "learning_starts=110", "-p", "batch_size=32", "-p", "buffer_size=2000",
-        "-p", "policy_kwargs.net_arch=[32,32]"]
-needs_train = pytest.mark.skipif(bool(extra.missing({**extra.TRAIN_MODULES, **extra.PLOT_MODULES,
-                                                     **extra.COLLECT_MODULES})),
-                                 reason="the [train] extra is not installed (pip install -e '.[train]')")
+TINY = [
+    "-p",
+    "learning_starts=110",
+    "-p",
+    "batch_size=32",
+    "-p",
+    "buffer_size=2000",
+    "-p",
+    "policy_kwargs.net_arch=[32,32]",
+]
+needs_train = pytest.mark.skipif(
+    bool(extra.missing({**extra.TRAIN_MODULES, **extra.PLOT_MODULES, **extra.COLLECT_MODULES})),
+    reason="the [train] extra is not installed (pip install -e '.[train]')",
+)
 
 # the crash test's work class lives here: the workers get it by value, as they cannot import a test module
 ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
@@ -69,8 +79,19 @@ def _rows(path: Path) -> list[dict]:
 def test_evaluate_on_two_workers_gives_the_episodes_of_one_process(tmp_path, monkeypatch, user_folder):
     monkeypatch.chdir(user_folder.parent)  # the folder is given relative to the head's working folder
     here, spread = tmp_path / "here.csv", tmp_path / "spread.csv"
-    common = ["evaluate", REACH, "UR5ePushGoalSim-v0", USER_ID, "-n", "5", "--seed", "7", "--specs",
-              user_folder.name, "--no-progress"]
+    common = [
+        "evaluate",
+        REACH,
+        "UR5ePushGoalSim-v0",
+        USER_ID,
+        "-n",
+        "5",
+        "--seed",
+        "7",
+        "--specs",
+        user_folder.name,
+        "--no-progress",
+    ]
     try:
         _ok(*common, "--csv", here)
         _ok(*common, "--csv", spread, "--workers", "2")
@@ -90,8 +111,9 @@ def test_collect_on_two_workers_writes_the_dataset_of_one_process(tmp_path):
     for path in files:
         found = {}
         with h5py.File(path) as data:
-            data.visititems(lambda key, item: found.__setitem__(key, item[()]) if isinstance(item, h5py.Dataset)
-                            else None)
+            data.visititems(
+                lambda key, item: found.__setitem__(key, item[()]) if isinstance(item, h5py.Dataset) else None
+            )
             seeds = [int(data[f"episode_{i}"].attrs["seed"]) for i in range(6)]
         contents.append(found)
         assert seeds == list(range(3, 9))
@@ -127,8 +149,11 @@ def test_a_killed_worker_costs_no_episode_and_adds_no_partial_one(tmp_path):
 
 
 def test_an_error_in_the_work_names_the_id_and_the_seeds():
-    with pytest.raises(pool.ClusterError, match=r"(?s)UR5eReacherSim-v0 seeds \d\.\.\d: SpecError: .*unknown kwarg "
-                                                "'no_such_kwarg'"):
+    with pytest.raises(
+        pool.ClusterError,
+        match=r"(?s)UR5eReacherSim-v0 seeds \d\.\.\d: SpecError: .*unknown kwarg "
+        "'no_such_kwarg'",
+    ):
         pool.run_episodes([Evaluation(REACH, {"no_such_kwarg": 1})], range(0, 2), workers=2, progress=False)
 
 
@@ -136,8 +161,24 @@ def test_an_error_in_the_work_names_the_id_and_the_seeds():
 def trained(tmp_path_factory):
     """Two tiny SAC trials of the Reach goal env as Ray Tune trials on two workers: their group folder."""
     group = tmp_path_factory.mktemp("trials") / "group"
-    _ok("train", GOAL_REACH, "--seeds", "0,1", "--steps", "240", "--eval-every", "120", "--eval-episodes", "2",
-        "--out", group, "--workers", "2", "--no-progress", *TINY)
+    _ok(
+        "train",
+        GOAL_REACH,
+        "--seeds",
+        "0,1",
+        "--steps",
+        "240",
+        "--eval-every",
+        "120",
+        "--eval-episodes",
+        "2",
+        "--out",
+        group,
+        "--workers",
+        "2",
+        "--no-progress",
+        *TINY,
+    )
     return group
 
 
@@ -155,8 +196,9 @@ def test_trials_write_their_run_folders_a_summary_and_the_curves(trained):
     # each ran as a Ray Tune trial and reported its evaluations to Tune as they happened (Tune's own record)
     for seed in (0, 1):
         reported = _rows(trained / "tune" / "trials" / f"seed{seed}" / "progress.csv")
-        assert [(int(r["timesteps"]), float(r["success_rate"])) for r in reported] == \
-            [(int(r["timesteps"]), float(r["success_rate"])) for r in _rows(trained / f"seed{seed}" / "curve.csv")]
+        assert [(int(r["timesteps"]), float(r["success_rate"])) for r in reported] == [
+            (int(r["timesteps"]), float(r["success_rate"])) for r in _rows(trained / f"seed{seed}" / "curve.csv")
+        ]
 
 
 @needs_train
@@ -177,16 +219,20 @@ def test_rllib_trains_a_few_iterations_on_a_goal_id_by_name():
     from envfactory.cluster import rllib
 
     assert GOAL_REACH in rllib.register([GOAL_REACH])
-    config = (PPOConfig().environment(GOAL_REACH, env_config={"ee_action_type": True, "flatten_observation": True})
-              .env_runners(num_env_runners=2, rollout_fragment_length=50)
-              .training(train_batch_size_per_learner=200, minibatch_size=100, num_epochs=1)
-              .rl_module(model_config={"fcnet_hiddens": [16, 16]}))
+    config = (
+        PPOConfig()
+        .environment(GOAL_REACH, env_config={"ee_action_type": True, "flatten_observation": True})
+        .env_runners(num_env_runners=2, rollout_fragment_length=50)
+        .training(train_batch_size_per_learner=200, minibatch_size=100, num_epochs=1)
+        .rl_module(model_config={"fcnet_hiddens": [16, 16]})
+    )
     algo = config.build_algo()
     try:
         sampled = [algo.train()["env_runners"]["num_env_steps_sampled_lifetime"] for _ in range(2)]
         spaces = algo.env_runner_group.foreach_env_runner(
             lambda runner: (runner.env.single_action_space.shape, runner.env.single_observation_space.shape),
-            local_env_runner=False)
+            local_env_runner=False,
+        )
     finally:
         algo.stop()
     assert sampled[0] >= 200 and sampled[1] >= sampled[0] + 200

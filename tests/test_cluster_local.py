@@ -15,10 +15,10 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
+from test_robot_folder import _robot_folder
 from typer.testing import CliRunner
 
 from envfactory import cluster
-from envfactory.registration import registry
 from envfactory.cli.app import app
 from envfactory.cluster import bundles, trials
 from envfactory.cluster.work import Collection, Evaluation, Workspace, WorkspaceError, run_here, split
@@ -26,13 +26,15 @@ from envfactory.experts import make_policy
 from envfactory.factory import unregister_folder
 from envfactory.learn import extra
 from envfactory.learn.hyperparams import HyperparameterError
-from test_robot_folder import _robot_folder
+from envfactory.registration import registry
 
 runner = CliRunner()
 PACKAGE = Path(__file__).resolve().parents[1] / "envfactory"
 REACH = "UR5eReacherSim-v0"  # 100-step episodes in a few tens of ms
-needs_minari = pytest.mark.skipif(bool(extra.missing(extra.COLLECT_MODULES)),
-                                  reason="the [train] extra (minari) is not installed (pip install -e '.[train]')")
+needs_minari = pytest.mark.skipif(
+    bool(extra.missing(extra.COLLECT_MODULES)),
+    reason="the [train] extra (minari) is not installed (pip install -e '.[train]')",
+)
 
 
 @pytest.fixture
@@ -48,25 +50,37 @@ def test_only_the_cluster_wing_imports_ray():
     found = []
     for path in PACKAGE.rglob("*.py"):
         for node in ast.walk(ast.parse(path.read_text())):
-            names = ([alias.name for alias in node.names] if isinstance(node, ast.Import)
-                     else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+            names = (
+                [alias.name for alias in node.names]
+                if isinstance(node, ast.Import)
+                else [node.module or ""]
+                if isinstance(node, ast.ImportFrom)
+                else []
+            )
             if any(name == "ray" or name.startswith("ray.") for name in names):
                 found.append(path.relative_to(PACKAGE).parts[0])
     assert found and set(found) == {"cluster"}
 
 
 def test_the_command_does_not_import_ray():
-    done = subprocess.run([sys.executable, "-c", "import sys, envfactory.cli.app; print('ray' in sys.modules)"],
-                          capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        [sys.executable, "-c", "import sys, envfactory.cli.app; print('ray' in sys.modules)"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "False"
 
 
-@pytest.mark.parametrize("args", [
-    ["evaluate", REACH, "-n", "1", "--workers", "2"],
-    ["collect", REACH, "-n", "1", "--address", "auto"],
-    ["train", REACH, "--seeds", "0,1", "--steps", "100", "--workers", "2"],
-])
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["evaluate", REACH, "-n", "1", "--workers", "2"],
+        ["collect", REACH, "-n", "1", "--address", "auto"],
+        ["train", REACH, "--seeds", "0,1", "--steps", "100", "--workers", "2"],
+    ],
+)
 def test_without_ray_a_cluster_run_says_how_to_install_it(monkeypatch, tmp_path, args):
     monkeypatch.setitem(cluster.RAY_MODULES, "envfactory_no_such_module", "ray")
     monkeypatch.chdir(tmp_path)
@@ -160,26 +174,48 @@ def test_a_user_id_is_made_from_its_folder_copy_where_the_folder_is_gone(user_fo
 
 def test_evaluate_prints_a_success_table_and_every_episode(tmp_path, user_folder):
     out = tmp_path / "episodes.csv"
-    result = runner.invoke(app, ["evaluate", REACH, "MyArmReach-v0", "-n", "2", "--seed", "4", "--csv", str(out),
-                                 "--specs", str(user_folder), "--no-progress"])
+    result = runner.invoke(
+        app,
+        [
+            "evaluate",
+            REACH,
+            "MyArmReach-v0",
+            "-n",
+            "2",
+            "--seed",
+            "4",
+            "--csv",
+            str(out),
+            "--specs",
+            str(user_folder),
+            "--no-progress",
+        ],
+    )
     assert result.exit_code == 0, result.output
     assert "MyArmReach-v0" in result.output and "success rate:" in result.output
     rows = list(csv.DictReader(open(out)))
-    assert [(r["env_id"], int(r["seed"])) for r in rows] == [(REACH, 4), (REACH, 5), ("MyArmReach-v0", 4),
-                                                             ("MyArmReach-v0", 5)]
+    assert [(r["env_id"], int(r["seed"])) for r in rows] == [
+        (REACH, 4),
+        (REACH, 5),
+        ("MyArmReach-v0", 4),
+        ("MyArmReach-v0", 5),
+    ]
     assert all(int(r["length"]) > 0 for r in rows)
 
 
-@pytest.mark.parametrize("args, message", [
-    (["evaluate", "UR5eReacherReal-v0", "-n", "1"], "evaluate runs simulated IDs only"),
-    (["evaluate", REACH, "--policy", "random"], "use 'scripted' or a model file (.zip)"),
-    (["evaluate", REACH, "--policy", "nowhere/model.zip"], "no such file"),
-    (["evaluate", REACH, "--csv", "out.txt"], "must end in one of .csv"),
-    (["train", REACH, "--workers", "2"], "--workers and --address spread several runs: give --seeds"),
-    (["train", REACH, "--seeds", "0,x"], "write whole numbers separated by commas"),
-    (["train", REACH, "--seeds", "0,1", "--seed", "3"], "drop --resume and --seed"),
-    (["train", REACH, "--sweep", "learning_rate"], "write name=value1,value2"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["evaluate", "UR5eReacherReal-v0", "-n", "1"], "evaluate runs simulated IDs only"),
+        (["evaluate", REACH, "--policy", "random"], "use 'scripted' or a model file (.zip)"),
+        (["evaluate", REACH, "--policy", "nowhere/model.zip"], "no such file"),
+        (["evaluate", REACH, "--csv", "out.txt"], "must end in one of .csv"),
+        (["train", REACH, "--workers", "2"], "--workers and --address spread several runs: give --seeds"),
+        (["train", REACH, "--seeds", "0,x"], "write whole numbers separated by commas"),
+        (["train", REACH, "--seeds", "0,1", "--seed", "3"], "drop --resume and --seed"),
+        (["train", REACH, "--sweep", "learning_rate"], "write name=value1,value2"),
+    ],
+)
 def test_bad_cluster_options_are_named(tmp_path, monkeypatch, args, message):
     monkeypatch.chdir(tmp_path)
     result = runner.invoke(app, args)
@@ -202,7 +238,9 @@ def test_trials_that_fail_are_named_in_the_summary_and_the_others_go_on(tmp_path
 
 def test_sweep_values_keep_their_brackets():
     assert trials.parse_sweep(["learning_rate=0.001,0.0003", "policy_kwargs.net_arch=[64,64],[256,256]"]) == {
-        "learning_rate": ["0.001", "0.0003"], "policy_kwargs.net_arch": ["[64,64]", "[256,256]"]}
+        "learning_rate": ["0.001", "0.0003"],
+        "policy_kwargs.net_arch": ["[64,64]", "[256,256]"],
+    }
     with pytest.raises(HyperparameterError, match="given twice"):
         trials.parse_sweep(["tau=0.1", "tau=0.2"])
     with pytest.raises(HyperparameterError, match="name=value1,value2"):
@@ -210,10 +248,15 @@ def test_sweep_values_keep_their_brackets():
 
 
 def test_the_plan_is_seeds_times_settings_in_their_own_folders(tmp_path):
-    planned = trials.plan(REACH, tmp_path / "group", [0, 1], {"learning_rate": ["0.001", "0.0003"]}, "sac", (),
-                          100, {}, None, None, None)
-    assert [Path(t.folder).name for t in planned] == ["seed0-learning_rate=0.001", "seed1-learning_rate=0.001",
-                                                      "seed0-learning_rate=0.0003", "seed1-learning_rate=0.0003"]
+    planned = trials.plan(
+        REACH, tmp_path / "group", [0, 1], {"learning_rate": ["0.001", "0.0003"]}, "sac", (), 100, {}, None, None, None
+    )
+    assert [Path(t.folder).name for t in planned] == [
+        "seed0-learning_rate=0.001",
+        "seed1-learning_rate=0.001",
+        "seed0-learning_rate=0.0003",
+        "seed1-learning_rate=0.0003",
+    ]
     assert all(Path(t.folder).is_absolute() for t in planned)
 
 

@@ -19,12 +19,12 @@ from envfactory.learn.hyperparams import HyperparameterError, load
 runner = CliRunner()
 pytestmark = pytest.mark.skipif(
     bool(extra.missing({**extra.TRAIN_MODULES, **extra.PLOT_MODULES, **extra.COLLECT_MODULES})),
-    reason="the [train] extra is not installed (pip install -e '.[train]')")
+    reason="the [train] extra is not installed (pip install -e '.[train]')",
+)
 
 ENV_ID = "VX300SReacherGoalSim-v0"
 # the kwargs `train` makes this ID with (the default and vx300s_reach blocks of specs/train/sac.yaml)
-TRAIN_KWARGS = {"ee_action_type": True, "normalize_actions": True, "normalize_observations": True,
-                "delta_coeff": 0.035}
+TRAIN_KWARGS = {"ee_action_type": True, "normalize_actions": True, "normalize_observations": True, "delta_coeff": 0.035}
 TINY = ("learning_starts=110", "batch_size=32", "buffer_size=3000", "policy_kwargs.net_arch=[32,32]")
 
 
@@ -64,13 +64,14 @@ def test_demonstrations_enter_the_her_buffer_episode_by_episode(dataset):
             # HER knows each episode's bounds: every transition points at its own episode's start and length
             assert np.all(buffer.ep_start[rows, 0] == start) and np.all(buffer.ep_length[rows, 0] == n)
             assert np.array_equal(buffer.observations["observation"][rows, 0], episode.observations["observation"][:-1])
-            assert np.array_equal(buffer.next_observations["desired_goal"][rows, 0],
-                                  episode.observations["desired_goal"][1:])
+            assert np.array_equal(
+                buffer.next_observations["desired_goal"][rows, 0], episode.observations["desired_goal"][1:]
+            )
             # in the buffer's [-1, 1] scale: the env's action box already is, up to rounding
             assert np.allclose(buffer.actions[rows, 0], episode.actions, atol=1e-6)
             assert np.array_equal(buffer.rewards[rows, 0], episode.rewards)
             # the expert reaches every goal: the episode ends terminated, not at the time limit
-            assert buffer.dones[start + n - 1, 0] and not buffer.dones[start:start + n - 1, 0].any()
+            assert buffer.dones[start + n - 1, 0] and not buffer.dones[start : start + n - 1, 0].any()
             assert not buffer.timeouts[rows, 0].any()
             start += n
         batch = buffer.sample(64)  # relabelled goals drawn from the demonstration episodes
@@ -96,8 +97,22 @@ def test_an_episode_cut_short_ends_as_a_truncation(dataset):
 
 def test_a_dataset_from_other_kwargs_is_refused_before_a_run_folder_exists(tmp_path, dataset):
     out = tmp_path / "run"
-    result = runner.invoke(app, ["train", ENV_ID, "--demos", str(dataset), "-k", "delta_coeff=0.02", "-o", str(out),
-                                 "--steps", "120", *[w for item in TINY for w in ("-p", item)]])
+    result = runner.invoke(
+        app,
+        [
+            "train",
+            ENV_ID,
+            "--demos",
+            str(dataset),
+            "-k",
+            "delta_coeff=0.02",
+            "-o",
+            str(out),
+            "--steps",
+            "120",
+            *[w for item in TINY for w in ("-p", item)],
+        ],
+    )
     assert result.exit_code == 1
     assert "they differ in delta_coeff" in result.output
     assert "envfactory collect VX300SReacherGoalSim-v0" in result.output and "-k delta_coeff=0.02" in result.output
@@ -121,8 +136,10 @@ def test_cloning_pulls_the_actor_toward_the_demonstrated_actions(dataset):
     from envfactory.learn.demo_replay import cloning_buffer, fill, open_demonstrations
 
     demos = open_demonstrations(str(dataset))
-    observations = {k: torch.as_tensor(np.concatenate([e.observations[k][:-1] for e in demos.episodes]))
-                    for k in demos.episodes[0].observations}
+    observations = {
+        k: torch.as_tensor(np.concatenate([e.observations[k][:-1] for e in demos.episodes]))
+        for k in demos.episodes[0].observations
+    }
     expert = torch.as_tensor(np.concatenate([e.actions for e in demos.episodes]))
 
     def distance_after_updates(cloning):
@@ -131,8 +148,9 @@ def test_cloning_pulls_the_actor_toward_the_demonstrated_actions(dataset):
             model.set_logger(Logger(folder=None, output_formats=[]))
             fill(model.replay_buffer, demos, model.policy.scale_action)
             if cloning is not None:
-                model.attach_demonstrations(cloning_buffer(demos, model.observation_space, model.action_space,
-                                                           model.policy.scale_action))
+                model.attach_demonstrations(
+                    cloning_buffer(demos, model.observation_space, model.action_space, model.policy.scale_action)
+                )
             with torch.no_grad():
                 before = float(((model.actor(observations, deterministic=True) - expert) ** 2).sum(1).mean())
             model.train(gradient_steps=150, batch_size=32)
@@ -159,13 +177,15 @@ def test_the_q_filter_keeps_only_states_where_the_critic_prefers_the_demonstrati
     model, env = _model(cloning=CloningSettings(bc_weight=1.0, bc_batch_size=64, q_filter=True))
     try:
         model.set_logger(Logger(folder=None, output_formats=[]))
-        model.attach_demonstrations(cloning_buffer(demos, model.observation_space, model.action_space,
-                                                   model.policy.scale_action))
+        model.attach_demonstrations(
+            cloning_buffer(demos, model.observation_space, model.action_space, model.policy.scale_action)
+        )
 
         def critic_rating(demonstrated: float, own: float):
             def critic(observations, actions):
                 value = own if actions.requires_grad else demonstrated  # the actor's actions carry its gradient
                 return (torch.full((actions.shape[0], 1), value),)
+
             return critic
 
         for demonstrated, own, kept in ((1.0, 0.0, 1.0), (0.0, 1.0, 0.0)):
@@ -184,8 +204,23 @@ def test_the_q_filter_keeps_only_states_where_the_critic_prefers_the_demonstrati
 def test_train_with_demos_records_the_dataset_and_resumes_with_it(tmp_path, dataset):
     out = tmp_path / "run"
     common = ["--eval-every", "120", "--eval-episodes", "1", "--no-progress"]
-    result = runner.invoke(app, ["train", ENV_ID, "--demos", str(dataset), "--steps", "120", "-o", str(out), *common,
-                                 *[w for item in TINY for w in ("-p", item)], "-p", "demos.bc_weight=2.0"])
+    result = runner.invoke(
+        app,
+        [
+            "train",
+            ENV_ID,
+            "--demos",
+            str(dataset),
+            "--steps",
+            "120",
+            "-o",
+            str(out),
+            *common,
+            *[w for item in TINY for w in ("-p", item)],
+            "-p",
+            "demos.bc_weight=2.0",
+        ],
+    )
     assert result.exit_code == 0, result.output
     meta = json.loads((out / "model.json").read_text())
     demos = meta["demos"]
@@ -211,8 +246,9 @@ def test_the_demos_block_is_checked(tmp_path, dataset):
         CloningSettings.from_hyperparameters(load("sac", ENV_ID, ["demos.bc_wieght=1"]))
     with pytest.raises(HyperparameterError, match="bc_weight=-1 must be a number >= 0"):
         CloningSettings.from_hyperparameters(load("sac", ENV_ID, ["demos.bc_weight=-1"]))
-    result = runner.invoke(app, ["train", ENV_ID, "--demos", str(dataset), "-p", "demos.q_filter=maybe",
-                                 "-o", str(tmp_path / "run")])
+    result = runner.invoke(
+        app, ["train", ENV_ID, "--demos", str(dataset), "-p", "demos.q_filter=maybe", "-o", str(tmp_path / "run")]
+    )
     assert result.exit_code == 1 and "q_filter='maybe' must be true or false" in result.output
     assert not (tmp_path / "run").exists()
 

@@ -14,16 +14,24 @@ README = ROOT / "README.md"
 README_MAX_LINES = 200
 # .ci/run runs this line; the README must show it character for character
 TEST_COMMAND = "python3 -m venv .venv && .venv/bin/pip install -e '.[test]' && .venv/bin/python -m pytest -q"
-MAIN_JOB_COMMAND = ("python3 -m venv .venv && .venv/bin/pip install -e . && .venv/bin/envfactory run "
-                    "UR5eReacherSim-v0 --episodes 5 --policy scripted")
+MAIN_JOB_COMMAND = (
+    "python3 -m venv .venv && .venv/bin/pip install -e . && .venv/bin/envfactory run "
+    "UR5eReacherSim-v0 --episodes 5 --policy scripted"
+)
 
 
 def test_the_docs_site_builds_strictly(tmp_path):
     """`mkdocs build --strict`: a page missing from docs/, a broken link or anchor fails the build."""
     pytest.importorskip("mkdocs", reason="the [docs] extra is not installed: pip install -e '.[docs]'")
     pytest.importorskip("material", reason="the [docs] extra is not installed: pip install -e '.[docs]'")
-    result = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-d", str(tmp_path / "site")],
-                            cwd=ROOT, capture_output=True, text=True, timeout=300, check=False)  # asserted below, with its output
+    result = subprocess.run(
+        [sys.executable, "-m", "mkdocs", "build", "--strict", "-d", str(tmp_path / "site")],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )  # asserted below, with its output
     assert result.returncode == 0, f"mkdocs build --strict failed:\n{result.stdout}\n{result.stderr}"
     assert (tmp_path / "site" / "index.html").is_file()
 
@@ -47,9 +55,9 @@ def test_ci_runs_the_readme_test_command():
 
 def _yaml_block_after(text: str, marker: str) -> str:
     """The first ```yaml block after `marker` in the README."""
-    after = text[text.index(marker):]
+    after = text[text.index(marker) :]
     start = after.index("```yaml\n") + len("```yaml\n")
-    return after[start:after.index("```", start)]
+    return after[start : after.index("```", start)]
 
 
 def test_the_readmes_lift_example_validates_and_its_expert_lifts_the_cube(tmp_path):
@@ -64,7 +72,11 @@ def test_the_readmes_lift_example_validates_and_its_expert_lifts_the_cube(tmp_pa
     cli = [sys.executable, "-c", "from envfactory.cli.app import app; app()"]
     validated = subprocess.run([*cli, "validate", str(folder)], capture_output=True, text=True, timeout=300)
     assert validated.returncode == 0, validated.stdout + validated.stderr
-    ran = subprocess.run([*cli, "run", "VX300SLiftSim-v0", "--specs", str(folder), "-n", "3"], capture_output=True,
-                         text=True, timeout=300)
+    ran = subprocess.run(
+        [*cli, "run", "VX300SLiftSim-v0", "--specs", str(folder), "-n", "3"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert ran.returncode == 0, ran.stdout + ran.stderr
     assert "success rate: 100% over 3 episodes" in ran.stdout, ran.stdout

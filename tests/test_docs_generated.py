@@ -27,8 +27,9 @@ from envfactory.views.describe import description_parts, render_description  # n
 
 def test_generated_pages_are_up_to_date():
     """The Markdown pages equal what the generator writes now (pictures are not compared)."""
-    done = subprocess.run([sys.executable, str(SCRIPTS / "generate.py"), "--check"], capture_output=True, text=True,
-                          cwd=REPO, timeout=300)
+    done = subprocess.run(
+        [sys.executable, str(SCRIPTS / "generate.py"), "--check"], capture_output=True, text=True, cwd=REPO, timeout=300
+    )
     assert done.returncode == 0, done.stderr
 
 
@@ -40,8 +41,10 @@ def test_check_names_a_missing_a_drifted_and_a_stale_page(tmp_path):
     (tmp_path / "envs" / "hand_written.md").write_text("# not generated, never touched\n")
     generated = {"envs/same.md": "same\n", "envs/drifted.md": "generated\n", "envs/new.md": "new\n"}
     assert sorted(generate.out_of_date(generated, tmp_path)) == [
-        "docs/envs/drifted.md: out of date", "docs/envs/new.md: missing",
-        "docs/envs/removed_family.md: no longer generated (delete it)"]
+        "docs/envs/drifted.md: out of date",
+        "docs/envs/new.md: missing",
+        "docs/envs/removed_family.md: no longer generated (delete it)",
+    ]
     generate.write(generated, tmp_path)
     assert generate.out_of_date(generated, tmp_path) == []
     assert (tmp_path / "envs" / "hand_written.md").exists() and not (tmp_path / "envs" / "removed_family.md").exists()
@@ -69,8 +72,9 @@ def test_markdown_escapes_what_markdown_would_read_as_markup():
 
 def test_kwargs_page_refuses_a_kwarg_without_meaning():
     with pytest.raises(ValueError, match="no meaning for brand_new_kwarg"):
-        reference_pages._check_accepted({**{name: {"x": []} for name in reference_pages.MEANINGS},
-                                         "brand_new_kwarg": {"env.new": []}})
+        reference_pages._check_accepted(
+            {**{name: {"x": []} for name in reference_pages.MEANINGS}, "brand_new_kwarg": {"env.new": []}}
+        )
     with pytest.raises(ValueError, match="different spec paths"):
         reference_pages._check_accepted({"seed": {"env.seed": [], "env.other": []}})
 
@@ -89,8 +93,13 @@ def test_benchmark_page_says_how_it_was_made(tmp_path):
     add_markdown_option(parser)
     changed = changed_settings(parser, parser.parse_args(argv))
     assert changed == ["steps=3 (default 1000)"]
-    report = Report(str(page), "What a bench measures: steps.\n\n    python benchmarks/bench.py\n\nMore words.",
-                    [str(REPO / "benchmarks" / "bench.py"), *argv], out=io.StringIO(), changed=changed)
+    report = Report(
+        str(page),
+        "What a bench measures: steps.\n\n    python benchmarks/bench.py\n\nMore words.",
+        [str(REPO / "benchmarks" / "bench.py"), *argv],
+        out=io.StringIO(),
+        changed=changed,
+    )
     table = report.table(["ID", "steps/s"], title="3 steps")
     table.add("UR5eReacherSim-v0", "512")
     with pytest.raises(ValueError, match="2 columns"):

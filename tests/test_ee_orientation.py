@@ -17,8 +17,10 @@ def _tool_axis_tilt(env) -> float:
     """Degrees between the tool's approach axis (the EE frame's x, per top_down_rpy [0, pi/2, 0]) and straight
     down, from PyBullet's link state of the EE frame's link."""
     backend = env.unwrapped.backend
-    names = {p.getJointInfo(backend.body, j, physicsClientId=backend.client)[12].decode(): j
-             for j in range(p.getNumJoints(backend.body, physicsClientId=backend.client))}
+    names = {
+        p.getJointInfo(backend.body, j, physicsClientId=backend.client)[12].decode(): j
+        for j in range(p.getNumJoints(backend.body, physicsClientId=backend.client))
+    }
     link = names[env.unwrapped.blueprint.spec.robot.ee_frame]
     quaternion = p.getLinkState(backend.body, link, physicsClientId=backend.client)[5]
     x_axis = np.array(p.getMatrixFromQuaternion(quaternion)).reshape(3, 3)[:, 0]

@@ -1,9 +1,8 @@
 import gymnasium as gym
 import numpy as np
 import pytest
-from gymnasium.utils.env_checker import check_env
-
 from conftest import SIM_IDS
+from gymnasium.utils.env_checker import check_env
 
 
 @pytest.mark.parametrize("env_id", SIM_IDS)
@@ -98,7 +97,9 @@ def test_sparse_terminates_at_goal_and_dense_does_not(make):
         goal = np.array([[0.6, 0.0, 0.9]])
         _, info = env.reset(seed=0)  # a step's info: every key the terms read, flags at 0
         assert env.compute_terminated(goal, goal, [info])[0] == expect_termination
-        assert env.compute_reward(goal, goal + [0, 0, 0.5], [info])[0] == pytest.approx(-1.0 if reward_type == "Sparse" else -1.5)
+        assert env.compute_reward(goal, goal + [0, 0, 0.5], [info])[0] == pytest.approx(
+            -1.0 if reward_type == "Sparse" else -1.5
+        )
 
 
 def test_missing_step_info_is_an_error_not_a_silent_zero(make):

@@ -5,8 +5,16 @@ import pytest
 from envfactory.envs.episodes import run_episodes, success_rate
 from envfactory.experts import make_policy
 
-REACH_IDS = ["UR5eReacherSim-v0", "UR5eReacherGoalSim-v0", "VX300SReacherSim-v0", "VX300SReacherGoalSim-v0",
-             "RX200ReacherSim-v0", "RX200ReacherGoalSim-v0", "NED2ReacherSim-v0", "NED2ReacherGoalSim-v0"]
+REACH_IDS = [
+    "UR5eReacherSim-v0",
+    "UR5eReacherGoalSim-v0",
+    "VX300SReacherSim-v0",
+    "VX300SReacherGoalSim-v0",
+    "RX200ReacherSim-v0",
+    "RX200ReacherGoalSim-v0",
+    "NED2ReacherSim-v0",
+    "NED2ReacherGoalSim-v0",
+]
 
 
 @pytest.mark.parametrize("env_id", REACH_IDS)
@@ -25,8 +33,7 @@ def test_scripted_reach_in_ee_mode(env_id, make):
     assert success_rate(results) >= 0.9
 
 
-MANIPULATION_IDS = ["UR5ePushSim-v0", "UR5ePnPSim-v0", "VX300SPnPSim-v0",
-                    "RX200PushSim-v0", "RX200PnPSim-v0"]
+MANIPULATION_IDS = ["UR5ePushSim-v0", "UR5ePnPSim-v0", "VX300SPnPSim-v0", "RX200PushSim-v0", "RX200PnPSim-v0"]
 
 
 @pytest.mark.parametrize("env_id", MANIPULATION_IDS)
@@ -49,18 +56,29 @@ def test_scripted_manipulation_succeeds_near_the_base(env_id, make):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("env_id, bar", [("UR5ePushSim-v0", 0.9), ("VX300SPushSim-v0", 0.9),
-                                         ("UR5ePnPSim-v0", 0.8), ("VX300SPnPSim-v0", 0.8),
-                                         ("RX200PushSim-v0", 0.9), ("RX200PnPSim-v0", 0.8),
-                                         ("NED2PushSim-v0", 0.9), ("NED2PnPSim-v0", 0.8)])
+@pytest.mark.parametrize(
+    "env_id, bar",
+    [
+        ("UR5ePushSim-v0", 0.9),
+        ("VX300SPushSim-v0", 0.9),
+        ("UR5ePnPSim-v0", 0.8),
+        ("VX300SPnPSim-v0", 0.8),
+        ("RX200PushSim-v0", 0.9),
+        ("RX200PnPSim-v0", 0.8),
+        ("NED2PushSim-v0", 0.9),
+        ("NED2PnPSim-v0", 0.8),
+    ],
+)
 def test_scripted_manipulation_over_50_seeds(env_id, bar, make):
     env = make(env_id)
     results = run_episodes(env, make_policy("scripted", env), episodes=50, seed=0)
     assert success_rate(results) >= bar, [(r.seed, r.length) for r in results if not r.success]
 
 
-@pytest.mark.parametrize("env_id", ["UR5ePushSim-v0", "UR5ePnPSim-v0", "VX300SPushSim-v0", "VX300SPnPSim-v0",
-                                    "NED2PnPSim-v0", "RX200PushSim-v0"])
+@pytest.mark.parametrize(
+    "env_id",
+    ["UR5ePushSim-v0", "UR5ePnPSim-v0", "VX300SPushSim-v0", "VX300SPnPSim-v0", "NED2PnPSim-v0", "RX200PushSim-v0"],
+)
 def test_scripted_manipulation_in_ee_mode(env_id, make):
     env = make(env_id, ee_action_type=True)
     results = run_episodes(env, make_policy("scripted", env), episodes=4, seed=700)
@@ -68,9 +86,19 @@ def test_scripted_manipulation_in_ee_mode(env_id, make):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("env_id, bar", [("UR5ePushSim-v0", 0.9), ("VX300SPushSim-v0", 0.9), ("NED2PushSim-v0", 0.9),
-                                         ("RX200PushSim-v0", 0.9), ("UR5ePnPSim-v0", 0.8), ("VX300SPnPSim-v0", 0.8),
-                                         ("NED2PnPSim-v0", 0.8), ("RX200PnPSim-v0", 0.8)])
+@pytest.mark.parametrize(
+    "env_id, bar",
+    [
+        ("UR5ePushSim-v0", 0.9),
+        ("VX300SPushSim-v0", 0.9),
+        ("NED2PushSim-v0", 0.9),
+        ("RX200PushSim-v0", 0.9),
+        ("UR5ePnPSim-v0", 0.8),
+        ("VX300SPnPSim-v0", 0.8),
+        ("NED2PnPSim-v0", 0.8),
+        ("RX200PnPSim-v0", 0.8),
+    ],
+)
 def test_scripted_manipulation_in_ee_mode_over_20_seeds(env_id, bar, make):
     """EE mode keeps the gripper pointing down on the arms whose home points it forward, on all four robots
     (the RX200's EE floors sit below the heights its experts push and grasp at: specs/rx200_*.yaml)."""

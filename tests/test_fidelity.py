@@ -12,7 +12,7 @@ import gymnasium as gym
 import numpy as np
 import pybullet as p
 import pytest
-from fidelity_probe import PairedSteps, assert_within, expert_success, paired_episode, read_scene, trajectory_gaps
+from fidelity_probe import assert_within, expert_success, paired_episode, read_scene, trajectory_gaps
 
 import envfactory
 from envfactory.geometry.object_clearance import NEAR_CONTACT
@@ -49,9 +49,6 @@ def test_the_reference_replays_from_a_saved_state():
         assert np.abs(readings[0].q_arm - env.unwrapped.state.q_arm).max() > 0.09  # the cycle did move the arm
     finally:
         env.close()
-
-
-
 
 
 def test_a_dropped_cube_replays_from_a_saved_state():
@@ -91,6 +88,7 @@ def test_a_dropped_cube_replays_from_a_saved_state():
         finally:
             env.close()
     assert len(replays) >= 2 and max(replays) < 1e-6, replays
+
 
 @pytest.mark.parametrize("env_id", SIM_IDS)
 def test_fast_steps_match_full_dynamics_from_the_same_state(env_id):
@@ -166,10 +164,15 @@ def test_motions_proven_clear_of_the_cube_are_clear_in_pybullet(env_id):
         u = env.unwrapped
         backend, client = u.backend, u.backend.client
         clearance = backend._fast.clearance
-        moving_links = {u.safety.collision.shapes[i].link for i in range(len(u.safety.collision.shapes))
-                        if u.safety.collision.lever[i].any()}
-        link_index = {p.getJointInfo(backend.body, j, physicsClientId=client)[12].decode(): j
-                      for j in range(p.getNumJoints(backend.body, physicsClientId=client))}
+        moving_links = {
+            u.safety.collision.shapes[i].link
+            for i in range(len(u.safety.collision.shapes))
+            if u.safety.collision.lever[i].any()
+        }
+        link_index = {
+            p.getJointInfo(backend.body, j, physicsClientId=client)[12].decode(): j
+            for j in range(p.getNumJoints(backend.body, physicsClientId=client))
+        }
         links = [link_index[name] for name in moving_links]
         cube = backend.objects["cube"]
         radius = backend._object_radii[cube]
@@ -184,24 +187,32 @@ def test_motions_proven_clear_of_the_cube_are_clear_in_pybullet(env_id):
             ee, _ = u.kinematics.ee_pose(q_from, g_from)
             centre = u.task_frame.to_world(ee) + rng.uniform(-0.12, 0.12, 3)
             p.resetBasePositionAndOrientation(cube, centre.tolist(), [0, 0, 0, 1], physicsClientId=client)
-            if not clearance.motion_is_clear(q_from, g_from, q_to, g_to, centre[None], np.array([radius]),
-                                             NEAR_CONTACT):
+            if not clearance.motion_is_clear(
+                q_from, g_from, q_to, g_to, centre[None], np.array([radius]), NEAR_CONTACT
+            ):
                 refused += 1
                 continue
             accepted += 1
             for fraction in np.linspace(0.0, 1.0, 40):
                 for g in (g_from, (g_from + g_to) / 2, g_to):
                     backend._set_joint_state(q_from + fraction * (q_to - q_from), g)
-                    nearest = min((point[8] for link in links for point in
-                                   p.getClosestPoints(backend.body, cube, 0.05, linkIndexA=link,
-                                                      physicsClientId=client)), default=np.inf)
+                    nearest = min(
+                        (
+                            point[8]
+                            for link in links
+                            for point in p.getClosestPoints(
+                                backend.body, cube, 0.05, linkIndexA=link, physicsClientId=client
+                            )
+                        ),
+                        default=np.inf,
+                    )
                     # PyBullet pads convex shapes by up to a millimetre (safety.py SHAPE_TOLERANCE)
-                    assert nearest >= NEAR_CONTACT - 0.001, \
+                    assert nearest >= NEAR_CONTACT - 0.001, (
                         f"accepted motion comes {nearest * 1e3:.1f} mm from the cube at {fraction:.0%}"
+                    )
         assert accepted >= 5 and refused >= 5, (accepted, refused)  # the draw exercises both answers
     finally:
         env.close()
-
 
 
 def test_the_first_env_of_a_process_measures_as_the_next_ones_do():

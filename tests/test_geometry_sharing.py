@@ -22,8 +22,9 @@ print(json.dumps(dict(robot_model.builds)))
 
 
 def _builds_in_fresh_process(ids: list[str]) -> dict:
-    out = subprocess.run([sys.executable, "-c", COUNT_BUILDS.format(ids=ids)], capture_output=True, text=True,
-                         check=True, timeout=300)
+    out = subprocess.run(
+        [sys.executable, "-c", COUNT_BUILDS.format(ids=ids)], capture_output=True, text=True, check=True, timeout=300
+    )
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 

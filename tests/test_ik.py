@@ -19,10 +19,13 @@ def _bullet_ee(env, q_arm) -> tuple[np.ndarray, np.ndarray]:
     backend, robot = env.backend, env.blueprint.spec.robot
     assert not any(robot.mount_rpy)
     backend._set_joint_state(np.asarray(q_arm, float), None)
-    links = {p.getJointInfo(backend.body, j, physicsClientId=backend.client)[12].decode(): j
-             for j in range(p.getNumJoints(backend.body, physicsClientId=backend.client))}
-    state = p.getLinkState(backend.body, links[robot.ee_frame], computeForwardKinematics=1,
-                           physicsClientId=backend.client)
+    links = {
+        p.getJointInfo(backend.body, j, physicsClientId=backend.client)[12].decode(): j
+        for j in range(p.getNumJoints(backend.body, physicsClientId=backend.client))
+    }
+    state = p.getLinkState(
+        backend.body, links[robot.ee_frame], computeForwardKinematics=1, physicsClientId=backend.client
+    )
     position = np.asarray(state[4]) - (np.asarray(robot.mount) if robot.task_frame == "base" else 0.0)
     return position, np.array(p.getMatrixFromQuaternion(state[5])).reshape(3, 3)
 
@@ -86,8 +89,9 @@ def test_compiled_damped_least_squares_matches_lapack(rows, columns):
             jacobian[:, rng.integers(columns)] *= 1e-6  # a joint near a singular direction
         residual = rng.normal(size=rows)
         damping = 10.0 ** rng.uniform(-3, -1)
-        gram = jacobian @ jacobian.T + damping ** 2 * np.eye(rows)
+        gram = jacobian @ jacobian.T + damping**2 * np.eye(rows)
         expected = jacobian.T @ np.linalg.solve(gram, residual)
         assert np.allclose(damped_step(jacobian, residual, damping), expected, rtol=1e-8, atol=1e-10)
-        assert np.allclose(damped_pseudo_inverse(jacobian, damping), jacobian.T @ np.linalg.inv(gram), rtol=1e-8,
-                           atol=1e-10)
+        assert np.allclose(
+            damped_pseudo_inverse(jacobian, damping), jacobian.T @ np.linalg.inv(gram), rtol=1e-8, atol=1e-10
+        )

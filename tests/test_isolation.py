@@ -16,8 +16,9 @@ GOOD = (BROKEN / "unknown_key.yaml").read_text().replace("tolerence", "tolerance
 
 
 def _python(code: str, **env) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
-                          env={**os.environ, **env})
+    return subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env={**os.environ, **env}
+    )
 
 
 def _user_folder(tmp_path: Path) -> Path:
@@ -25,7 +26,7 @@ def _user_folder(tmp_path: Path) -> Path:
     folder.mkdir()
     (folder / "binary.yaml").write_bytes(bytes(range(256)) * 8)
     (folder / "space.yaml").write_text(GOOD.replace("BrokenKey-v0", "'My Reach-v0'"))
-    (folder / "emoji.yaml").write_text(GOOD.replace("BrokenKey-v0", "'Reach\U0001F916-v0'"))
+    (folder / "emoji.yaml").write_text(GOOD.replace("BrokenKey-v0", "'Reach\U0001f916-v0'"))
     (folder / "builtin.yaml").write_text(GOOD.replace("BrokenKey-v0", "UR5eReacherSim-v0"))
     (folder / "a_first.yaml").write_text(GOOD.replace("BrokenKey-v0", "Twice-v0"))
     (folder / "b_second.yaml").write_text(GOOD.replace("BrokenKey-v0", "Twice-v0"))
@@ -36,12 +37,14 @@ def _user_folder(tmp_path: Path) -> Path:
 
 def test_broken_user_folder_never_breaks_the_import(tmp_path):
     folder = _user_folder(tmp_path)
-    result = _python("import gymnasium as gym, envfactory\n"
-                     "env = gym.make('UR5eReacherSim-v0'); env.reset(seed=0); env.close()\n"
-                     "env = gym.make('UserFine-v0'); env.reset(seed=0); env.close()\n"
-                     "env = gym.make('Twice-v0'); env.close()\n"
-                     "print('records', sorted(i for i, r in envfactory.records().items() if r.source != 'built-in'))",
-                     ENVFACTORY_SPEC_PATH=str(folder))
+    result = _python(
+        "import gymnasium as gym, envfactory\n"
+        "env = gym.make('UR5eReacherSim-v0'); env.reset(seed=0); env.close()\n"
+        "env = gym.make('UserFine-v0'); env.reset(seed=0); env.close()\n"
+        "env = gym.make('Twice-v0'); env.close()\n"
+        "print('records', sorted(i for i, r in envfactory.records().items() if r.source != 'built-in'))",
+        ENVFACTORY_SPEC_PATH=str(folder),
+    )
     assert result.returncode == 0, result.stderr
     assert "records ['Twice-v0', 'UserFine-v0']" in result.stdout
     warnings = [line for line in result.stderr.splitlines() if line.startswith("envfactory:")]
@@ -69,16 +72,22 @@ def test_register_persists_for_later_processes(tmp_path, monkeypatch):
     assert "Persisted-v0: reset and step ok" in result.output
     assert str(folder.resolve()) in (config / "config.yaml").read_text()
 
-    later = _python("import gymnasium as gym, envfactory\n"
-                    "env = gym.make('Persisted-v0'); env.reset(seed=1); env.close(); print('made')",
-                    ENVFACTORY_CONFIG_DIR=str(config))
+    later = _python(
+        "import gymnasium as gym, envfactory\n"
+        "env = gym.make('Persisted-v0'); env.reset(seed=1); env.close(); print('made')",
+        ENVFACTORY_CONFIG_DIR=str(config),
+    )
     assert later.returncode == 0 and "made" in later.stdout, later.stderr
-    sources = _python("from envfactory.cli.app import app; app(['list', '--sources'])", ENVFACTORY_CONFIG_DIR=str(config))
+    sources = _python(
+        "from envfactory.cli.app import app; app(['list', '--sources'])", ENVFACTORY_CONFIG_DIR=str(config)
+    )
     assert "config" in sources.stdout and "Persisted-v0" in sources.stdout, sources.stdout + sources.stderr
 
     assert runner.invoke(app, ["unregister", str(folder)]).exit_code == 0
-    gone = _python("import gymnasium as gym, envfactory\nprint('Persisted-v0' in envfactory.records())",
-                   ENVFACTORY_CONFIG_DIR=str(config))
+    gone = _python(
+        "import gymnasium as gym, envfactory\nprint('Persisted-v0' in envfactory.records())",
+        ENVFACTORY_CONFIG_DIR=str(config),
+    )
     assert gone.stdout.strip() == "False", gone.stderr
     again = runner.invoke(app, ["unregister", str(folder)])
     assert again.exit_code == 1 and "is not recorded" in again.output
@@ -99,8 +108,10 @@ def test_corrupt_config_file_is_one_warning(tmp_path):
     config = tmp_path / "config"
     config.mkdir()
     (config / "config.yaml").write_text("spec_folders: {not: a list}\n")
-    result = _python("import envfactory; print(sorted({r.source for r in envfactory.records().values()}))",
-                     ENVFACTORY_CONFIG_DIR=str(config))
+    result = _python(
+        "import envfactory; print(sorted({r.source for r in envfactory.records().values()}))",
+        ENVFACTORY_CONFIG_DIR=str(config),
+    )
     assert result.returncode == 0 and result.stdout.strip() == "['built-in']"  # the built-in IDs, nothing more
     assert "'spec_folders' must be a list" in result.stderr
 
@@ -115,8 +126,10 @@ def test_a_file_broken_below_its_registration_stays_out_whole_once_checked(tmp_p
     broken.write_text((BROKEN / "unknown_key.yaml").read_text().replace("BrokenKey-v0", "BelowBroken-v0"))
     (folder / "fine.yaml").write_text(GOOD.replace("BrokenKey-v0", "CheckedFine-v0"))
     env = {"ENVFACTORY_SPEC_PATH": str(folder), "ENVFACTORY_CONFIG_DIR": str(config)}
-    probe = ("import gymnasium as gym, envfactory\n"
-             "print('ids', sorted(i for i in ('BelowBroken-v0', 'CheckedFine-v0') if i in gym.registry))\n")
+    probe = (
+        "import gymnasium as gym, envfactory\n"
+        "print('ids', sorted(i for i in ('BelowBroken-v0', 'CheckedFine-v0') if i in gym.registry))\n"
+    )
     # never checked: registered lazily, as before (import composes nothing)
     assert "ids ['BelowBroken-v0', 'CheckedFine-v0']" in _python(probe, **env).stdout
     runner = CliRunner()
@@ -135,12 +148,15 @@ def test_a_failed_make_keeps_the_family_out_of_later_imports(tmp_path):
     config = tmp_path / "config"
     folder = tmp_path / "user"
     folder.mkdir()
-    (folder / "broken.yaml").write_text((BROKEN / "unknown_key.yaml").read_text()
-                                        .replace("BrokenKey-v0", "MadeBroken-v0"))
+    (folder / "broken.yaml").write_text(
+        (BROKEN / "unknown_key.yaml").read_text().replace("BrokenKey-v0", "MadeBroken-v0")
+    )
     env = {"ENVFACTORY_SPEC_PATH": str(folder), "ENVFACTORY_CONFIG_DIR": str(config)}
-    first = _python("import gymnasium as gym, envfactory\n"
-                    "try:\n    gym.make('MadeBroken-v0')\nexcept envfactory.SpecError as exc:\n    print('refused')\n",
-                    **env)
+    first = _python(
+        "import gymnasium as gym, envfactory\n"
+        "try:\n    gym.make('MadeBroken-v0')\nexcept envfactory.SpecError as exc:\n    print('refused')\n",
+        **env,
+    )
     assert "refused" in first.stdout, first.stderr
     later = _python("import gymnasium as gym, envfactory\nprint('MadeBroken-v0' in gym.registry)\n", **env)
     assert later.stdout.strip() == "False" and "unknown key 'tolerence'" in later.stderr

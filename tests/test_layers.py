@@ -15,17 +15,32 @@ PACKAGE = Path(__file__).resolve().parents[1] / "envfactory"
 
 # Lowest first. A module may import its own layer's modules and any lower layer's, never a higher one's.
 LAYERS: list[tuple[str, ...]] = [
-    ("envfactory.version", "envfactory.step_state", "envfactory.compiler.normalization", "envfactory.registration.user_config"),  # leaves
+    (
+        "envfactory.version",
+        "envfactory.step_state",
+        "envfactory.compiler.normalization",
+        "envfactory.registration.user_config",
+    ),  # leaves
     ("envfactory.schema",),  # pydantic models, loading, Hydra composition, located problems
-    ("envfactory.registration.registry", "envfactory.registration.validation_cache"),  # which IDs the spec folders declare (no compile)
+    (
+        "envfactory.registration.registry",
+        "envfactory.registration.validation_cache",
+    ),  # which IDs the spec folders declare (no compile)
     ("envfactory.geometry",),  # the robot model built once per process, the safety proof
     ("envfactory.terms", "envfactory.experts"),  # the term library and the scripted policies
     ("envfactory.backends",),  # PyBullet, rosbridge: everything the env calls
     ("envfactory.compiler",),  # spec -> Blueprint
     ("envfactory.envs",),  # the gymnasium envs, generic over blueprints and backends
     ("envfactory.factory",),  # ID -> blueprint -> env
-    ("envfactory.views.describe", "envfactory.envs.episodes", "envfactory.views.safety_picture", "envfactory.twin",
-     "envfactory.learn", "envfactory.cluster", "envfactory.terms.sensing_from_log"),  # tools over envs (cluster: the only wing that imports ray)
+    (
+        "envfactory.views.describe",
+        "envfactory.envs.episodes",
+        "envfactory.views.safety_picture",
+        "envfactory.twin",
+        "envfactory.learn",
+        "envfactory.cluster",
+        "envfactory.terms.sensing_from_log",
+    ),  # tools over envs (cluster: the only wing that imports ray)
     ("envfactory.cli", "envfactory"),  # the command, and the package's own facade
 ]
 
@@ -67,8 +82,12 @@ def _imports() -> tuple[dict[str, set[str]], list[str]]:
     for module, path in MODULES.items():
         tree = ast.parse(path.read_text())
         edges[module] = set()
-        inside = {id(node) for function in ast.walk(tree) if isinstance(function, (ast.FunctionDef, ast.AsyncFunctionDef))
-                  for node in ast.walk(function)}
+        inside = {
+            id(node)
+            for function in ast.walk(tree)
+            if isinstance(function, (ast.FunctionDef, ast.AsyncFunctionDef))
+            for node in ast.walk(function)
+        }
         for node in ast.walk(tree):
             if isinstance(node, (ast.Import, ast.ImportFrom)):
                 targets = _targets(module, node)
@@ -96,15 +115,19 @@ def _cycles(edges: dict[str, set[str]]) -> list[list[str]]:
         if root in index:
             continue
         work = [(root, iter(sorted(edges[root])))]
-        index[root] = low[root] = counter[0]; counter[0] += 1
-        stack.append(root); on_stack.add(root)
+        index[root] = low[root] = counter[0]
+        counter[0] += 1
+        stack.append(root)
+        on_stack.add(root)
         while work:
             node, children = work[-1]
             child = next(children, None)
             if child is not None:
                 if child not in index:
-                    index[child] = low[child] = counter[0]; counter[0] += 1
-                    stack.append(child); on_stack.add(child)
+                    index[child] = low[child] = counter[0]
+                    counter[0] += 1
+                    stack.append(child)
+                    on_stack.add(child)
                     work.append((child, iter(sorted(edges[child]))))
                 elif child in on_stack:
                     low[node] = min(low[node], index[child])
@@ -115,7 +138,9 @@ def _cycles(edges: dict[str, set[str]]) -> list[list[str]]:
             if low[node] == index[node]:
                 component = []
                 while True:
-                    member = stack.pop(); on_stack.discard(member); component.append(member)
+                    member = stack.pop()
+                    on_stack.discard(member)
+                    component.append(member)
                     if member == node:
                         break
                 if len(component) > 1:
@@ -135,9 +160,12 @@ def test_no_package_import_hides_inside_a_function():
 
 def test_imports_point_down_the_layers():
     edges, _ = _imports()
-    upward = [f"{module} (layer {_layer(module)}) imports {target} (layer {_layer(target)})"
-              for module, targets in sorted(edges.items()) for target in sorted(targets)
-              if _layer(target) > _layer(module)]
+    upward = [
+        f"{module} (layer {_layer(module)}) imports {target} (layer {_layer(target)})"
+        for module, targets in sorted(edges.items())
+        for target in sorted(targets)
+        if _layer(target) > _layer(module)
+    ]
     assert upward == []
 
 

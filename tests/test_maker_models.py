@@ -16,7 +16,6 @@ import numpy as np
 import pinocchio as pin
 import pytest
 import yaml
-
 from maker_models import ROOT, configuration, link_mesh_points, link_primitives, models_folder, outside_distance
 
 FK_TOLERANCE = 0.001  # m
@@ -42,11 +41,22 @@ def _our_robots() -> dict[str, Path]:
 def _pairs():
     folder = models_folder()
     if folder is None:
-        return [pytest.param(None, None, None, marks=pytest.mark.skip(
-            reason="the makers' robot models are absent: set ENVFACTORY_ROBOT_MODELS or put them at "
-                   "../shared/robot-models beside the repository"))]
-    pairs = [(name, ours, folder / name / f"{name}.urdf") for name, ours in _our_robots().items()
-             if (folder / name / f"{name}.urdf").is_file()]
+        return [
+            pytest.param(
+                None,
+                None,
+                None,
+                marks=pytest.mark.skip(
+                    reason="the makers' robot models are absent: set ENVFACTORY_ROBOT_MODELS or put them at "
+                    "../shared/robot-models beside the repository"
+                ),
+            )
+        ]
+    pairs = [
+        (name, ours, folder / name / f"{name}.urdf")
+        for name, ours in _our_robots().items()
+        if (folder / name / f"{name}.urdf").is_file()
+    ]
     assert pairs, f"{folder} holds no model of any robot in robots/"
     return [pytest.param(*pair, id=pair[0]) for pair in pairs]
 
@@ -60,8 +70,14 @@ def _frames(model: pin.Model, data: pin.Data, q: np.ndarray, strip: str) -> dict
 
 
 def _joint_ranges(model: pin.Model) -> dict[str, tuple[float, float]]:
-    return {model.names[j]: (model.lowerPositionLimit[model.joints[j].idx_q], model.upperPositionLimit[model.joints[j].idx_q])
-            for j in range(1, model.njoints) if model.joints[j].nq == 1}
+    return {
+        model.names[j]: (
+            model.lowerPositionLimit[model.joints[j].idx_q],
+            model.upperPositionLimit[model.joints[j].idx_q],
+        )
+        for j in range(1, model.njoints)
+        if model.joints[j].nq == 1
+    }
 
 
 @pytest.mark.parametrize("name, ours, maker", _pairs())
@@ -77,7 +93,9 @@ def test_forward_kinematics_match_the_maker(name, ours, maker):
         a = _frames(mine, mine_data, configuration(mine, values), "")
         b = _frames(theirs, theirs_data, configuration(theirs, values), f"{name}/")
         common = set(a) & set(b)
-        assert set(a) - {"universe"} <= common, f"{name}: our links {sorted(set(a) - common)} are not in the maker's model"
+        assert set(a) - {"universe"} <= common, (
+            f"{name}: our links {sorted(set(a) - common)} are not in the maker's model"
+        )
         for link in common:
             worst = max(worst, float(np.linalg.norm(a[link].translation - b[link].translation)))
             worst_turn = max(worst_turn, float(np.linalg.norm(pin.log3(a[link].rotation.T @ b[link].rotation))))
@@ -130,7 +148,11 @@ def test_links_with_own_margins_enclose_the_maker_meshes_without_slack(name, our
         pytest.skip(f"{name}: no pair has a margin of its own")
     meshes = link_mesh_points(maker, strip=f"{name}/", spacing=DENSE, links=links)
     primitives = link_primitives(ours)
-    report = {link: float(np.min([outside_distance(points, *shape) for shape in primitives[link]], axis=0).max())
-              for link, points in meshes.items()}
-    assert set(report) == links, f"{name}: links with own margins and no mesh in the maker's model: {links - set(report)}"
+    report = {
+        link: float(np.min([outside_distance(points, *shape) for shape in primitives[link]], axis=0).max())
+        for link, points in meshes.items()
+    }
+    assert set(report) == links, (
+        f"{name}: links with own margins and no mesh in the maker's model: {links - set(report)}"
+    )
     assert max(report.values()) <= 1e-9, f"{name}: mesh outside our primitives, m: {report}"

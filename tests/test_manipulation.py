@@ -3,7 +3,6 @@
 import numpy as np
 import pytest
 
-from envfactory.envs.episodes import run_episodes
 from envfactory.experts import make_policy
 
 CUBE = slice(30, 33)  # cube position columns of the UR5e Push observation
@@ -194,8 +193,15 @@ def test_use_kinect_adds_headless_camera_images(env_id, make):
     np.testing.assert_array_equal(observation["observation"], flat)
 
 
-@pytest.mark.parametrize("env_id, engine", [("UR5ePnPSim-v0", "pybullet"), ("VX300SPnPSim-v0", "pybullet"),
-                                            ("UR5ePnPSim-v0", "mujoco"), ("NED2PnPSim-v0", "mujoco")])
+@pytest.mark.parametrize(
+    "env_id, engine",
+    [
+        ("UR5ePnPSim-v0", "pybullet"),
+        ("VX300SPnPSim-v0", "pybullet"),
+        ("UR5ePnPSim-v0", "mujoco"),
+        ("NED2PnPSim-v0", "mujoco"),
+    ],
+)
 def test_lifted_cube_stays_in_the_fingers(env_id, engine, make):
     """Held 20 s in the air, then swung: the contact parameters in the robot YAML keep the grip (on MuJoCo also
     its mimic constraints' stiffness, and the Ned2's spec without the no-slip pass)."""
@@ -205,6 +211,7 @@ def test_lifted_cube_stays_in_the_fingers(env_id, engine, make):
     policy = make_policy("scripted", env)
     while policy.phase != "carry":
         observation, *_ = env.step(policy(observation))
+
     def in_gripper():  # the cube's place in the gripper's frame: slip, not the arm's own sag
         state = unwrapped.state
         return state.ee_rotation.T @ (state.objects["cube"].position - state.ee_position)

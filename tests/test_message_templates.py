@@ -16,7 +16,6 @@ from real_helpers import FAST, wait_for
 from envfactory.backends.rosbridge import messages
 from envfactory.factory import register_specs, unregister_folder
 from envfactory.schema.models import ArmCommand, GripperCommand
-from envfactory.twin import Twin
 
 ROOT = Path(__file__).parents[1]
 JOINTS = ["j0", "j1", "j2"]
@@ -25,18 +24,18 @@ JOINTS = ["j0", "j1", "j2"]
 # the previous release, for these inputs): the shipped templates must reproduce it byte for byte.
 BEFORE = {
     "joint_trajectory": '{"header": {"stamp": {"secs": 0, "nsecs": 0}, "frame_id": ""}, "joint_names": ["j0", "j1", '
-                        '"j2"], "points": [{"positions": [0.1, -0.2, 0.3], "velocities": [0.0, 0.0, 0.0], '
-                        '"accelerations": [], "effort": [], "time_from_start": {"secs": 1, "nsecs": 250000000}}]}',
+    '"j2"], "points": [{"positions": [0.1, -0.2, 0.3], "velocities": [0.0, 0.0, 0.0], '
+    '"accelerations": [], "effort": [], "time_from_start": {"secs": 1, "nsecs": 250000000}}]}',
     "joint_trajectory stop": '{"header": {"stamp": {"secs": 0, "nsecs": 0}, "frame_id": ""}, "joint_names": ["j0", '
-                             '"j1", "j2"], "points": []}',
+    '"j1", "j2"], "points": []}',
     "joint_group": '{"name": "arm", "cmd": [0.1, -0.2, 0.3]}',
     "joint_group stop": '{"name": "arm", "cmd": [0.1, -0.2, 0.3]}',
     "float64_array": '{"layout": {"dim": [], "data_offset": 0}, "data": [0.7]}',
     "joint_single": '{"name": "gripper", "cmd": 0.7}',
     "joint_state": '{"header": {"stamp": {"secs": 12, "nsecs": 500000000}, "frame_id": ""}, "name": ["j0", "j1", '
-                   '"j2"], "position": [0.1, -0.2, 0.3], "velocity": [1.0, 2.0, 3.0], "effort": []}',
+    '"j2"], "position": [0.1, -0.2, 0.3], "velocity": [1.0, 2.0, 3.0], "effort": []}',
     "pose": '{"header": {"stamp": {"secs": 12, "nsecs": 500000000}, "frame_id": "world"}, "pose": {"position": '
-            '{"x": 0.1, "y": -0.2, "z": 0.3}, "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}}',
+    '{"x": 0.1, "y": -0.2, "z": 0.3}, "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}}',
 }
 
 
@@ -84,8 +83,13 @@ def _user_robot(tmp_path: Path, ros: str) -> Path:
     robot = robot[: robot.index("\nros:")] + "\n" + ros
     (folder / "robots" / "templated.yaml").write_text(robot)
     family = (ROOT / "specs" / "ur5e_pnp.yaml").read_text().replace("/robots@robot: ur5e", "/robots@robot: templated")
-    family = re.sub(r"registration:.*", "registration:\n  ids:\n    TemplatedPnPSim-v0: {backend: pybullet}\n"
-                                         "    TemplatedPnPReal-v0: {backend: rosbridge}\n", family, flags=re.S)
+    family = re.sub(
+        r"registration:.*",
+        "registration:\n  ids:\n    TemplatedPnPSim-v0: {backend: pybullet}\n"
+        "    TemplatedPnPReal-v0: {backend: rosbridge}\n",
+        family,
+        flags=re.S,
+    )
     (folder / "specs" / "templated_pnp.yaml").write_text(family)
     return folder
 
@@ -96,8 +100,13 @@ def test_a_user_template_runs_end_to_end_against_the_twin(tmp_path, twin, make):
         added, problems = register_specs(folder)
         assert problems == [] and sorted(added) == ["TemplatedPnPReal-v0", "TemplatedPnPSim-v0"]
         stand_in = twin("templated", "pnp", group_move_s=0.05)
-        env = make("TemplatedPnPReal-v0", rosbridge_port=stand_in.port, allow_real_robot_motion=True,
-                   max_episode_steps=4, **FAST)
+        env = make(
+            "TemplatedPnPReal-v0",
+            rosbridge_port=stand_in.port,
+            allow_real_robot_motion=True,
+            max_episode_steps=4,
+            **FAST,
+        )
         arm_topic = "/arm_position_controller/command"
         arm_messages = lambda: [r.msg for r in stand_in.received if r.topic == arm_topic]  # noqa: E731
         try:
@@ -143,8 +152,13 @@ def test_the_twin_plays_a_command_without_a_duration_over_the_declared_profile_t
 def test_commands_without_a_duration_and_without_a_profile_time_are_refused(tmp_path):
     """A real step waits for the motion its driver was given: a driver that takes no duration must say how long
     it takes, or neither the env nor the twin can know when a step's motion is done."""
-    folder = _user_robot(tmp_path, USER_ROS.replace("    profile_time_s: 0.1     # a position controller takes no "
-                                                    "duration: how long it takes for a command\n", ""))
+    folder = _user_robot(
+        tmp_path,
+        USER_ROS.replace(
+            "    profile_time_s: 0.1     # a position controller takes no duration: how long it takes for a command\n",
+            "",
+        ),
+    )
     try:
         added, problems = register_specs(folder)
         assert added == [] and len(problems) == 1
@@ -154,14 +168,32 @@ def test_commands_without_a_duration_and_without_a_profile_time_are_refused(tmp_
         unregister_folder(folder)
 
 
-@pytest.mark.parametrize("replace, broken, where, marker, words", [
-    ("data: $positions}", "data: $positons}", "robot.ros.arm_command.encoding.message.data", "$positons",
-     "unknown placeholder '$positons' (did you mean '$positions'?)"),
-    ("message: {data: $value}", "message: {data: $positions}", "robot.ros.gripper_command.encoding.message.data",
-     "{data: $positions}", "placeholder $positions has no meaning in a gripper message"),
-    ("type: std_msgs/Float64MultiArray\n      message", "type: std_msgs/Float32MultiArray\n      message",
-     "robot.ros.arm_command.type", "type: std_msgs/Float64MultiArray", "differs from the type of its message template"),
-])
+@pytest.mark.parametrize(
+    "replace, broken, where, marker, words",
+    [
+        (
+            "data: $positions}",
+            "data: $positons}",
+            "robot.ros.arm_command.encoding.message.data",
+            "$positons",
+            "unknown placeholder '$positons' (did you mean '$positions'?)",
+        ),
+        (
+            "message: {data: $value}",
+            "message: {data: $positions}",
+            "robot.ros.gripper_command.encoding.message.data",
+            "{data: $positions}",
+            "placeholder $positions has no meaning in a gripper message",
+        ),
+        (
+            "type: std_msgs/Float64MultiArray\n      message",
+            "type: std_msgs/Float32MultiArray\n      message",
+            "robot.ros.arm_command.type",
+            "type: std_msgs/Float64MultiArray",
+            "differs from the type of its message template",
+        ),
+    ],
+)
 def test_a_broken_template_names_its_file_line_and_path(tmp_path, replace, broken, where, marker, words):
     assert replace in USER_ROS
     folder = _user_robot(tmp_path, USER_ROS.replace(replace, broken, 1))
@@ -199,15 +231,17 @@ def test_a_broken_shipped_library_names_its_file_line_and_path(tmp_path, monkeyp
     from envfactory.schema.errors import SpecError
 
     library = tmp_path / "_messages.yaml"
-    library.write_text("good:\n  message: {data: $value}\nbad:\n  type: std_msgs/Float64\n"
-                       "  message:\n    data: $valeu\n")
+    library.write_text(
+        "good:\n  message: {data: $value}\nbad:\n  type: std_msgs/Float64\n  message:\n    data: $valeu\n"
+    )
     monkeypatch.setattr(templates, "_library_path", lambda: library)
     templates.library.cache_clear()
     try:
         with pytest.raises(SpecError) as error:
             templates.library()
-        assert f"{library}:6: bad.message.data: unknown placeholder '$valeu' (did you mean '$value'?)" \
-            in str(error.value)
+        assert f"{library}:6: bad.message.data: unknown placeholder '$valeu' (did you mean '$value'?)" in str(
+            error.value
+        )
         # a robot naming any shipped template then says the library is broken, and where
         with pytest.raises(ValueError, match=r"the shipped templates are broken: .*_messages.yaml:6"):
             GripperCommand(topic="/g", type="std_msgs/Float64", encoding="good")
@@ -232,13 +266,24 @@ def test_an_open_close_gripper_sends_the_nearer_end_with_a_fresh_goal_id():
         messages.decode_gripper(command, foreign, 0.01, -0.01)
 
 
-@pytest.mark.parametrize("fields, words", [
-    ({"encoding": "tool_action_goal"}, "the template holds $state: declare states"),
-    ({"encoding": "joint_single", "type": "interbotix_xs_msgs/JointSingleCommand", "states": {"open": 1, "closed": 2}},
-     "states are declared but the template has no $state placeholder"),
-    ({"encoding": {"message": {"data": "$value", "mode": "$state"}}, "states": {"open": 1, "closed": 2}},
-     "needs exactly one of the placeholders $state or $value"),
-])
+@pytest.mark.parametrize(
+    "fields, words",
+    [
+        ({"encoding": "tool_action_goal"}, "the template holds $state: declare states"),
+        (
+            {
+                "encoding": "joint_single",
+                "type": "interbotix_xs_msgs/JointSingleCommand",
+                "states": {"open": 1, "closed": 2},
+            },
+            "states are declared but the template has no $state placeholder",
+        ),
+        (
+            {"encoding": {"message": {"data": "$value", "mode": "$state"}}, "states": {"open": 1, "closed": 2}},
+            "needs exactly one of the placeholders $state or $value",
+        ),
+    ],
+)
 def test_an_open_close_gripper_is_declared_whole(fields, words):
     with pytest.raises(ValueError, match=re.escape(words)):
         GripperCommand(**{"topic": "/g", "type": TOOL_GOAL, **fields})

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 import envfactory  # noqa: F401  (registers the IDs)
-from envfactory.registration import registry
 from envfactory.backends.base import BackendError
 from envfactory.backends.mujoco.backend import MujocoBackend
+from envfactory.registration import registry
 
 SIM_IDS = sorted(env_id for env_id, record in registry.records().items() if record.backend == "pybullet")
 
@@ -36,8 +36,9 @@ def test_every_sim_id_makes_resets_and_steps_on_mujoco(env_id):
 
 
 def _free_motions(env, seed: int, steps: int):
-    """Accepted random steps (`env` made with full fidelity, so every cycle is one rollout): per step, the largest distance of any arm joint from the straight joint-space
-    segment between where the step started and its target, over every substep the engine simulated."""
+    """Accepted random steps (`env` made with full fidelity, so every cycle is one rollout): per step, the largest
+    distance of any arm joint from the straight joint-space segment between where the step started and its
+    target, over every substep the engine simulated."""
     unwrapped = env.unwrapped
     backend = unwrapped.backend
     arm = 1 + backend.handles.arm_qpos  # a full-physics state row is (time, qpos, qvel, ...)
@@ -57,8 +58,9 @@ def _free_motions(env, seed: int, steps: int):
         yield float(np.max(np.abs(q - (start + fraction * way))))
 
 
-@pytest.mark.parametrize("env_id", ["UR5eReacherSim-v0", "VX300SReacherSim-v0", "RX200ReacherSim-v0",
-                                    "NED2ReacherSim-v0"])
+@pytest.mark.parametrize(
+    "env_id", ["UR5eReacherSim-v0", "VX300SReacherSim-v0", "RX200ReacherSim-v0", "NED2ReacherSim-v0"]
+)
 def test_the_arm_stays_on_the_proven_line(env_id):
     """Out of contact every joint stays within 1 mrad of the commanded joint-space line at every substep
     (PyBullet's per-joint motors, each at its own speed, leave it: the joints arrive at different times)."""
@@ -119,7 +121,12 @@ def _hold_still(fidelity: str, steps: int = 8):
             env.step(unwrapped.actions.hold_action(unwrapped.state))
         state = unwrapped.state
         cycle = round(unwrapped.blueprint.spec.env.timing.action_cycle_time / unwrapped.backend.cycles.dt)
-        return unwrapped.backend.cycle_counts, cycle, state.joint_positions.copy(), state.objects["cube"].position.copy()
+        return (
+            unwrapped.backend.cycle_counts,
+            cycle,
+            state.joint_positions.copy(),
+            state.objects["cube"].position.copy(),
+        )
     finally:
         env.close()
 
@@ -140,15 +147,19 @@ def _moving_robot_geoms(model) -> list[int]:
     moving = np.zeros(model.nbody, dtype=bool)
     for body in range(1, model.nbody):  # parents come before children
         moving[body] = model.body_jntnum[body] > 0 or moving[model.body_parentid[body]]
-    return [g for g in range(model.ngeom) if model.body(model.geom_bodyid[g]).name.startswith("robot/")
-            and moving[model.geom_bodyid[g]]]
+    return [
+        g
+        for g in range(model.ngeom)
+        if model.body(model.geom_bodyid[g]).name.startswith("robot/") and moving[model.geom_bodyid[g]]
+    ]
 
 
 def _closest_approach(env_id: str, seed: int, steps: int, saturated: bool = False) -> tuple[float, int]:
-    """The smallest distance MuJoCo measures between a moving robot geom and a scene obstacle, over every
-    substep of every accepted step (MuJoCo's own distance queries judge, not the safety check's coal), and
-    how many steps were accepted (full fidelity: every cycle is one rollout whose substeps are read). Random actions, or `saturated`: every row on a bound, held for a few steps,
-    as a saturated policy drives the arm into the table's edge and its own links."""
+    """The smallest distance MuJoCo measures between a moving robot geom and a scene obstacle, over every substep of
+    every accepted step (MuJoCo's own distance queries judge, not the safety check's coal), and how many steps were
+    accepted (full fidelity: every cycle is one rollout whose substeps are read). Random actions, or `saturated`: every
+    row on a bound, held for a few steps, as a saturated policy drives the arm into the table's edge and its own
+    links."""
     import mujoco
 
     env = gym.make(env_id, engine="mujoco", physics_fidelity="full")
@@ -166,13 +177,14 @@ def _closest_approach(env_id: str, seed: int, steps: int, saturated: bool = Fals
             if not saturated:
                 action = rng.uniform(env.action_space.low, env.action_space.high).astype(np.float32)
             elif _ % 4 == 0:
-                action = np.where(rng.random(env.action_space.shape) < 0.5, env.action_space.low,
-                                  env.action_space.high).astype(np.float32)
+                action = np.where(
+                    rng.random(env.action_space.shape) < 0.5, env.action_space.low, env.action_space.high
+                ).astype(np.float32)
             if env.step(action)[4]["action_rejected"]:
                 continue
             accepted += 1
             for row in backend.cycles._states[0][::4]:
-                scratch.qpos[:] = row[1:1 + nq]
+                scratch.qpos[:] = row[1 : 1 + nq]
                 mujoco.mj_kinematics(model, scratch)
                 for geom in robot:
                     for obstacle in obstacles:
@@ -238,10 +250,21 @@ def test_a_kinematic_cycle_leaves_the_frames_mj_forward_would():
             full.qpos[:], full.qvel[:], full.ctrl[:] = data.qpos, data.qvel, data.ctrl
             full.mocap_pos[:], full.mocap_quat[:] = data.mocap_pos, data.mocap_quat
             mujoco.mj_forward(model, full)
-            for name in ("xpos", "xmat", "xquat", "geom_xpos", "geom_xmat", "site_xpos", "cam_xpos", "cam_xmat",
-                         "light_xpos", "light_xdir", "xanchor", "xaxis"):
-                np.testing.assert_allclose(getattr(data, name), getattr(full, name), rtol=0, atol=1e-12,
-                                           err_msg=name)
+            for name in (
+                "xpos",
+                "xmat",
+                "xquat",
+                "geom_xpos",
+                "geom_xmat",
+                "site_xpos",
+                "cam_xpos",
+                "cam_xmat",
+                "light_xpos",
+                "light_xdir",
+                "xanchor",
+                "xaxis",
+            ):
+                np.testing.assert_allclose(getattr(data, name), getattr(full, name), rtol=0, atol=1e-12, err_msg=name)
             checked += 1
         assert checked >= 10, checked  # random actions out of contact: most cycles are kinematic
     finally:

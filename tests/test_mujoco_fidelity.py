@@ -14,8 +14,11 @@ from fidelity_probe import Gaps, assert_within, expert_success, paired_episode, 
 
 import envfactory
 
-MANIPULATION_IDS = sorted(i for i, r in envfactory.records().items()
-                          if r.backend == "pybullet" and "Goal" not in i and ("Push" in i or "PnP" in i))
+MANIPULATION_IDS = sorted(
+    i
+    for i, r in envfactory.records().items()
+    if r.backend == "pybullet" and "Goal" not in i and ("Push" in i or "PnP" in i)
+)
 SIM_IDS = sorted(i for i, r in envfactory.records().items() if r.backend == "pybullet" and "Goal" not in i)
 
 

@@ -22,8 +22,14 @@ import yaml
 from maker_models import MakerMeshes, models_folder
 
 from envfactory.geometry.collision import CollisionModel
-from envfactory.geometry.collision_pairs import (StalePairs, UncheckablePairs, checksum, read_pairs, sample_pairs,
-                                                 write_pairs)
+from envfactory.geometry.collision_pairs import (
+    StalePairs,
+    UncheckablePairs,
+    checksum,
+    read_pairs,
+    sample_pairs,
+    write_pairs,
+)
 from envfactory.geometry.frames import TaskFrame
 from envfactory.geometry.kinematics import Kinematics
 from envfactory.geometry.safety import SafetyCheck
@@ -34,9 +40,16 @@ PAIRS = builtin_root() / "robots" / "assets" / "ned2.collision.yaml"
 # The arm's bodies in chain order (the hand, the gripper and its jaws move as one against the arm). A fold is
 # judged on every pair of them not joined by one joint: folding the elbow shut brings the forearm's end to the
 # shoulder as well as the forearm onto the arm.
-CHAIN = [["base_link"], ["shoulder_link"], ["arm_link"], ["elbow_link"], ["forearm_link"], ["wrist_link"],
-         ["hand_link", "base_gripper_1", "mors_1", "mors_2"]]
-JUDGED = [(a, b) for i, group in enumerate(CHAIN) for later in CHAIN[i + 2:] for a in group for b in later]
+CHAIN = [
+    ["base_link"],
+    ["shoulder_link"],
+    ["arm_link"],
+    ["elbow_link"],
+    ["forearm_link"],
+    ["wrist_link"],
+    ["hand_link", "base_gripper_1", "mors_1", "mors_2"],
+]
+JUDGED = [(a, b) for i, group in enumerate(CHAIN) for later in CHAIN[i + 2 :] for a in group for b in later]
 ELBOW = ("arm_link", "forearm_link")
 STEP = 0.1  # rad of joint_3 per commanded motion, well inside max_joint_delta
 FOLDS = 12
@@ -48,8 +61,10 @@ def _maker_urdf():
     return None if folder is None or not (folder / "ned2" / "ned2.urdf").is_file() else folder / "ned2" / "ned2.urdf"
 
 
-needs_maker = pytest.mark.skipif(_maker_urdf() is None, reason="Niryo's model is absent: set ENVFACTORY_ROBOT_MODELS "
-                                                              "or put it at ../shared/robot-models/ned2")
+needs_maker = pytest.mark.skipif(
+    _maker_urdf() is None,
+    reason="Niryo's model is absent: set ENVFACTORY_ROBOT_MODELS or put it at ../shared/robot-models/ned2",
+)
 
 
 @pytest.fixture(scope="module")
@@ -92,10 +107,19 @@ def _folds(maker, env, gripper, count=FOLDS, seed=0):
     while len(folds) < count:
         tried += 1
         assert tried < 50 * count, "Niryo's meshes no longer fold into each other near joint_3's lower limit"
-        q = np.array([rng.uniform(-1.0, 1.0), rng.uniform(-0.3, 0.6), rng.uniform(kin.arm_lower[2], kin.arm_lower[2] + 0.06),
-                      rng.uniform(kin.arm_lower[3], kin.arm_upper[3]), rng.uniform(-1.9, 1.9), rng.uniform(-1.0, 1.0)])
-        if maker.distance(maker.pose(_values(env, q, gripper)), *ELBOW) == 0.0 and \
-                safety.pose_is_clear(_opened(q), gripper):
+        q = np.array(
+            [
+                rng.uniform(-1.0, 1.0),
+                rng.uniform(-0.3, 0.6),
+                rng.uniform(kin.arm_lower[2], kin.arm_lower[2] + 0.06),
+                rng.uniform(kin.arm_lower[3], kin.arm_upper[3]),
+                rng.uniform(-1.9, 1.9),
+                rng.uniform(-1.0, 1.0),
+            ]
+        )
+        if maker.distance(maker.pose(_values(env, q, gripper)), *ELBOW) == 0.0 and safety.pose_is_clear(
+            _opened(q), gripper
+        ):
             folds.append(q)
     return folds
 
@@ -114,7 +138,9 @@ def test_every_fold_of_the_forearm_onto_the_arm_is_refused(env, maker):
     every motion the check accepts keeps the maker's meshes of every two bodies not joined by one joint
     apart all the way, and the check refuses before the fold is reached."""
     safety, gripper = env.safety, env.kinematics.robot.gripper.open
-    elbow = [pair for pair in range(safety.collision.pair_count) if sorted(safety.collision.pair_names(pair)) == list(ELBOW)]
+    elbow = [
+        pair for pair in range(safety.collision.pair_count) if sorted(safety.collision.pair_names(pair)) == list(ELBOW)
+    ]
     assert elbow, "the check measures no pair of the arm and the forearm"
     for fold in _folds(maker, env, gripper):
         inside = safety.clearances(fold, gripper)[elbow] - safety.margin[elbow]
@@ -177,16 +203,19 @@ def test_the_shipped_list_skips_only_what_is_proven_and_measures_the_elbow_again
         key = frozenset((collision.shapes[a].name, collision.shapes[b].name))
         expected = own.get(key, env.blueprint.spec.env.safety.surface_margin) + tolerance
         assert safety.margin[scene + offset] == pytest.approx(expected), key
-    assert set(own) <= {frozenset((collision.shapes[a].name, collision.shapes[b].name))
-                        for a, b in zip(collision.self_a, collision.self_b)}, "a pair with a margin is not measured"
+    assert set(own) <= {
+        frozenset((collision.shapes[a].name, collision.shapes[b].name))
+        for a, b in zip(collision.self_a, collision.self_b)
+    }, "a pair with a margin is not measured"
 
 
 def test_a_pair_too_coarse_to_tell_a_pose_from_a_fold_stops_the_generator(env, tmp_path):
     """The hand's shape grown to touch the forearm's fork in some poses and stay within the margin in
     all: the generator names the pair and asks for tighter shapes instead of writing a list."""
     urdf = env.kinematics.urdf_path.read_text()
-    coarse, count = re.subn(r'(<link name="hand_link">.*?<cylinder radius=")[0-9.]+', r"\g<1>0.019", urdf,
-                            count=1, flags=re.S)
+    coarse, count = re.subn(
+        r'(<link name="hand_link">.*?<cylinder radius=")[0-9.]+', r"\g<1>0.019", urdf, count=1, flags=re.S
+    )
     assert count == 1
     path = tmp_path / "ned2_coarse.urdf"
     path.write_text(coarse)
@@ -212,8 +241,11 @@ def test_a_list_that_skips_pairs_always_within_the_margin_is_refused(env, tmp_pa
         body = {key: value for key, value in changed.items() if key != "checksum"}
         write_pairs(path, "ned2", {**body, "checksum": checksum(body)})
 
-    old = {**data, "pair_margins": data["pair_margins"][1:],
-           "skipped": data["skipped"] + [[first, second, "always within the margin"]]}
+    old = {
+        **data,
+        "pair_margins": data["pair_margins"][1:],
+        "skipped": data["skipped"] + [[first, second, "always within the margin"]],
+    }
     write(old)
     with pytest.raises(StalePairs, match="neither exempt by structure nor proven apart"):
         read_pairs(path, collision, margin)

@@ -5,9 +5,9 @@ The oracle is the seed pages' action tables (numbers copied here, not read from 
 import numpy as np
 import pytest
 
-from envfactory.views.describe import action_table
 from envfactory.envs.episodes import run_episodes, success_rate
 from envfactory.experts import make_policy
+from envfactory.views.describe import action_table
 
 # seed pages: Action Space, joint mode (Min, Max per row); delta_coeff 0.05
 SEED_JOINT_ROWS = {
@@ -37,13 +37,13 @@ def test_space_is_minus_one_to_one_of_the_same_size(env_id, make):
     vector = observation["observation"] if isinstance(observation, dict) else observation
     assert normalised.observation_space.contains(observation)
     # the previous-action columns hold the policy's action, and start at "hold still" (zero in delta mode)
-    slot, = [slot for slot in normalised.unwrapped.observations.slots if slot.name == "previous_action"]
+    (slot,) = [slot for slot in normalised.unwrapped.observations.slots if slot.name == "previous_action"]
     arm_rows = 6
-    np.testing.assert_array_equal(vector[slot.start:slot.start + arm_rows], 0.0)
+    np.testing.assert_array_equal(vector[slot.start : slot.start + arm_rows], 0.0)
     action = normalised.action_space.sample()
     observation, *_ = normalised.step(action)
     vector = observation["observation"] if isinstance(observation, dict) else observation
-    np.testing.assert_allclose(vector[slot.start:slot.stop], action, atol=1e-6)
+    np.testing.assert_allclose(vector[slot.start : slot.stop], action, atol=1e-6)
 
 
 @pytest.mark.parametrize("env_id", ["VX300SReacherSim-v0", "UR5eReacherSim-v0"])

@@ -59,5 +59,6 @@ def test_standard_env_vector_is_scaled_too(make):
     box = raw.observation_space
     assert scaled.observation_space == type(box)(-1.0, 1.0, box.shape, np.float32)
     for raw_obs, scaled_obs, _ in pairs:
-        np.testing.assert_allclose(scaled_obs, (raw_obs - (box.low + box.high) / 2) / ((box.high - box.low) / 2),
-                                   atol=1e-5)
+        np.testing.assert_allclose(
+            scaled_obs, (raw_obs - (box.low + box.high) / 2) / ((box.high - box.low) / 2), atol=1e-5
+        )

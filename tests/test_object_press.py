@@ -23,17 +23,27 @@ ENGINE_BAND = 0.002
 def _bullet_scene(env, cube):
     spec = env.blueprint.spec
     client = p.connect(p.DIRECT)
-    body = p.loadURDF(str(env.kinematics.urdf_path), basePosition=list(spec.robot.mount),
-                      baseOrientation=p.getQuaternionFromEuler(list(spec.robot.mount_rpy)), useFixedBase=True,
-                      physicsClientId=client)
+    body = p.loadURDF(
+        str(env.kinematics.urdf_path),
+        basePosition=list(spec.robot.mount),
+        baseOrientation=p.getQuaternionFromEuler(list(spec.robot.mount_rpy)),
+        useFixedBase=True,
+        physicsClientId=client,
+    )
     half = spec.task.objects["cube"].size / 2
     world = env.task_frame.to_world(cube.position)
     quaternion = pin.Quaternion(env.task_frame.rotation @ cube.rotation).coeffs()  # x, y, z, w
-    cube_body = p.createMultiBody(0, p.createCollisionShape(p.GEOM_BOX, halfExtents=[half] * 3,
-                                                            physicsClientId=client),
-                                  basePosition=list(world), baseOrientation=list(quaternion), physicsClientId=client)
-    joints = {p.getJointInfo(body, j, physicsClientId=client)[1].decode(): j
-              for j in range(p.getNumJoints(body, physicsClientId=client))}
+    cube_body = p.createMultiBody(
+        0,
+        p.createCollisionShape(p.GEOM_BOX, halfExtents=[half] * 3, physicsClientId=client),
+        basePosition=list(world),
+        baseOrientation=list(quaternion),
+        physicsClientId=client,
+    )
+    joints = {
+        p.getJointInfo(body, j, physicsClientId=client)[1].decode(): j
+        for j in range(p.getNumJoints(body, physicsClientId=client))
+    }
     links = {p.getJointInfo(body, j, physicsClientId=client)[12].decode(): j for j in joints.values()}
     return client, body, cube_body, joints, links
 
@@ -56,7 +66,9 @@ def test_non_finger_links_are_kept_off_a_resting_cube(env_id):
     refused = accepted = 0
     try:
         for _ in range(60):
-            target = cube.position + np.append(rng.uniform(-0.03, 0.03, 2), rng.uniform(-0.15, 0.10))  # deep enough for the palm
+            target = cube.position + np.append(
+                rng.uniform(-0.03, 0.03, 2), rng.uniform(-0.15, 0.10)
+            )  # deep enough for the palm
             solution = env.kinematics.solve_ik(hover.q_arm, target, down, gripper=robot.gripper.open)
             if not solution.success:
                 continue
@@ -64,9 +76,16 @@ def test_non_finger_links_are_kept_off_a_resting_cube(env_id):
                 p.resetJointState(body, joints[name], float(value), physicsClientId=client)
             for name, gain in {robot.gripper.joint: 1.0, **robot.gripper.mimic}.items():
                 p.resetJointState(body, joints[name], gain * robot.gripper.open, physicsClientId=client)
-            depth = min([point[8] for link in guarded_links
-                         for point in p.getClosestPoints(body, cube_body, 0.05, linkIndexA=links[link],
-                                                         physicsClientId=client)] or [np.inf])
+            depth = min(
+                [
+                    point[8]
+                    for link in guarded_links
+                    for point in p.getClosestPoints(
+                        body, cube_body, 0.05, linkIndexA=links[link], physicsClientId=client
+                    )
+                ]
+                or [np.inf]
+            )
             verdict = guard.check(hover.q_arm, solution.q_arm, robot.gripper.open, robot.gripper.open, state.objects)
             if depth < -(guard.CONTACT_TOLERANCE + ENGINE_BAND):
                 assert not verdict.accepted, (target, depth)

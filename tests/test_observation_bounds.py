@@ -4,9 +4,9 @@ interrupted by extreme actions (which knocks and flings the cube in Push and PnP
 
 import numpy as np
 import pytest
-
 from bullet_oracle import POLICIES
 from conftest import SIM_IDS
+
 from envfactory.experts import make_policy
 
 
@@ -24,8 +24,10 @@ class _InterruptedExpert:
 
 def _outside(space, value) -> list[str]:
     low, high = space.low, space.high
-    return [f"[{i}] {value[i]:.5g} not in [{low[i]:.5g}, {high[i]:.5g}]"
-            for i in np.flatnonzero((value < low) | (value > high))]
+    return [
+        f"[{i}] {value[i]:.5g} not in [{low[i]:.5g}, {high[i]:.5g}]"
+        for i in np.flatnonzero((value < low) | (value > high))
+    ]
 
 
 def _check(env, observation, info, where):

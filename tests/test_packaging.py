@@ -20,8 +20,11 @@ def _declared_packages() -> set[str]:
 
 def _library_packages() -> set[str]:
     library = ROOT / "envfactory"
-    return {".".join(("envfactory",) + init.parent.relative_to(library).parts)
-            for init in library.rglob("__init__.py") if "__pycache__" not in init.parts}
+    return {
+        ".".join(("envfactory",) + init.parent.relative_to(library).parts)
+        for init in library.rglob("__init__.py")
+        if "__pycache__" not in init.parts
+    }
 
 
 def test_every_library_package_is_listed():

@@ -44,7 +44,7 @@ def test_a_seed_reproduces_the_sampled_physics_and_the_observations(make, engine
         observation, info = env.reset(seed=11)
         trace = [observation]
         for action in _actions(env, 5):
-            observation, *_ , info = env.step(action)
+            observation, *_, info = env.step(action)
             trace.append(observation)
         runs.append((info["randomization"], np.array(trace)))
     assert runs[0][0] == runs[1][0]
@@ -59,8 +59,11 @@ def test_randomization_leaves_the_spawn_and_goal_of_a_seed(make):
         plain.reset(seed=seed)
         randomized.reset(seed=seed)
         np.testing.assert_array_equal(plain.unwrapped.goal, randomized.unwrapped.goal)
-        np.testing.assert_allclose(plain.unwrapped.state.objects["cube"].position,
-                                   randomized.unwrapped.state.objects["cube"].position, atol=1e-9)
+        np.testing.assert_allclose(
+            plain.unwrapped.state.objects["cube"].position,
+            randomized.unwrapped.state.objects["cube"].position,
+            atol=1e-9,
+        )
 
 
 def test_vector_envs_sample_independent_streams():
@@ -78,9 +81,11 @@ def _pybullet_reading(env) -> dict[str, float]:
     judged by its effect below)."""
     backend = env.unwrapped.backend
     c, cube = backend.client, backend.objects["cube"]
-    return {"cube_mass": p.getDynamicsInfo(cube, -1, physicsClientId=c)[0],
-            "cube_friction": p.getDynamicsInfo(cube, -1, physicsClientId=c)[1],
-            "table_friction": p.getDynamicsInfo(backend._table_body, -1, physicsClientId=c)[1]}
+    return {
+        "cube_mass": p.getDynamicsInfo(cube, -1, physicsClientId=c)[0],
+        "cube_friction": p.getDynamicsInfo(cube, -1, physicsClientId=c)[1],
+        "table_friction": p.getDynamicsInfo(backend._table_body, -1, physicsClientId=c)[1],
+    }
 
 
 def _mujoco_reading(env) -> dict[str, float]:
@@ -88,10 +93,12 @@ def _mujoco_reading(env) -> dict[str, float]:
     backend = env.unwrapped.backend
     model, handles = backend.model, backend.handles
     table_pair = handles.pair_surfaces.index(("object:cube", f"obstacle:{TABLE_TOP}"))
-    return {"cube_mass": float(model.body_mass[handles.object_body["cube"]]),
-            "cube_table_pair": float(model.pair_friction[table_pair, 0]),
-            "arm_damping": float(model.dof_damping[handles.arm_dof[0]]),
-            "grip_force": float(model.actuator_forcerange[handles.gripper_actuator, 1])}
+    return {
+        "cube_mass": float(model.body_mass[handles.object_body["cube"]]),
+        "cube_table_pair": float(model.pair_friction[table_pair, 0]),
+        "arm_damping": float(model.dof_damping[handles.arm_dof[0]]),
+        "grip_force": float(model.actuator_forcerange[handles.gripper_actuator, 1]),
+    }
 
 
 def test_pybullet_holds_what_the_events_sampled(make):
@@ -170,9 +177,14 @@ def _columns(env, name):
 
 
 def test_observation_noise_has_the_declared_spread_on_its_columns_only(make):
-    noisy, plain = _twins(make, ["+task.randomization.sensing.n.term=observation_noise",
-                                 "+task.randomization.sensing.n.params.observations=[joint_positions]",
-                                 "+task.randomization.sensing.n.params.std=0.01"])
+    noisy, plain = _twins(
+        make,
+        [
+            "+task.randomization.sensing.n.term=observation_noise",
+            "+task.randomization.sensing.n.params.observations=[joint_positions]",
+            "+task.randomization.sensing.n.params.std=0.01",
+        ],
+    )
     differences = []
     for seed in range(4):
         observations = [noisy.reset(seed=seed)[0], plain.reset(seed=seed)[0]]
@@ -187,8 +199,9 @@ def test_observation_noise_has_the_declared_spread_on_its_columns_only(make):
 
 
 def test_a_delayed_observation_is_the_one_from_steps_before(make):
-    late, plain = _twins(make, ["+task.randomization.sensing.d.term=observation_delay",
-                                "+task.randomization.sensing.d.params.steps=2"])
+    late, plain = _twins(
+        make, ["+task.randomization.sensing.d.term=observation_delay", "+task.randomization.sensing.d.params.steps=2"]
+    )
     seen = [late.reset(seed=3)[0]]
     truth = [plain.reset(seed=3)[0]]
     for action in _actions(plain, 8):
@@ -201,8 +214,9 @@ def test_a_delayed_observation_is_the_one_from_steps_before(make):
 
 
 def test_a_delayed_action_lands_steps_later(make):
-    late, plain = _twins(make, ["+task.randomization.sensing.d.term=action_delay",
-                                "+task.randomization.sensing.d.params.steps=1"])
+    late, plain = _twins(
+        make, ["+task.randomization.sensing.d.term=action_delay", "+task.randomization.sensing.d.params.steps=1"]
+    )
     late.reset(seed=4)
     plain.reset(seed=4)
     actions = _actions(plain, 6)
@@ -215,9 +229,14 @@ def test_a_delayed_action_lands_steps_later(make):
 
 
 def test_a_dropped_reading_repeats_the_last_one(make):
-    env, _ = _twins(make, ["+task.randomization.sensing.r.term=repeated_readings",
-                           "+task.randomization.sensing.r.params.observations=[joint_positions]",
-                           "+task.randomization.sensing.r.params.probability=0.5"])
+    env, _ = _twins(
+        make,
+        [
+            "+task.randomization.sensing.r.term=repeated_readings",
+            "+task.randomization.sensing.r.params.observations=[joint_positions]",
+            "+task.randomization.sensing.r.params.probability=0.5",
+        ],
+    )
     joints = _columns(env, "joint_positions")
     observations = [env.reset(seed=0)[0]] + [env.step(action)[0] for action in _actions(env, 30)]
     repeated = [np.array_equal(observations[k][joints], observations[k - 1][joints]) for k in range(1, 31)]
@@ -229,26 +248,38 @@ def test_a_dropped_reading_repeats_the_last_one(make):
 
 def _refusal(env_id, overrides, **kwargs) -> str:
     with pytest.raises(envfactory.SpecError) as error:
-        envfactory.blueprint(env_id, overrides, **kwargs) if not kwargs else gym.make(env_id, overrides=overrides,
-                                                                                       **kwargs)
+        envfactory.blueprint(env_id, overrides, **kwargs) if not kwargs else gym.make(
+            env_id, overrides=overrides, **kwargs
+        )
     return str(error.value)
 
 
 ON = "task.randomization.enabled=true"
 
 
-@pytest.mark.parametrize("overrides, expected", [
-    # names, params and ranges: checked on every ID, on or off
-    (["task.randomization.events.cube_mass.term=objekt_mass"], "did you mean 'object_mass'"),
-    (["task.randomization.events.cube_mass.params.scale=[2.0,1.0]"], "low 2.0 exceeds high 1.0"),
-    (["task.randomization.sensing.joint_noise.params.std=-0.1"], "task.randomization.sensing.joint_noise.params.std"),
-    (["task.randomization.events.cube_mass.params.scale=[0.5,5000]"], "plausible"),
-    (["~task.randomization.events.table_friction.params.range",
-      "+task.randomization.events.table_friction.params.scale=[0.5,1.5]"], "give an absolute 'range'"),
-    # what they refer to in the task: checked once they are on
-    ([ON, "task.randomization.events.cube_mass.params.object=ball"], "'ball' is not one of the task's objects"),
-    ([ON, "task.randomization.sensing.joint_noise.params.observations=[joint_angles]"], "['joint_angles']"),
-])
+@pytest.mark.parametrize(
+    "overrides, expected",
+    [
+        # names, params and ranges: checked on every ID, on or off
+        (["task.randomization.events.cube_mass.term=objekt_mass"], "did you mean 'object_mass'"),
+        (["task.randomization.events.cube_mass.params.scale=[2.0,1.0]"], "low 2.0 exceeds high 1.0"),
+        (
+            ["task.randomization.sensing.joint_noise.params.std=-0.1"],
+            "task.randomization.sensing.joint_noise.params.std",
+        ),
+        (["task.randomization.events.cube_mass.params.scale=[0.5,5000]"], "plausible"),
+        (
+            [
+                "~task.randomization.events.table_friction.params.range",
+                "+task.randomization.events.table_friction.params.scale=[0.5,1.5]",
+            ],
+            "give an absolute 'range'",
+        ),
+        # what they refer to in the task: checked once they are on
+        ([ON, "task.randomization.events.cube_mass.params.object=ball"], "'ball' is not one of the task's objects"),
+        ([ON, "task.randomization.sensing.joint_noise.params.observations=[joint_angles]"], "['joint_angles']"),
+    ],
+)
 def test_bad_randomization_is_refused_by_dotted_path(overrides, expected):
     message = _refusal(PUSH, overrides)
     assert expected in message and "task.randomization" in message
@@ -275,12 +306,20 @@ def test_randomization_is_refused_on_a_real_id():
 
 
 def test_describe_shows_every_event_with_its_range(make):
-    from envfactory.views.describe import randomization_table
     from rich.console import Console
+
+    from envfactory.views.describe import randomization_table
 
     console = Console(width=200, record=True)
     console.print(randomization_table(envfactory.blueprint("VX300SPnPSim-v0")))
     text = console.export_text()
-    for line in ("cube_mass", "0.05 … 0.2 kg, log-uniform", "table_friction", "0.35 … 0.7", "grip_force",
-                 "joint_noise", "randomize=True turns it on"):
+    for line in (
+        "cube_mass",
+        "0.05 … 0.2 kg, log-uniform",
+        "table_friction",
+        "0.35 … 0.7",
+        "grip_force",
+        "joint_noise",
+        "randomize=True turns it on",
+    ):
         assert line in text, line

@@ -13,12 +13,13 @@ import time
 import gymnasium as gym
 import numpy as np
 import pytest
-
-from envfactory.backends.base import BackendError, CommandRefused, ConnectionLost, MotionRefused
-from envfactory.experts import make_policy
-import envfactory
 from conftest import REAL_IDS
 from real_helpers import FAST, UR5E_ARM, UR5E_JOINTS, is_stop, make_real, on, settled, wait_for
+
+import envfactory
+from envfactory.backends.base import BackendError, CommandRefused, ConnectionLost, MotionRefused
+from envfactory.experts import make_policy
+
 
 def test_reacher_real_full_episode(twin, make):
     stand_in = twin(task="reach")
@@ -40,8 +41,14 @@ def test_reacher_real_full_episode(twin, make):
     twin_arm = lambda: stand_in.sim.read_joints().position[env.unwrapped._arm_in_states]  # noqa: E731
     assert wait_for(lambda: np.allclose(twin_arm(), sent, atol=5e-3)), (twin_arm(), sent)
     np.testing.assert_allclose(env.unwrapped.state.q_arm, sent, atol=0.05)  # and the env read it on the way
-    assert commands[-1]["joint_names"] == ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint",
-                                           "wrist_1_joint", "wrist_2_joint", "wrist_3_joint"]
+    assert commands[-1]["joint_names"] == [
+        "shoulder_pan_joint",
+        "shoulder_lift_joint",
+        "elbow_joint",
+        "wrist_1_joint",
+        "wrist_2_joint",
+        "wrist_3_joint",
+    ]
     env.close()
     assert wait_for(lambda: is_stop(on(stand_in, UR5E_ARM)[-1]))  # close sends the stop
 
@@ -61,7 +68,9 @@ def test_push_goal_real_episode_reads_the_cube(twin, make):
     np.testing.assert_allclose(observation["achieved_goal"], cube, atol=5e-3)
 
 
-@pytest.mark.parametrize("robot, env_id, arm_joints", [("vx300s", "VX300SPnPReal-v0", 6), ("rx200", "RX200PnPReal-v0", 5)])
+@pytest.mark.parametrize(
+    "robot, env_id, arm_joints", [("vx300s", "VX300SPnPReal-v0", 6), ("rx200", "RX200PnPReal-v0", 5)]
+)
 def test_interbotix_group_commands_on_the_wire(twin, make, robot, env_id, arm_joints):
     stand_in = twin(robot)
     env = make_real(make, env_id, stand_in, max_episode_steps=3)
@@ -98,7 +107,7 @@ def test_motion_gate_refuses_construction_and_every_publish(twin, make, monkeypa
     assert stand_in.server.client_count == 0 and stand_in.received == []  # it never even connected
 
     monkeypatch.setenv("ALLOW_REAL_ROBOT_MOTION", "1")  # the environment variable opens the gate too
-    env = make(f"UR5eReacherReal-v0", rosbridge_port=stand_in.port, **FAST)
+    env = make("UR5eReacherReal-v0", rosbridge_port=stand_in.port, **FAST)
     env.reset(seed=0)
     sent = settled(stand_in)
     monkeypatch.delenv("ALLOW_REAL_ROBOT_MOTION")  # the gate closes mid-run: checked again at every publish
@@ -189,15 +198,32 @@ def test_auto_launch_cube_tracker_is_refused_clearly(make):
 @pytest.mark.slow
 def test_ctrl_c_during_run_sends_the_stop(twin):
     stand_in = twin(task="reach")
-    command = [sys.executable, "-m", "envfactory.cli", "run", "UR5eReacherReal-v0", "-n", "50",
-               "--policy", "random", "--allow-real-robot-motion", "-k", f"rosbridge_port={stand_in.port}",
-               # the seeds' 0.5 s cycle: the first episode lasts 50 s, so the Ctrl-C lands in it (a random
-               # episode may end where the next drive home is rightly refused); the twin shares this busy
-               # process, so the staleness gates are generous
-               "-k", "joint_state_timeout_s=3.0", "-k", "deadman_s=5.0",
-               "-o", "env.real.follow_timeout_s=3.0"]
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                               env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    command = [
+        sys.executable,
+        "-m",
+        "envfactory.cli",
+        "run",
+        "UR5eReacherReal-v0",
+        "-n",
+        "50",
+        "--policy",
+        "random",
+        "--allow-real-robot-motion",
+        "-k",
+        f"rosbridge_port={stand_in.port}",
+        # the seeds' 0.5 s cycle: the first episode lasts 50 s, so the Ctrl-C lands in it (a random
+        # episode may end where the next drive home is rightly refused); the twin shares this busy
+        # process, so the staleness gates are generous
+        "-k",
+        "joint_state_timeout_s=3.0",
+        "-k",
+        "deadman_s=5.0",
+        "-o",
+        "env.real.follow_timeout_s=3.0",
+    ]
+    process = subprocess.Popen(
+        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"}
+    )
     try:
         assert wait_for(lambda: len(on(stand_in, UR5E_ARM)) >= 4, timeout=30.0), process.stderr.read()
         process.send_signal(signal.SIGINT)
@@ -212,8 +238,13 @@ def test_ctrl_c_during_run_sends_the_stop(twin):
 def test_topics_are_overridable_by_kwarg(twin, make):
     stand_in = twin()
     with pytest.raises(BackendError, match=r"nothing arrived on \['/elsewhere/joint_states'\]"):
-        make("UR5ePushReal-v0", rosbridge_port=stand_in.port, allow_real_robot_motion=True,
-             joint_states_topic="/elsewhere/joint_states", overrides=["env.real.connect_timeout_s=1.0"])
+        make(
+            "UR5ePushReal-v0",
+            rosbridge_port=stand_in.port,
+            allow_real_robot_motion=True,
+            joint_states_topic="/elsewhere/joint_states",
+            overrides=["env.real.connect_timeout_s=1.0"],
+        )
     # a command topic nothing listens to is refused before anything is sent
     with pytest.raises(CommandRefused, match="nothing subscribes to /my_arm/command"):
         make_real(make, "UR5ePushReal-v0", stand_in, arm_command_topic="/my_arm/command")
@@ -243,8 +274,12 @@ def test_ned2_gripper_takes_open_and_close_goals(twin, make):
         action[-1] = value
         env.step(action)
         goals = on(stand_in, NED2_GRIPPER)
-        assert goals[-1]["goal"]["cmd"] == {"cmd_type": cmd_type, "tool_id": 11, "max_torque_percentage": 100,
-                                            "hold_torque_percentage": 30}
+        assert goals[-1]["goal"]["cmd"] == {
+            "cmd_type": cmd_type,
+            "tool_id": 11,
+            "max_torque_percentage": 100,
+            "hold_torque_percentage": 30,
+        }
         assert abs(jaws() - niryo_end) < 1e-3, jaws()  # done when the step returned
         np.testing.assert_allclose(env.unwrapped.state.joint_positions[-2:], [reading, reading])
     ids = [goal["goal_id"]["id"] for goal in on(stand_in, NED2_GRIPPER)]
@@ -275,8 +310,13 @@ def _robot_and_task(env_id):
     return spec.robot.name, spec.task.name
 
 
-@pytest.mark.parametrize("env_id", [pytest.param(env_id, marks=() if env_id in ("NED2PnPGoalReal-v0", "RX200PushReal-v0")
-                                                 else pytest.mark.slow) for env_id in REAL_IDS])
+@pytest.mark.parametrize(
+    "env_id",
+    [
+        pytest.param(env_id, marks=() if env_id in ("NED2PnPGoalReal-v0", "RX200PushReal-v0") else pytest.mark.slow)
+        for env_id in REAL_IDS
+    ],
+)
 def test_every_real_id_keeps_the_api_against_the_twin(twin, make, env_id):
     """gymnasium's passive checker (on in gym.make) and the spaces hold over a reset and random steps."""
     robot, task = _robot_and_task(env_id)

@@ -11,11 +11,11 @@ import time
 import gymnasium as gym
 import numpy as np
 import pytest
+from real_helpers import make_real, on, settled, wait_for
 from websockets.sync.client import connect
 
 from envfactory.backends.base import DriverRefused
 from envfactory.experts import make_policy
-from real_helpers import FAST, make_real, on, settled, wait_for
 
 VX300S_GRIPPER = "/vx300s/commands/joint_single"
 NED2_GOALS = "/niryo_robot_tools_commander/action_server/goal"
@@ -39,22 +39,28 @@ def published(stand_in, topic, timeout=2.0):
 
 # ------------------------------------------------------------------ Interbotix xs_sdk
 
+
 def test_the_env_sets_xs_sdk_to_its_cycle_through_the_operating_modes_service(twin, make):
     stand_in = twin("vx300s", "reach")
     assert stand_in.group_move_s == 2.0 and stand_in.driver.gripper_mode == "pwm"  # xs_sdk's stock mode config
     env = make_real(make, "VX300SReacherReal-v0", stand_in)
-    calls = [(request["cmd_type"], request["name"], request["mode"], answered)
-             for _, request, answered in stand_in.server.calls]
+    calls = [
+        (request["cmd_type"], request["name"], request["mode"], answered)
+        for _, request, answered in stand_in.server.calls
+    ]
     assert calls == [("group", "arm", "position", True), ("single", "gripper", "linear_position", True)]
     motion = env.unwrapped.backend.motion_s
     assert stand_in.group_move_s == pytest.approx(round(1000 * motion) / 1000)
     assert stand_in.server.calls[0][1]["profile_type"] == "time"
 
 
-@pytest.mark.parametrize("robot, env_id, open_, closed", [("vx300s", "VX300SPnPReal-v0", 0.057, 0.021),
-                                                          ("rx200", "RX200PnPReal-v0", 0.037, 0.015)])
-def test_the_interbotix_gripper_opens_to_its_full_width_and_closes_within_its_range(twin, make, robot, env_id,
-                                                                                    open_, closed):
+@pytest.mark.parametrize(
+    "robot, env_id, open_, closed",
+    [("vx300s", "VX300SPnPReal-v0", 0.057, 0.021), ("rx200", "RX200PnPReal-v0", 0.037, 0.015)],
+)
+def test_the_interbotix_gripper_opens_to_its_full_width_and_closes_within_its_range(
+    twin, make, robot, env_id, open_, closed
+):
     stand_in = twin(robot, "pnp")
     env = make_real(make, env_id, stand_in, max_episode_steps=6)
     env.reset(seed=0)
@@ -109,9 +115,17 @@ def test_the_watchdog_judges_a_move_against_the_profile_the_driver_runs(twin, ma
     and ends with it done. A driver that executes nothing is still caught, once the profile and the margin are
     over."""
     stand_in = twin("vx300s", "reach", group_move_s=4.0)
-    env = make_real(make, "VX300SReacherReal-v0", stand_in, max_episode_steps=3,
-                    overrides=["robot.ros.setup=[]", "robot.ros.arm_command.profile_time_s=4.0",
-                               "robot.ros.settle.tolerance=0.002"])
+    env = make_real(
+        make,
+        "VX300SReacherReal-v0",
+        stand_in,
+        max_episode_steps=3,
+        overrides=[
+            "robot.ros.setup=[]",
+            "robot.ros.arm_command.profile_time_s=4.0",
+            "robot.ros.settle.tolerance=0.002",
+        ],
+    )
     env.reset(seed=0)
     nudge = np.zeros(6, dtype=np.float32)
     nudge[0] = 0.24  # 0.012 rad of waist
@@ -132,6 +146,7 @@ def test_the_watchdog_judges_a_move_against_the_profile_the_driver_runs(twin, ma
 
 # ------------------------------------------------------------------ ur_robot_driver
 
+
 def test_a_slow_speed_scaling_stretches_the_step_and_a_stalled_one_stops_the_arm(twin, make):
     """The scaled trajectory controller runs a trajectory at the pendant's speed scaling: at 0.4 a step's
     0.2 s motion takes 0.5 s and the step waits for it; at 0.05 it cannot finish within its 0.2 s and the
@@ -146,11 +161,13 @@ def test_a_slow_speed_scaling_stretches_the_step_and_a_stalled_one_stops_the_arm
     assert not truncated and 0.45 < info["timing"]["motion_s"] < 1.0
     stand_in.driver.speed_scaling = 0.05
     _, _, _, truncated, info = env.step(-nudge)
-    assert truncated and info["abort_reason"].startswith("the arm did not finish the command on "
-                                                         "/scaled_pos_joint_traj_controller/command within 1.20 s")
+    assert truncated and info["abort_reason"].startswith(
+        "the arm did not finish the command on /scaled_pos_joint_traj_controller/command within 1.20 s"
+    )
 
 
 # ------------------------------------------------------------------ Niryo ned_ros
+
 
 def test_a_ned2_connects_with_the_joint_states_of_its_hardware_stack(twin, make):
     stand_in = twin("ned2", "push")
@@ -193,8 +210,10 @@ def test_a_ned2_gripper_goal_the_driver_aborts_ends_the_episode_with_its_words(t
     action[-1] = -0.01
     _, _, _, truncated, info = env.step(action)
     assert truncated
-    assert info["abort_reason"] == (f"the gripper goal on {NED2_GOALS} ended ABORTED: status -251, "
-                                    "message 'Tools ID do not match -> Given : 11 Expected : 12'")
+    assert info["abort_reason"] == (
+        f"the gripper goal on {NED2_GOALS} ended ABORTED: status -251, "
+        "message 'Tools ID do not match -> Given : 11 Expected : 12'"
+    )
     stand_in.driver.mounted_tool = 11
     env.reset(seed=1)  # recovered: the next episode's goals succeed
     _, _, _, truncated, info = env.step(action)
@@ -202,6 +221,7 @@ def test_a_ned2_gripper_goal_the_driver_aborts_ends_the_episode_with_its_words(t
 
 
 # ------------------------------------------------------------------ a step means one thing
+
 
 def _episodes(env, seeds, policy_of):
     rows = []
@@ -225,8 +245,9 @@ def test_a_policy_from_simulation_keeps_its_success_on_the_real_id_at_stock_timi
     sim = make("VX300SReacherGoalSim-v0", max_episode_steps=25)
     simulated = _episodes(sim, seeds, lambda env: make_policy("scripted", env))
     stand_in = twin("vx300s", "reach")
-    real = make("VX300SReacherGoalReal-v0", rosbridge_port=stand_in.port, allow_real_robot_motion=True,
-                max_episode_steps=25)
+    real = make(
+        "VX300SReacherGoalReal-v0", rosbridge_port=stand_in.port, allow_real_robot_motion=True, max_episode_steps=25
+    )
     on_twin = _episodes(real, seeds, lambda env: make_policy("scripted", env))
     assert [success for success, _ in simulated] == [True, True]
     assert sum(s for s, _ in on_twin) >= 0.9 * sum(s for s, _ in simulated)
@@ -274,6 +295,9 @@ def test_a_simulator_reads_the_gripper_as_xs_sdk_publishes_it(twin, robot, env_i
         state = env.unwrapped.state
         finger = state.joint_positions[names.index("left_finger")]
         assert state.joint_positions[names.index("gripper")] == pytest.approx(driver.horn_angle(2 * finger), abs=1e-9)
-        assert state.joint_velocities[names.index("left_finger")] == state.joint_velocities[
-            names.index("right_finger")] == 0.0
+        assert (
+            state.joint_velocities[names.index("left_finger")]
+            == state.joint_velocities[names.index("right_finger")]
+            == 0.0
+        )
     env.close()

@@ -5,10 +5,21 @@ the exact commands, one stop per event, nothing after a gate."""
 
 import numpy as np
 import pytest
+from real_helpers import (
+    NED2_ARM,
+    NED2_JOINTS,
+    UR5E_ARM,
+    UR5E_JOINTS,
+    VX300S_ARM,
+    VX300S_JOINTS,
+    is_stop,
+    make_real,
+    on,
+    settled,
+    wait_for,
+)
 
 from envfactory.backends.base import CommandRefused, ConnectionLost
-from real_helpers import (NED2_ARM, NED2_JOINTS, UR5E_ARM, UR5E_JOINTS, VX300S_ARM, VX300S_JOINTS, is_stop,
-                          make_real, on, settled, wait_for)
 
 ROBOTS = {  # robot -> (env ID, arm command topic, joint states topic)
     "ur5e": ("UR5eReacherReal-v0", UR5E_ARM, UR5E_JOINTS),
@@ -117,14 +128,19 @@ def test_a_command_topic_of_another_type_is_refused_at_connect(twin, make):
     stand_in = twin("ur5e", "reach", topic_types={UR5E_ARM: "std_msgs/Float64MultiArray"})
     with pytest.raises(CommandRefused) as refused:
         make_real(make, "UR5eReacherReal-v0", stand_in)
-    assert (f"{UR5E_ARM} has type std_msgs/Float64MultiArray on the robot, but this env sends "
-            f"trajectory_msgs/JointTrajectory there") in str(refused.value)
+    assert (
+        f"{UR5E_ARM} has type std_msgs/Float64MultiArray on the robot, but this env sends "
+        f"trajectory_msgs/JointTrajectory there"
+    ) in str(refused.value)
     assert stand_in.received == []
 
     vx = twin("vx300s", "reach")  # a topic map that points the arm at the gripper's topic
-    with pytest.raises(CommandRefused, match="/vx300s/commands/joint_single has type "
-                                             "interbotix_xs_msgs/JointSingleCommand on the robot, but this env "
-                                             "sends interbotix_xs_msgs/JointGroupCommand"):
+    with pytest.raises(
+        CommandRefused,
+        match="/vx300s/commands/joint_single has type "
+        "interbotix_xs_msgs/JointSingleCommand on the robot, but this env "
+        "sends interbotix_xs_msgs/JointGroupCommand",
+    ):
         make_real(make, "VX300SReacherReal-v0", vx, arm_command_topic="/vx300s/commands/joint_single")
     assert vx.received == []
 
@@ -187,9 +203,21 @@ def run_cli(stand_in, *extra):
 
     from envfactory.cli.app import app
 
-    command = ["run", "UR5eReacherReal-v0", "-n", "3", "--policy", "random", "--allow-real-robot-motion",
-               "-k", f"rosbridge_port={stand_in.port}", "-k", "max_episode_steps=10",
-               *[arg for name, value in FAST_KWARGS.items() for arg in ("-k", f"{name}={value}")], *extra]
+    command = [
+        "run",
+        "UR5eReacherReal-v0",
+        "-n",
+        "3",
+        "--policy",
+        "random",
+        "--allow-real-robot-motion",
+        "-k",
+        f"rosbridge_port={stand_in.port}",
+        "-k",
+        "max_episode_steps=10",
+        *[arg for name, value in FAST_KWARGS.items() for arg in ("-k", f"{name}={value}")],
+        *extra,
+    ]
     return CliRunner().invoke(app, command)
 
 

@@ -26,10 +26,16 @@ def _robot_folder(tmp_path: Path, packages: str = "", urdf: str = "assets/arm.ur
     (folder / "meshes" / "base.stl").write_bytes(TRIANGLE_STL)
     text = (ROOT / "robots" / "assets" / "vx300s.urdf").read_text()
     # the base link's visual becomes a package:// mesh
-    text = re.sub(r"<visual>(.*?)<geometry>.*?</geometry>",
-                  lambda m: m.group(0).split("<geometry>")[0]
-                  + '<geometry><mesh filename="package://arm_description/meshes/base.stl"/></geometry>',
-                  text, count=1, flags=re.S)
+    text = re.sub(
+        r"<visual>(.*?)<geometry>.*?</geometry>",
+        lambda m: (
+            m.group(0).split("<geometry>")[0]
+            + '<geometry><mesh filename="package://arm_description/meshes/base.stl"/></geometry>'
+        ),
+        text,
+        count=1,
+        flags=re.S,
+    )
     (folder / "robots" / "assets" / "arm.urdf").write_text(text)
     robot = (ROOT / "robots" / "vx300s.yaml").read_text().replace("name: vx300s", "name: myarm")
     robot = robot.replace("urdf: assets/vx300s.urdf", f"urdf: {urdf}").replace("model:\n", f"model:\n{packages}", 1)
@@ -37,7 +43,9 @@ def _robot_folder(tmp_path: Path, packages: str = "", urdf: str = "assets/arm.ur
     robot = re.sub(r"safety:\n  collision_pairs: .*\n", "", robot)
     (folder / "robots" / "myarm.yaml").write_text(robot)
     family = (ROOT / "specs" / "vx300s_reach.yaml").read_text().replace("/robots@robot: vx300s", "/robots@robot: myarm")
-    family = re.sub(r"registration:.*", "registration:\n  ids: {MyArmReach-v0: {backend: pybullet}}\n", family, flags=re.S)
+    family = re.sub(
+        r"registration:.*", "registration:\n  ids: {MyArmReach-v0: {backend: pybullet}}\n", family, flags=re.S
+    )
     (folder / "specs" / "myarm_reach.yaml").write_text(family)
     return folder
 
@@ -63,10 +71,13 @@ def test_undeclared_package_is_named_with_the_robot_file_and_line(tmp_path):
     assert "declare its package" in message
 
 
-@pytest.mark.parametrize("broken, expected", [
-    ("missing_urdf", "robot.model.parts.0.urdf: no URDF file at"),
-    ("missing_mesh", "mesh 'package://arm_description/meshes/base.stl' in arm.urdf not found"),
-])
+@pytest.mark.parametrize(
+    "broken, expected",
+    [
+        ("missing_urdf", "robot.model.parts.0.urdf: no URDF file at"),
+        ("missing_mesh", "mesh 'package://arm_description/meshes/base.stl' in arm.urdf not found"),
+    ],
+)
 def test_missing_files_are_named(tmp_path, broken, expected):
     urdf = "assets/nope.urdf" if broken == "missing_urdf" else "assets/arm.urdf"
     folder = _robot_folder(tmp_path, packages="  packages: {arm_description: ..}\n", urdf=urdf)
@@ -88,12 +99,23 @@ def test_collision_pairs_rewrites_a_stale_list(tmp_path):
     robot = folder / "robots" / "myarm.yaml"
     robot.write_text(robot.read_text() + "safety:\n  collision_pairs: assets/myarm.collision.yaml\n")
     pairs = folder / "robots" / "assets" / "myarm.collision.yaml"
-    pairs.write_text((ROOT / "robots" / "assets" / "vx300s.collision.yaml").read_text()
-                     .replace("fingerprint:", "fingerprint: stale", 1))
+    pairs.write_text(
+        (ROOT / "robots" / "assets" / "vx300s.collision.yaml")
+        .read_text()
+        .replace("fingerprint:", "fingerprint: stale", 1)
+    )
     env = {**os.environ, "ENVFACTORY_SPEC_PATH": str(folder)}
     cli = str(Path(sys.executable).parent / "envfactory")
-    run = lambda *args: subprocess.run([cli, *args], env=env, capture_output=True, text=True,  # noqa: E731
-                                       timeout=300)
+
+    def run(*args):
+        return subprocess.run(
+            [cli, *args],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+
     before = run("validate", str(folder))
     assert before.returncode == 1 and "stale" in before.stderr + before.stdout
     written = run("collision-pairs", "myarm", "--samples", "200")
@@ -125,8 +147,16 @@ def test_collision_pairs_writes_a_missing_list(tmp_path):
     assert not pairs.exists()
     env = {**os.environ, "ENVFACTORY_SPEC_PATH": str(folder)}
     cli = str(Path(sys.executable).parent / "envfactory")
-    run = lambda *args: subprocess.run([cli, *args], env=env, capture_output=True, text=True,  # noqa: E731
-                                       timeout=300)
+
+    def run(*args):
+        return subprocess.run(
+            [cli, *args],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+
     assert run("validate", str(folder)).returncode == 1
     written = run("collision-pairs", "myarm", "--samples", "200")
     assert written.returncode == 0, written.stderr + written.stdout

@@ -23,13 +23,16 @@ def test_joint_state_is_matched_by_name_not_order():
     np.testing.assert_array_equal(velocity, [0.1, 0.2, 0.3])
 
 
-@pytest.mark.parametrize("msg, reason", [
-    ({"position": [1, 2, 3]}, "without a 'name' list"),
-    ({"name": NAMES, "position": [1, 2]}, "has 2 values, expected 3"),
-    ({"name": NAMES, "position": [1, float("nan"), 3]}, "non-finite"),
-    ({"name": NAMES, "position": ["a", 2, 3]}, "not a list of numbers"),
-    ({"name": ["elbow", "shoulder", "wrist"], "position": [1, 2, 3]}, "lacks joints ['waist']"),
-])
+@pytest.mark.parametrize(
+    "msg, reason",
+    [
+        ({"position": [1, 2, 3]}, "without a 'name' list"),
+        ({"name": NAMES, "position": [1, 2]}, "has 2 values, expected 3"),
+        ({"name": NAMES, "position": [1, float("nan"), 3]}, "non-finite"),
+        ({"name": NAMES, "position": ["a", 2, 3]}, "not a list of numbers"),
+        ({"name": ["elbow", "shoulder", "wrist"], "position": [1, 2, 3]}, "lacks joints ['waist']"),
+    ],
+)
 def test_malformed_joint_states_are_rejected_with_the_reason(msg, reason):
     with pytest.raises(MalformedMessage, match=reason.replace("[", r"\[").replace("]", r"\]")):
         messages.decode_joint_state(msg, NAMES)
@@ -61,9 +64,13 @@ def test_arm_command_round_trip_and_stop(encoding):
         assert messages.encode_arm_stop(command, NAMES, None) is None  # nothing to hold: nothing sent
 
 
-@pytest.mark.parametrize("encoding, expected", [("float64_array", {"layout": {"dim": [], "data_offset": 0},
-                                                                   "data": [0.7]}),
-                                                ("joint_single", {"name": "gripper", "cmd": 0.7})])
+@pytest.mark.parametrize(
+    "encoding, expected",
+    [
+        ("float64_array", {"layout": {"dim": [], "data_offset": 0}, "data": [0.7]}),
+        ("joint_single", {"name": "gripper", "cmd": 0.7}),
+    ],
+)
 def test_gripper_command_encodings(encoding, expected):
     command = GripperCommand(topic="/g", type="t", encoding=encoding)
     assert messages.encode_gripper(command, 0.7, 0.0, 0.8) == expected
@@ -75,9 +82,20 @@ def test_camera_pose_reaches_the_task_frame_through_static_and_tf_transforms():
     # a camera above the table looking straight down, announced on /tf
     down = pin.rpy.rpyToMatrix(np.pi, 0, 0)
     x, y, z, w = pin.Quaternion(down).coeffs()
-    graph.learn({"transforms": [{"header": {"frame_id": "base_link"}, "child_frame_id": "camera",
-                                 "transform": {"translation": {"x": 0.5, "y": 0.0, "z": 0.8},
-                                               "rotation": {"x": x, "y": y, "z": z, "w": w}}}]})
+    graph.learn(
+        {
+            "transforms": [
+                {
+                    "header": {"frame_id": "base_link"},
+                    "child_frame_id": "camera",
+                    "transform": {
+                        "translation": {"x": 0.5, "y": 0.0, "z": 0.8},
+                        "rotation": {"x": x, "y": y, "z": z, "w": w},
+                    },
+                }
+            ]
+        }
+    )
     position, quaternion = graph.to_task("camera", np.array([0.0, 0.1, 0.6]), np.array([0, 0, 0, 1.0]))
     np.testing.assert_allclose(position, [0.5, -0.1, 0.59 + 0.8 - 0.6], atol=1e-9)
     assert np.allclose(np.abs(quaternion), np.abs([x, y, z, w]))
@@ -90,12 +108,15 @@ def test_null_in_a_joint_state_is_named():
         messages.decode_joint_state({"name": NAMES, "position": [1.0, None, 3.0]}, NAMES)
 
 
-@pytest.mark.parametrize("age, limit, text", [
-    (0.5004, 0.5, "0.51 s old (limit 0.50 s)"),
-    (0.50001, 0.5, "0.51 s old (limit 0.50 s)"),
-    (2.0, 0.5, "2.00 s old (limit 0.50 s)"),
-    (0.5, 0.4999, "0.5000 s old (limit 0.4999 s)"),
-])
+@pytest.mark.parametrize(
+    "age, limit, text",
+    [
+        (0.5004, 0.5, "0.51 s old (limit 0.50 s)"),
+        (0.50001, 0.5, "0.51 s old (limit 0.50 s)"),
+        (2.0, 0.5, "2.00 s old (limit 0.50 s)"),
+        (0.5, 0.4999, "0.5000 s old (limit 0.4999 s)"),
+    ],
+)
 def test_an_age_past_its_limit_reads_as_past_it(age, limit, text):
     assert beyond(age, limit) == text
 

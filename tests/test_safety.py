@@ -5,7 +5,6 @@ the commanded motion posed in a second client (tests/bullet_oracle.py), never
 the check's Pinocchio/coal model.
 """
 
-
 import numpy as np
 import pytest
 from bullet_oracle import ADVERSARIAL, POLICIES, BulletJudge, judge_steps
@@ -14,10 +13,20 @@ import envfactory
 from envfactory.envs import RobotEnv
 from envfactory.geometry.collision_pairs import StalePairs, checksum, fingerprint, read_pairs, write_pairs
 
-SIM_IDS = ["UR5eReacherSim-v0", "UR5ePushSim-v0", "UR5ePnPSim-v0",
-           "VX300SReacherSim-v0", "VX300SPushSim-v0", "VX300SPnPSim-v0",
-           "RX200ReacherSim-v0", "RX200PushSim-v0", "RX200PnPSim-v0",
-           "NED2ReacherSim-v0", "NED2PushSim-v0", "NED2PnPSim-v0"]
+SIM_IDS = [
+    "UR5eReacherSim-v0",
+    "UR5ePushSim-v0",
+    "UR5ePnPSim-v0",
+    "VX300SReacherSim-v0",
+    "VX300SPushSim-v0",
+    "VX300SPnPSim-v0",
+    "RX200ReacherSim-v0",
+    "RX200PushSim-v0",
+    "RX200PnPSim-v0",
+    "NED2ReacherSim-v0",
+    "NED2PushSim-v0",
+    "NED2PnPSim-v0",
+]
 
 
 def make(env_id, **kwargs):
@@ -94,7 +103,7 @@ def test_capsule_halving_proves_only_pairs_that_keep_their_threshold(env):
         q_from = rng.uniform(kin.arm_lower, kin.arm_upper)
         q_to = np.clip(q_from + rng.uniform(-0.3, 0.3, q_from.size), kin.arm_lower, kin.arm_upper)
         value = rng.uniform(gripper.low, gripper.high)
-        travel = collision.pair_lever[:, :q_from.size] @ np.abs(q_to - q_from)
+        travel = collision.pair_lever[:, : q_from.size] @ np.abs(q_to - q_from)
         threshold = check.margin
         no_reserve = np.zeros(collision.pair_count)
         collision.pose(q_from, value)
@@ -102,8 +111,9 @@ def test_capsule_halving_proves_only_pairs_that_keep_their_threshold(env):
         collision.pose(q_to, value)
         end = collision.bounds()
         doubted = np.flatnonzero(start + end - travel < 2 * threshold)
-        left = collision.unproven_by_capsules(q_from, q_to - q_from, value, doubted, start, end, travel, no_reserve,
-                                              threshold, 4)
+        left = collision.unproven_by_capsules(
+            q_from, q_to - q_from, value, doubted, start, end, travel, no_reserve, threshold, 4
+        )
         proven = np.setdiff1d(doubted, left)
         proven_total += proven.size
         doubted_total += doubted.size
@@ -112,8 +122,9 @@ def test_capsule_halving_proves_only_pairs_that_keep_their_threshold(env):
         for fraction in np.linspace(0.0, 1.0, 129):
             collision.pose(q_from + fraction * (q_to - q_from), value)
             exact = collision.exact(proven)
-            assert np.all(exact >= threshold[proven] - 1e-9), [collision.pair_names(int(k)) for k in
-                                                               proven[exact < threshold[proven]]]
+            assert np.all(exact >= threshold[proven] - 1e-9), [
+                collision.pair_names(int(k)) for k in proven[exact < threshold[proven]]
+            ]
     assert proven_total > 0.2 * doubted_total, (proven_total, doubted_total)
 
 
@@ -131,8 +142,11 @@ def test_compiled_pass_proves_only_pairs_that_keep_their_threshold_while_the_gri
     by_deeper = asked = 0
     for trial in range(24):
         # half the motions anywhere, half about home where the random and expert steps spend their time
-        q_from = rng.uniform(kin.arm_lower, kin.arm_upper) if trial % 2 else \
-            np.clip(home + rng.uniform(-0.8, 0.8, home.size), kin.arm_lower, kin.arm_upper)
+        q_from = (
+            rng.uniform(kin.arm_lower, kin.arm_upper)
+            if trial % 2
+            else np.clip(home + rng.uniform(-0.8, 0.8, home.size), kin.arm_lower, kin.arm_upper)
+        )
         q_to = np.clip(q_from + rng.uniform(-0.5, 0.5, q_from.size), kin.arm_lower, kin.arm_upper)
         g_from, g_to = rng.uniform(gripper.low, gripper.high, 2)
         middle = (g_from + g_to) / 2
@@ -143,10 +157,12 @@ def test_compiled_pass_proves_only_pairs_that_keep_their_threshold_while_the_gri
         collision.pose(q_to, middle)
         end = collision.bounds() - reserve
         doubted = np.flatnonzero(start + end - travel < 2 * check.margin)
-        left = collision.unproven_by_capsules(q_from, q_to - q_from, middle, doubted, start, end, travel, reserve,
-                                              check.margin, 3, 3)
-        shallow = collision.unproven_by_capsules(q_from, q_to - q_from, middle, doubted, start, end, travel,
-                                                 reserve, check.margin, 3, 0)
+        left = collision.unproven_by_capsules(
+            q_from, q_to - q_from, middle, doubted, start, end, travel, reserve, check.margin, 3, 3
+        )
+        shallow = collision.unproven_by_capsules(
+            q_from, q_to - q_from, middle, doubted, start, end, travel, reserve, check.margin, 3, 0
+        )
         by_deeper += np.setdiff1d(shallow, left).size
         # the gripper's reserve is taken at every pose the pass tries, not only at the ends: with ends that keep
         # their margin and a reserve of a metre everywhere between them, no doubted pair is proven
@@ -156,9 +172,14 @@ def test_compiled_pass_proves_only_pairs_that_keep_their_threshold_while_the_gri
         bare_end = collision.bounds()
         huge = np.ones(collision.pair_count)
         doubted_bare = np.flatnonzero(bare_start + bare_end - travel < 2 * check.margin)
-        assert np.array_equal(np.sort(collision.unproven_by_capsules(
-            q_from, q_to - q_from, middle, doubted_bare, bare_start, bare_end, travel, huge, check.margin, 3, 3)),
-            doubted_bare)
+        assert np.array_equal(
+            np.sort(
+                collision.unproven_by_capsules(
+                    q_from, q_to - q_from, middle, doubted_bare, bare_start, bare_end, travel, huge, check.margin, 3, 3
+                )
+            ),
+            doubted_bare,
+        )
         least = np.full(doubted.size, np.inf)
         for fraction in np.linspace(0.0, 1.0, 17):
             for value in np.linspace(g_from, g_to, 5):
@@ -169,8 +190,12 @@ def test_compiled_pass_proves_only_pairs_that_keep_their_threshold_while_the_gri
         edge[doubted] = least + 0.0005
         asked_pairs = doubted[start[doubted] + end[doubted] - travel[doubted] < 2 * edge[doubted]]
         asked += asked_pairs.size
-        called_proven = np.setdiff1d(asked_pairs, collision.unproven_by_capsules(
-            q_from, q_to - q_from, middle, asked_pairs, start, end, travel, reserve, edge, 3, 3))
+        called_proven = np.setdiff1d(
+            asked_pairs,
+            collision.unproven_by_capsules(
+                q_from, q_to - q_from, middle, asked_pairs, start, end, travel, reserve, edge, 3, 3
+            ),
+        )
         assert called_proven.size == 0, [collision.pair_names(int(k)) for k in called_proven]
     assert by_deeper > 0 and asked > 100, (by_deeper, asked)
 
@@ -189,8 +214,11 @@ def test_motion_proof_proves_only_motions_coal_finds_clear(env):
     outcomes = set()
     reused = 0
     for trial in range(24):
-        q_from = rng.uniform(kin.arm_lower, kin.arm_upper) if trial % 3 == 0 else \
-            np.clip(home + rng.uniform(-0.6, 0.6, home.size), kin.arm_lower, kin.arm_upper)
+        q_from = (
+            rng.uniform(kin.arm_lower, kin.arm_upper)
+            if trial % 3 == 0
+            else np.clip(home + rng.uniform(-0.6, 0.6, home.size), kin.arm_lower, kin.arm_upper)
+        )
         q_to = np.clip(q_from + rng.uniform(-0.3, 0.3, q_from.size), kin.arm_lower, kin.arm_upper)
         g_from, g_to = rng.uniform(gripper.low, gripper.high, 2)
         last = None
@@ -198,7 +226,9 @@ def test_motion_proof_proves_only_motions_coal_finds_clear(env):
             near = np.clip(q_from + rng.uniform(-5e-4, 5e-4, q_from.size), kin.arm_lower, kin.arm_upper)
             collision.pose(near, (g_from + g_to) / 2)
             last = (near, collision.bounds(), abs(g_to - g_from) / 2)
-        proof = collision.motion_proof(q_from, q_to - q_from, g_from, g_to, check.margin, last, check.REUSE_WITHIN, 3, 3)
+        proof = collision.motion_proof(
+            q_from, q_to - q_from, g_from, g_to, check.margin, last, check.REUSE_WITHIN, 3, 3
+        )
         outcomes.add(proof.outcome)
         # how far each pair can close: each coordinate's lever times its change (the levers' own test is Bullet's)
         assert np.allclose(proof.travel, collision.pair_lever[:, :-1] @ np.abs(q_to - q_from), rtol=1e-12, atol=0)
@@ -268,8 +298,11 @@ def test_levers_bound_every_shape_move_by_bullet(env):
                 after = np.array(p.getAABB(judge.body, link, physicsClientId=judge.client))
                 # an AABB face moves no farther than the farthest-moving point of the link's shapes (Bullet's
                 # AABB is the link's, over all its shapes)
-                bound = max(collision.lever[other] @ change for other, same in enumerate(collision.shapes)
-                            if same.link == shape.link)
+                bound = max(
+                    collision.lever[other] @ change
+                    for other, same in enumerate(collision.shapes)
+                    if same.link == shape.link
+                )
                 assert np.abs(after - before).max() <= bound + 2e-3, shape.link
     finally:
         judge.close()
@@ -304,8 +337,9 @@ def test_vx300s_repeated_fold_is_refused_before_the_table():
             _, _, _, _, info = environment.step(action)
             refused += int(info["action_rejected"])
             if not info["action_rejected"]:
-                lowest, what = judge.commanded(before, command.q_arm, environment.state.gripper,
-                                               environment.state.gripper)
+                lowest, what = judge.commanded(
+                    before, command.q_arm, environment.state.gripper, environment.state.gripper
+                )
                 assert lowest >= environment.blueprint.spec.env.safety.surface_margin, what
         assert refused > 0
     finally:
@@ -370,8 +404,11 @@ def test_the_gripper_moving_on_the_way_counts():
     safety = environment.safety
     try:
         environment.reset(seed=0)
-        pads = [k for k in range(safety.collision.pair_count)
-                if safety.collision.pair_names(k) == ("robotiq_left_inner_finger_pad", "table top")]
+        pads = [
+            k
+            for k in range(safety.collision.pair_count)
+            if safety.collision.pair_names(k) == ("robotiq_left_inner_finger_pad", "table top")
+        ]
         q = environment.home.copy()
         lower = np.array([0.0, 0.01, 0.0, 0.0, 0.0, 0.0])  # shoulder lift: the gripper goes down
         while safety.clearances(q, 0.0)[pads].min() > safety.margin[pads].max() + 0.008:
@@ -392,8 +429,10 @@ def test_finger_sweep_bounds_stay_below_bullet(env):
     collision, kin = env.safety.collision, env.kinematics
     sweep, gripper = collision.gripper_sweep, kin.robot.gripper
     judge = BulletJudge(env, 0.0)
-    links = {p.getJointInfo(judge.body, j, physicsClientId=judge.client)[12].decode(): j
-             for j in range(p.getNumJoints(judge.body, physicsClientId=judge.client))}
+    links = {
+        p.getJointInfo(judge.body, j, physicsClientId=judge.client)[12].decode(): j
+        for j in range(p.getNumJoints(judge.body, physicsClientId=judge.client))
+    }
     links[p.getBodyInfo(judge.body, physicsClientId=judge.client)[0].decode()] = -1
     obstacle_body = dict(zip((o.name for o in collision.obstacles), judge.obstacles))
     every = np.arange(collision.pair_count)
@@ -406,19 +445,29 @@ def test_finger_sweep_bounds_stay_below_bullet(env):
     by_names = {}
     for pair in measured:
         by_names.setdefault(collision.pair_names(pair), []).append(pair)
-    groups = {names: members for names, members in by_names.items()
-              if names[1] in obstacle_body or len(members) == len(shapes_of[names[0]]) * len(shapes_of[names[1]])}
+    groups = {
+        names: members
+        for names, members in by_names.items()
+        if names[1] in obstacle_body or len(members) == len(shapes_of[names[0]]) * len(shapes_of[names[1]])
+    }
     names = list(groups)
     scene = np.array([second in obstacle_body for _, second in names])
     assert scene.sum() >= 2 * len(collision.obstacles) and (~scene).sum() >= 2  # both kinds are measured
 
     def bullet_distance(first, second):
         if second in obstacle_body:
-            points = p.getClosestPoints(judge.body, obstacle_body[second], 0.1, linkIndexA=links[first],
-                                        physicsClientId=judge.client)
+            points = p.getClosestPoints(
+                judge.body, obstacle_body[second], 0.1, linkIndexA=links[first], physicsClientId=judge.client
+            )
         else:
-            points = p.getClosestPoints(judge.body, judge.body, 0.1, linkIndexA=links[first],
-                                        linkIndexB=links[second], physicsClientId=judge.client)
+            points = p.getClosestPoints(
+                judge.body,
+                judge.body,
+                0.1,
+                linkIndexA=links[first],
+                linkIndexB=links[second],
+                physicsClientId=judge.client,
+            )
         return min([point[8] for point in points] or [np.inf])
 
     rng = np.random.default_rng(12)
@@ -473,13 +522,20 @@ def test_pairs_proven_apart_stay_apart_by_bullet(env):
     import pybullet as p
 
     judge = BulletJudge(env, margin=0.2)
-    links = {info[12].decode(): info[0] for info in
-             (p.getJointInfo(judge.body, j, physicsClientId=judge.client)
-              for j in range(p.getNumJoints(judge.body, physicsClientId=judge.client)))}
+    links = {
+        info[12].decode(): info[0]
+        for info in (
+            p.getJointInfo(judge.body, j, physicsClientId=judge.client)
+            for j in range(p.getNumJoints(judge.body, physicsClientId=judge.client))
+        )
+    }
     links[p.getBodyInfo(judge.body, physicsClientId=judge.client)[0].decode()] = -1
     shape_link = {shape.name: shape.link for shape in env.safety.collision.shapes}
-    claims = {frozenset(key): float(re.search(r"at least ([\d.]+) mm", why).group(1)) / 1000
-              for key, why in env.safety.collision.ignored.items() if "grid proof" in why}
+    claims = {
+        frozenset(key): float(re.search(r"at least ([\d.]+) mm", why).group(1)) / 1000
+        for key, why in env.safety.collision.ignored.items()
+        if "grid proof" in why
+    }
     # Bullet measures link against link, over all of a link's shapes: judge the link pairs whose every
     # shape pair is proven apart, against the least of their claims
     shapes_of = {}
@@ -499,8 +555,9 @@ def test_pairs_proven_apart_stay_apart_by_bullet(env):
         for _ in range(400):
             judge.pose(rng.uniform(kin.arm_lower, kin.arm_upper), rng.uniform(gripper.low, gripper.high))
             for a, b, _ in proven:
-                for point in p.getClosestPoints(judge.body, judge.body, 0.2, linkIndexA=links[a], linkIndexB=links[b],
-                                                physicsClientId=judge.client):
+                for point in p.getClosestPoints(
+                    judge.body, judge.body, 0.2, linkIndexA=links[a], linkIndexB=links[b], physicsClientId=judge.client
+                ):
                     lowest[a, b] = min(lowest[a, b], point[8])
     finally:
         judge.close()
@@ -525,11 +582,16 @@ def test_a_sphere_round_the_first_joint_leaves_it_out_of_the_pair_lever():
     assert pairs and all(collision.pair_lever[scene + k][0] == 0.0 for k, _ in pairs)  # no pan lever
     judge = BulletJudge(env, 0.0)
     centre = np.asarray(env.blueprint.spec.robot.mount) + geometry.placement.translation
-    ball = p.createMultiBody(0, p.createCollisionShape(p.GEOM_SPHERE, radius=geometry.geometry.radius,
-                                                       physicsClientId=judge.client),
-                             basePosition=list(centre), physicsClientId=judge.client)
-    link_of = {p.getJointInfo(judge.body, j, physicsClientId=judge.client)[12].decode(): j
-               for j in range(p.getNumJoints(judge.body, physicsClientId=judge.client))}
+    ball = p.createMultiBody(
+        0,
+        p.createCollisionShape(p.GEOM_SPHERE, radius=geometry.geometry.radius, physicsClientId=judge.client),
+        basePosition=list(centre),
+        physicsClientId=judge.client,
+    )
+    link_of = {
+        p.getJointInfo(judge.body, j, physicsClientId=judge.client)[12].decode(): j
+        for j in range(p.getNumJoints(judge.body, physicsClientId=judge.client))
+    }
 
     def distance(link):
         points = p.getClosestPoints(ball, judge.body, 10.0, linkIndexB=link_of[link], physicsClientId=judge.client)

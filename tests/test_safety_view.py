@@ -8,9 +8,9 @@ import re
 import imageio.v3 as iio
 import numpy as np
 import pytest
+from conftest import ALL_IDS
 from typer.testing import CliRunner
 
-from conftest import ALL_IDS
 from envfactory import factory
 from envfactory.cli.app import app
 
@@ -22,8 +22,11 @@ ONE_ID_PER_ROBOT = ["UR5eReacherSim-v0", "VX300SPushSim-v0", "RX200PnPGoalSim-v0
 def _tints(image: np.ndarray) -> dict[str, np.ndarray]:
     """Pixels of each clearance tint (safety_view's NEAR, CLOSE, CLEAR colours under the renderer's shading)."""
     r, g, b = (image[..., channel].astype(int) for channel in range(3))
-    return {"near": (r > g + 100) & (r > b + 100), "close": (r > b + 120) & (g > b + 80),
-            "clear": (g > r + 40) & (g > b + 40)}
+    return {
+        "near": (r > g + 100) & (r > b + 100),
+        "close": (r > b + 120) & (g > b + 80),
+        "clear": (g > r + 40) & (g > b + 40),
+    }
 
 
 def _render(env_id: str, out) -> float:

@@ -8,18 +8,19 @@ import math
 
 import numpy as np
 import pytest
+from real_helpers import FAST, make_real
 from typer.testing import CliRunner
 
 from envfactory.cli.app import app
-from envfactory.terms.sensing_from_log import sensing_terms, sensing_yaml
 from envfactory.terms import SENSING
-from real_helpers import FAST, make_real
+from envfactory.terms.sensing_from_log import sensing_terms, sensing_yaml
 
 
 def test_measurements_become_terms_in_whole_steps():
-    records = [{"joint_reading_age_s": age, "joint_reading_repeated": float(index % 10 == 0),
-                "command_latency_s": latency}
-               for index, (age, latency) in enumerate(zip([0.55, 0.6, 0.65] * 10, [1.1, math.nan, 0.9] * 10))]
+    records = [
+        {"joint_reading_age_s": age, "joint_reading_repeated": float(index % 10 == 0), "command_latency_s": latency}
+        for index, (age, latency) in enumerate(zip([0.55, 0.6, 0.65] * 10, [1.1, math.nan, 0.9] * 10))
+    ]
     terms, facts = sensing_terms(records, cycle_time=0.5)
     assert terms["late_observation"]["params"] == {"steps": 1}  # 0.6 s of a 0.5 s cycle
     assert terms["late_action"]["params"] == {"steps": 2}  # median of 1.1 and 0.9: 1.0 s
@@ -33,8 +34,10 @@ def test_prompt_readings_give_delays_of_zero_steps():
     """What a robot YAML declares is what was measured, a delay that rounds to no step included."""
     records = [{"joint_reading_age_s": 0.01, "joint_reading_repeated": 0.0, "command_latency_s": 0.02}] * 5
     terms, facts = sensing_terms(records, cycle_time=0.5)
-    assert terms == {"late_observation": {"term": "observation_delay", "params": {"steps": 0}},
-                     "late_action": {"term": "action_delay", "params": {"steps": 0}}}
+    assert terms == {
+        "late_observation": {"term": "observation_delay", "params": {"steps": 0}},
+        "late_action": {"term": "action_delay", "params": {"steps": 0}},
+    }
     assert "  late_action: {term: action_delay, params: {steps: 0}}" in sensing_yaml(terms, facts, "log")
 
 
@@ -51,13 +54,17 @@ def test_a_twin_that_answers_late_gives_an_action_delay(twin, make, tmp_path):
             info = env.step(action)[4]
             assert info["timing"]["joint_reading_age_s"] >= 0.0
             out.write(json.dumps(info["timing"]) + "\n")
-    latencies = [r["command_latency_s"] for r in map(json.loads, log.read_text().splitlines())
-                 if math.isfinite(r["command_latency_s"])]
+    latencies = [
+        r["command_latency_s"]
+        for r in map(json.loads, log.read_text().splitlines())
+        if math.isfinite(r["command_latency_s"])
+    ]
     # a command sent while the arm still moves from the one before may be credited with that motion and read
     # short, so the median is what counts: at least most of the added quarter second
     assert len(latencies) >= 5 and np.median(latencies) >= 0.2, latencies
-    result = CliRunner().invoke(app, ["sensing-spec", str(log), "--id", "UR5eReacherReal-v0", "--cycle-time",
-                                      str(FAST["action_cycle_time"])])
+    result = CliRunner().invoke(
+        app, ["sensing-spec", str(log), "--id", "UR5eReacherReal-v0", "--cycle-time", str(FAST["action_cycle_time"])]
+    )
     assert result.exit_code == 0, result.output
     # steps of 0.1 s (FAST): a quarter second is two or three
     steps = int(result.output.split("action_delay, params: {steps: ")[1].split("}")[0])

@@ -25,8 +25,13 @@ def test_blueprint_snapshot(env_id, snapshot_json):
 
 def CUBE_ROWS(start):
     """The five cube rows the Push and Pick-and-Place pages share, from index `start`."""
-    components = [("Cube position", "m"), ("Cube rpy", "rad"), ("Cube linear velocity (finite-diff)", "m/s"),
-                  ("Cube angular velocity (finite-diff)", "rad/s"), ("Cube position relative to EE", "m")]
+    components = [
+        ("Cube position", "m"),
+        ("Cube rpy", "rad"),
+        ("Cube linear velocity (finite-diff)", "m/s"),
+        ("Cube angular velocity (finite-diff)", "rad/s"),
+        ("Cube position relative to EE", "m"),
+    ]
     return [(f"{start + 3 * i}–{start + 3 * i + 2}", "3", name, unit) for i, (name, unit) in enumerate(components)]
 
 
@@ -103,21 +108,24 @@ def test_ee_mode_shrinks_previous_action():
     assert compiled.action.size == 3
 
 
-@pytest.mark.parametrize("env_id, standard, ee_mode, goal_env", [
-    # the seeds' sizes; EE mode shrinks the previous action to 3 (+1 gripper), goal envs drop the 4 goal columns
-    ("UR5ePushSim-v0", 45, 42, 41),
-    ("UR5ePnPSim-v0", 47, 44, 43),
-    ("VX300SPushSim-v0", 49, 46, 45),
-    ("VX300SPnPSim-v0", 51, 48, 47),
-    # the RX200 pages' layouts: 8 joint_states entries, 5 arm joints
-    ("RX200ReacherSim-v0", 28, 26, 24),
-    ("RX200PushSim-v0", 46, 44, 42),
-    ("RX200PnPSim-v0", 48, 46, 44),
-    # the Ned2 pages': 8 joint_states entries, 6 arm joints
-    ("NED2ReacherSim-v0", 29, 26, 25),
-    ("NED2PushSim-v0", 47, 44, 43),
-    ("NED2PnPSim-v0", 49, 46, 45),
-])
+@pytest.mark.parametrize(
+    "env_id, standard, ee_mode, goal_env",
+    [
+        # the seeds' sizes; EE mode shrinks the previous action to 3 (+1 gripper), goal envs drop the 4 goal columns
+        ("UR5ePushSim-v0", 45, 42, 41),
+        ("UR5ePnPSim-v0", 47, 44, 43),
+        ("VX300SPushSim-v0", 49, 46, 45),
+        ("VX300SPnPSim-v0", 51, 48, 47),
+        # the RX200 pages' layouts: 8 joint_states entries, 5 arm joints
+        ("RX200ReacherSim-v0", 28, 26, 24),
+        ("RX200PushSim-v0", 46, 44, 42),
+        ("RX200PnPSim-v0", 48, 46, 44),
+        # the Ned2 pages': 8 joint_states entries, 6 arm joints
+        ("NED2ReacherSim-v0", 29, 26, 25),
+        ("NED2PushSim-v0", 47, 44, 43),
+        ("NED2PnPSim-v0", 49, 46, 45),
+    ],
+)
 def test_observation_sizes(env_id, standard, ee_mode, goal_env):
     assert envfactory.blueprint(env_id).observation_size == standard
     assert envfactory.blueprint(env_id, ee_action_type=True).observation_size == ee_mode
@@ -142,8 +150,14 @@ def test_goal_env_drops_goal_columns():
 def test_seed_defaults():
     spec = envfactory.blueprint("UR5eReacherSim-v0").spec
     weights = {t.name: t.weight for t in envfactory.blueprint("UR5eReacherSim-v0").rewards}
-    assert weights == {"distance": -2.0, "reached_goal": 20.0, "step": -0.5, "joint_limits": -2.0,
-                       "none_exe": -5.0, "not_within_goal_space": -2.0}
+    assert weights == {
+        "distance": -2.0,
+        "reached_goal": 20.0,
+        "step": -0.5,
+        "joint_limits": -2.0,
+        "none_exe": -5.0,
+        "not_within_goal_space": -2.0,
+    }
     assert spec.task.goal.tolerance == 0.02
     assert spec.env.action.delta_coeff == 0.05
     assert spec.env.timing.action_cycle_time == 0.5

@@ -17,8 +17,7 @@ from envfactory.schema.tree import leaves
 # (family, what to mutate): both robots through their pick-and-place families; the reach family for its
 # task, scene and settings (its robot is the UR5e already covered)
 FAMILIES = {"ur5e_pnp": "", "vx300s_pnp": "", "ur5e_reach": "robot."}
-MUTATIONS = {"negative": lambda v: -abs(v) - 1.0, "zero": lambda v: 0, "nan": lambda v: math.nan,
-             "huge": lambda v: 1e9}
+MUTATIONS = {"negative": lambda v: -abs(v) - 1.0, "zero": lambda v: 0, "nan": lambda v: math.nan, "huge": lambda v: 1e9}
 
 # Documented acceptances: (path pattern, mutations accepted, why). NaN is never accepted.
 ACCEPTED = [
@@ -31,8 +30,11 @@ ACCEPTED = [
     (r"robot\.gripper\.(grasp_threshold|open)", {"zero"}, "a gripper value within the URDF's range"),
     (r"robot\.gripper\.pads\.\w+_friction", {"zero"}, "frictionless pads are physical"),
     (r"robot\.home\.\d", {"negative", "zero"}, "a home pose within the limits that clears the table"),
-    (r"robot\.joint_states\.\d+\.(position|velocity)\.\d", {"negative", "zero"},
-     "wider observation bounds around the commanded range"),
+    (
+        r"robot\.joint_states\.\d+\.(position|velocity)\.\d",
+        {"negative", "zero"},
+        "wider observation bounds around the commanded range",
+    ),
     (r"robot\.model\.frames\.\w+\.xyz\.\d", {"negative", "zero"}, "where the TCP sits is the robot's design"),
     (r"robot\.mount\.\d", {"negative", "zero"}, "the base placed elsewhere, the goals still within reach"),
     (r"robot\.ros\.static_transforms\.\w+\.xyz\.\d", {"negative", "zero"}, "a ROS frame placement"),
@@ -45,17 +47,29 @@ ACCEPTED = [
     (r"task\.expert\.params\.grip", {"zero"}, "a grip command within the gripper's range"),
     (r"task\.goal\.box\.\d\.\d", {"zero"}, "a goal box edge at 0 that stays valid"),
     (r"task\.gripper\.at_reset", {"zero"}, "a reset gripper value within range"),
-    (r"task\.objects\.\w+\.(rgba\.\d|spawn\.offset\.\d|spawn\.position\.\d|friction|spinning_friction)", {"zero"},
-     "a black, fixed-spawn, frictionless or centred object"),
+    (
+        r"task\.objects\.\w+\.(rgba\.\d|spawn\.offset\.\d|spawn\.position\.\d|friction|spinning_friction)",
+        {"zero"},
+        "a black, fixed-spawn, frictionless or centred object",
+    ),
     (r"workspace\.(min|max)\.\d", {"zero"}, "a workspace edge at 0 that still holds the goals"),
-    (r"task\.randomization\.events\.\w+\.params\.range\.\d", {"zero"},
-     "a sampled friction or damping that reaches zero"),
+    (
+        r"task\.randomization\.events\.\w+\.params\.range\.\d",
+        {"zero"},
+        "a sampled friction or damping that reaches zero",
+    ),
     (r"task\.randomization\.sensing\.\w+\.params\.(std|bias_std|drift_std)", {"zero"}, "no noise of that kind"),
     (r"robot\.sensing\.\w+\.params\.steps", {"zero"}, "a delay measured as under half a step"),
-    (r"robot\.ros\.setup\.\d+\.request\.\w+", {"negative", "zero", "huge"},
-     "a setup request's values are the driver's to take or refuse at connect (DriverRefused stops the env)"),
-    (r"robot\.ros\.driver_config\.\w+", {"negative", "zero", "huge"},
-     "the driver's own configuration, read by the twin alone, which plays what it says"),
+    (
+        r"robot\.ros\.setup\.\d+\.request\.\w+",
+        {"negative", "zero", "huge"},
+        "a setup request's values are the driver's to take or refuse at connect (DriverRefused stops the env)",
+    ),
+    (
+        r"robot\.ros\.driver_config\.\w+",
+        {"negative", "zero", "huge"},
+        "the driver's own configuration, read by the twin alone, which plays what it says",
+    ),
 ]
 
 
@@ -72,8 +86,9 @@ def _documented(path: str, kind: str) -> bool:
 
 
 def _family(name):
-    return next(r for r in envfactory.records().values()
-                if r.family.name == name and r.backend == "pybullet" and not r.goal_env)
+    return next(
+        r for r in envfactory.records().values() if r.family.name == name and r.backend == "pybullet" and not r.goal_env
+    )
 
 
 @pytest.mark.parametrize("family_name", FAMILIES)
@@ -84,8 +99,7 @@ def test_every_numeric_mutation_is_rejected_with_a_line_or_documented(family_nam
     undocumented, unlocated = [], []
     count = 0
     for path, value in leaves(config):
-        if path.startswith(skipped) or isinstance(value, bool) or \
-                not isinstance(value, (int, float)):
+        if path.startswith(skipped) or isinstance(value, bool) or not isinstance(value, (int, float)):
             continue
         for kind, mutate in MUTATIONS.items():
             mutant, sources = composed_config(record.family)

@@ -29,8 +29,11 @@ def _speed_limited_moves(env_id: str, wanted: int = 4):
         state = unwrapped.state
         command = unwrapped.actions.translate(action, state)
         start, way = state.q_arm.copy(), command.q_arm - state.q_arm
-        if command.rejection or np.max(np.abs(way) / limits) <= timing.action_speed or \
-                not unwrapped.safety.check(state.q_arm, command.q_arm, state.gripper, command.gripper).accepted:
+        if (
+            command.rejection
+            or np.max(np.abs(way) / limits) <= timing.action_speed
+            or not unwrapped.safety.check(state.q_arm, command.q_arm, state.gripper, command.gripper).accepted
+        ):
             continue
         backend.command_joints(command.q_arm, timing.action_speed)
         arrival, off_line = np.full(way.size, np.nan), 0.0

@@ -17,23 +17,51 @@ from envfactory.learn import extra
 from envfactory.learn.hyperparams import HyperparameterError, load, parse_overrides
 
 runner = CliRunner()
-needs_train = pytest.mark.skipif(bool(extra.missing({**extra.TRAIN_MODULES, **extra.PLOT_MODULES})),
-                                 reason="the [train] extra is not installed (pip install -e '.[train]')")
-needs_minari = pytest.mark.skipif(bool(extra.missing(extra.COLLECT_MODULES)),
-                                  reason="the [train] extra (minari) is not installed (pip install -e '.[train]')")
+needs_train = pytest.mark.skipif(
+    bool(extra.missing({**extra.TRAIN_MODULES, **extra.PLOT_MODULES})),
+    reason="the [train] extra is not installed (pip install -e '.[train]')",
+)
+needs_minari = pytest.mark.skipif(
+    bool(extra.missing(extra.COLLECT_MODULES)),
+    reason="the [train] extra (minari) is not installed (pip install -e '.[train]')",
+)
 
 # a tiny, fast configuration: the pipeline is under test, not the learning
-TINY = ["-p", "learning_starts=110", "-p", "batch_size=32", "-p", "buffer_size=2000",
-        "-p", "policy_kwargs.net_arch=[32,32]"]
+TINY = [
+    "-p",
+    "learning_starts=110",
+    "-p",
+    "batch_size=32",
+    "-p",
+    "buffer_size=2000",
+    "-p",
+    "policy_kwargs.net_arch=[32,32]",
+]
 
 
 @needs_train
 @pytest.mark.parametrize("algo", ["sac", "td3", "tqc"])
 def test_train_saves_a_model_and_a_curve_that_run_replays(tmp_path, algo):
     folder = tmp_path / "run"
-    result = runner.invoke(app, ["train", "VX300SReacherGoalSim-v0", "--algo", algo, "--steps", "240",
-                                 "--eval-every", "120", "--eval-episodes", "2", "--no-progress", "-o", str(folder),
-                                 *TINY])
+    result = runner.invoke(
+        app,
+        [
+            "train",
+            "VX300SReacherGoalSim-v0",
+            "--algo",
+            algo,
+            "--steps",
+            "240",
+            "--eval-every",
+            "120",
+            "--eval-episodes",
+            "2",
+            "--no-progress",
+            "-o",
+            str(folder),
+            *TINY,
+        ],
+    )
     assert result.exit_code == 0, result.output
     rows = list(csv.DictReader(open(folder / "curve.csv")))
     assert [int(r["timesteps"]) for r in rows] == [120, 240]
@@ -42,13 +70,18 @@ def test_train_saves_a_model_and_a_curve_that_run_replays(tmp_path, algo):
     meta = json.loads((folder / "model.json").read_text())
     assert meta["algo"] == algo
     # the default block's kwargs, updated by the vx300s_reach family block
-    assert meta["env_kwargs"] == {"ee_action_type": True, "normalize_actions": True, "normalize_observations": True,
-                                  "delta_coeff": 0.035}
+    assert meta["env_kwargs"] == {
+        "ee_action_type": True,
+        "normalize_actions": True,
+        "normalize_observations": True,
+        "delta_coeff": 0.035,
+    }
     assert meta["hyperparameters"]["batch_size"] == 32  # the command line won over the YAML's 256
 
     video = tmp_path / "replay.mp4"
-    replay = runner.invoke(app, ["run", "VX300SReacherGoalSim-v0", "--policy", str(folder / "model.zip"), "-n", "1",
-                                 "--video", str(video)])
+    replay = runner.invoke(
+        app, ["run", "VX300SReacherGoalSim-v0", "--policy", str(folder / "model.zip"), "-n", "1", "--video", str(video)]
+    )
     assert replay.exit_code == 0, replay.output
     assert "success rate" in replay.output and video.stat().st_size > 1000
 
@@ -62,8 +95,15 @@ def test_replayed_model_acts_as_the_saved_network(tmp_path):
 
     from envfactory.learn.trainer import load_policy, train
 
-    train("VX300SReacherGoalSim-v0", tmp_path, steps=120, eval_every=120, eval_episodes=1, progress_bar=False,
-          overrides=("learning_starts=110", "batch_size=32", "policy_kwargs.net_arch=[32,32]", "normalize=true"))
+    train(
+        "VX300SReacherGoalSim-v0",
+        tmp_path,
+        steps=120,
+        eval_every=120,
+        eval_episodes=1,
+        progress_bar=False,
+        overrides=("learning_starts=110", "batch_size=32", "policy_kwargs.net_arch=[32,32]", "normalize=true"),
+    )
     env = gym.make("VX300SReacherGoalSim-v0", ee_action_type=True, normalize_actions=True, normalize_observations=True)
     try:
         observation, _ = env.reset(seed=3)
@@ -83,18 +123,42 @@ def test_replayed_model_acts_as_the_saved_network(tmp_path):
 def test_run_refuses_a_model_trained_on_other_spaces(tmp_path):
     from envfactory.learn.trainer import train
 
-    train("VX300SReacherGoalSim-v0", tmp_path, steps=120, eval_every=120, eval_episodes=1, progress_bar=False,
-          overrides=("learning_starts=110", "batch_size=32", "policy_kwargs.net_arch=[32,32]"))
-    result = runner.invoke(app, ["run", "VX300SReacherGoalSim-v0", "--policy", str(tmp_path / "model.zip"),
-                                 "-k", "ee_action_type=false"])
+    train(
+        "VX300SReacherGoalSim-v0",
+        tmp_path,
+        steps=120,
+        eval_every=120,
+        eval_episodes=1,
+        progress_bar=False,
+        overrides=("learning_starts=110", "batch_size=32", "policy_kwargs.net_arch=[32,32]"),
+    )
+    result = runner.invoke(
+        app, ["run", "VX300SReacherGoalSim-v0", "--policy", str(tmp_path / "model.zip"), "-k", "ee_action_type=false"]
+    )
     assert result.exit_code == 1
     assert "cannot act in VX300SReacherGoalSim-v0 (action shape (6,)" in result.output
     assert "Traceback" not in result.output
 
 
 def _tiny_run(folder, *extra_args, steps="240"):
-    return runner.invoke(app, ["train", "VX300SReacherGoalSim-v0", "--steps", steps, "--eval-every", "120",
-                               "--eval-episodes", "1", "--no-progress", "-o", str(folder), *TINY, *extra_args])
+    return runner.invoke(
+        app,
+        [
+            "train",
+            "VX300SReacherGoalSim-v0",
+            "--steps",
+            steps,
+            "--eval-every",
+            "120",
+            "--eval-episodes",
+            "1",
+            "--no-progress",
+            "-o",
+            str(folder),
+            *TINY,
+            *extra_args,
+        ],
+    )
 
 
 @needs_train
@@ -104,8 +168,10 @@ def test_a_second_run_never_overwrites_the_first(tmp_path):
     model = (tmp_path / "run" / "model.zip").read_bytes()
     second = _tiny_run(tmp_path / "run", "--seed", "1", steps="120")
     assert second.exit_code == 0, second.output
-    assert f"{tmp_path / 'run'} holds an earlier run, which is never overwritten: this run goes to " \
-           f"{tmp_path / 'run-2'}" in second.output.replace("\n", "")
+    assert (
+        f"{tmp_path / 'run'} holds an earlier run, which is never overwritten: this run goes to "
+        f"{tmp_path / 'run-2'}" in second.output.replace("\n", "")
+    )
     assert (tmp_path / "run" / "model.zip").read_bytes() == model
     assert json.loads((tmp_path / "run-2" / "model.json").read_text())["seed"] == 1
 
@@ -124,16 +190,23 @@ def test_model_json_records_every_setting_that_shaped_the_run(tmp_path):
     assert meta["kwargs"] == {"delta_coeff": 0.03} and meta["env_kwargs"]["delta_coeff"] == 0.03
     assert meta["overrides"] == TINY[1::2]
     # the merged hyperparameters, and exactly what the algorithm's constructor was given
-    assert meta["hyperparameters"]["policy_kwargs"] == {"net_arch": [32, 32]} and meta["hyperparameters"]["gamma"] == 0.95
+    assert (
+        meta["hyperparameters"]["policy_kwargs"] == {"net_arch": [32, 32]} and meta["hyperparameters"]["gamma"] == 0.95
+    )
     assert meta["algorithm_kwargs"]["replay_buffer_class"] == "HerReplayBuffer"
-    assert meta["algorithm_kwargs"]["replay_buffer_kwargs"] == {"n_sampled_goal": 4, "goal_selection_strategy": "future"}
+    assert meta["algorithm_kwargs"]["replay_buffer_kwargs"] == {
+        "n_sampled_goal": 4,
+        "goal_selection_strategy": "future",
+    }
     assert meta["demos"] is None and meta["normalize"] is False
     part = meta["parts"][0]
     assert part["status"] == "finished" and part["from_timesteps"] == 0 and part["timesteps"] == 120
     assert part["versions"]["stable-baselines3"] and part["versions"]["torch"] and part["versions"]["envfactory"]
     # the recorded command repeats the run
-    assert meta["command"].startswith("envfactory train VX300SReacherGoalSim-v0 --algo sac --seed 3 --steps 120 "
-                                      "--eval-every 120 --eval-episodes 1 -p learning_starts=110")
+    assert meta["command"].startswith(
+        "envfactory train VX300SReacherGoalSim-v0 --algo sac --seed 3 --steps 120 "
+        "--eval-every 120 --eval-episodes 1 -p learning_starts=110"
+    )
     assert "-k delta_coeff=0.03" in meta["command"]
 
 
@@ -162,8 +235,10 @@ def test_resume_continues_the_model_buffer_statistics_and_curve(tmp_path):
     with open(folder / "vecnormalize.pkl", "rb") as handle:
         assert pickle.load(handle).obs_rms["observation"].count > count + 200  # statistics went on, not restarted
     meta = json.loads((folder / "model.json").read_text())
-    assert [(p["from_timesteps"], p["target_timesteps"], p["status"]) for p in meta["parts"]] == \
-           [(0, 240, "finished"), (240, 480, "finished")]
+    assert [(p["from_timesteps"], p["target_timesteps"], p["status"]) for p in meta["parts"]] == [
+        (0, 240, "finished"),
+        (240, 480, "finished"),
+    ]
     assert meta["timesteps"] == 480 and meta["steps"] == 480
 
     from stable_baselines3.common.save_util import load_from_zip_file
@@ -179,8 +254,16 @@ def test_a_stopped_run_saves_where_it_stands_and_resumes(tmp_path):
         raise KeyboardInterrupt  # Ctrl-C (or SIGTERM) during the run
 
     with pytest.raises(KeyboardInterrupt):
-        train("VX300SReacherGoalSim-v0", tmp_path, steps=360, eval_every=120, eval_episodes=1, progress_bar=False,
-              overrides=tuple(TINY[1::2]), on_evaluation=stop)
+        train(
+            "VX300SReacherGoalSim-v0",
+            tmp_path,
+            steps=360,
+            eval_every=120,
+            eval_episodes=1,
+            progress_bar=False,
+            overrides=tuple(TINY[1::2]),
+            on_evaluation=stop,
+        )
     meta = json.loads((tmp_path / "model.json").read_text())
     assert meta["parts"][0]["status"] == "interrupted" and meta["timesteps"] == 120
     assert (tmp_path / "replay_buffer.pkl").is_file() and meta["replay_buffer_timesteps"] == 120
@@ -194,12 +277,14 @@ def test_a_stopped_run_saves_where_it_stands_and_resumes(tmp_path):
 def test_resume_refuses_what_it_cannot_continue(tmp_path):
     folder = tmp_path / "run"
     assert _tiny_run(folder, steps="120").exit_code == 0
-    cases = [(["--resume", str(folder), "-p", "gamma=0.9"], "drop -p"),
-             (["--resume", str(folder), "--algo", "td3", "--seed", "2"], "drop --algo, --seed"),
-             (["--resume", str(folder)], "the run is at 120 steps already; pass --steps above 120"),
-             (["UR5eReacherGoalSim-v0", "--resume", str(folder)], "that run trains VX300SReacherGoalSim-v0"),
-             (["--resume", str(tmp_path)], "no model.json, so not a run folder"),
-             ([], "give the ID to train, or --resume RUN_FOLDER")]
+    cases = [
+        (["--resume", str(folder), "-p", "gamma=0.9"], "drop -p"),
+        (["--resume", str(folder), "--algo", "td3", "--seed", "2"], "drop --algo, --seed"),
+        (["--resume", str(folder)], "the run is at 120 steps already; pass --steps above 120"),
+        (["UR5eReacherGoalSim-v0", "--resume", str(folder)], "that run trains VX300SReacherGoalSim-v0"),
+        (["--resume", str(tmp_path)], "no model.json, so not a run folder"),
+        ([], "give the ID to train, or --resume RUN_FOLDER"),
+    ]
     for args, message in cases:
         result = runner.invoke(app, ["train", *args, "--no-progress"])
         assert result.exit_code == 1 and message in result.output, (args, result.output)
@@ -246,13 +331,22 @@ def test_a_run_that_fails_before_its_first_evaluation_leaves_nothing(tmp_path, m
 
     monkeypatch.setattr(loop, "evaluate", broken)  # fails at step 120, after TensorBoard began its events
     with pytest.raises(RuntimeError, match="the evaluation env broke"):
-        train("VX300SReacherGoalSim-v0", tmp_path / "run", steps=240, eval_every=120, eval_episodes=1,
-                      progress_bar=False, overrides=(*TINY[1::2], f"tensorboard_log={tmp_path / 'tb'}"))
+        train(
+            "VX300SReacherGoalSim-v0",
+            tmp_path / "run",
+            steps=240,
+            eval_every=120,
+            eval_episodes=1,
+            progress_bar=False,
+            overrides=(*TINY[1::2], f"tensorboard_log={tmp_path / 'tb'}"),
+        )
     assert not (tmp_path / "run").exists() and not (tmp_path / "tb" / "run_1").exists()
 
 
 def test_hyperparameters_merge_default_family_and_command_line():
-    hyper = load("sac", "UR5eReacherGoalSim-v0", ["gamma=0.9", "policy_kwargs.net_arch=[64, 64]", "her.n_sampled_goal=8"])
+    hyper = load(
+        "sac", "UR5eReacherGoalSim-v0", ["gamma=0.9", "policy_kwargs.net_arch=[64, 64]", "her.n_sampled_goal=8"]
+    )
     assert hyper.values["gamma"] == 0.9 and hyper.values["policy_kwargs"]["net_arch"] == [64, 64]
     assert hyper.values["her"] == {"n_sampled_goal": 8, "goal_selection_strategy": "future"}  # merged, not replaced
     assert hyper.sources[0].endswith("sac.yaml: default") and hyper.sources[-1].startswith("command line")
@@ -262,9 +356,9 @@ def test_hyperparameters_merge_default_family_and_command_line():
 def test_family_and_id_blocks_override_the_default(tmp_path, monkeypatch):
     import envfactory.learn.hyperparams as hp
 
-    (tmp_path / "sac.yaml").write_text("default: {gamma: 0.95, batch_size: 256}\n"
-                                       "ur5e_reach: {gamma: 0.9}\n"
-                                       "UR5eReacherGoalSim-v0: {batch_size: 64}\n")
+    (tmp_path / "sac.yaml").write_text(
+        "default: {gamma: 0.95, batch_size: 256}\nur5e_reach: {gamma: 0.9}\nUR5eReacherGoalSim-v0: {batch_size: 64}\n"
+    )
     monkeypatch.setattr(hp, "builtin_folder", lambda: tmp_path)
     assert load("sac", "UR5eReacherGoalSim-v0").values == {"gamma": 0.9, "batch_size": 64}
     assert load("sac", "UR5eReacherSim-v0").values == {"gamma": 0.9, "batch_size": 256}
@@ -287,15 +381,22 @@ def test_bad_hyperparameters_are_named(tmp_path, monkeypatch):
 def test_floats_read_as_yaml_1_2_writes_them():
     """PyYAML reads `3e-4` as text; a learning rate of '3e-4' used to fail deep inside SB3."""
     assert parse_overrides(["learning_rate=3e-4", "buffer_size=1e6", "name=e5", "net=[1e-3, x]"]) == {
-        "learning_rate": 0.0003, "buffer_size": 1_000_000.0, "name": "e5", "net": [0.001, "x"]}
+        "learning_rate": 0.0003,
+        "buffer_size": 1_000_000.0,
+        "name": "e5",
+        "net": [0.001, "x"],
+    }
 
 
 @needs_train
-@pytest.mark.parametrize("override, message", [
-    ("learning_rate=fast", "learning_rate must be a number, got 'fast'"),
-    ("gamma=[0.9]", "gamma must be a number, got [0.9]"),
-    ("batch_size=12.5", "batch_size must be a whole number, got 12.5"),
-])
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        ("learning_rate=fast", "learning_rate must be a number, got 'fast'"),
+        ("gamma=[0.9]", "gamma must be a number, got [0.9]"),
+        ("batch_size=12.5", "batch_size must be a whole number, got 12.5"),
+    ],
+)
 def test_hyperparameters_of_the_wrong_type_fail_before_training(tmp_path, override, message):
     result = runner.invoke(app, ["train", "VX300SReacherGoalSim-v0", "-p", override, "-o", str(tmp_path / "run")])
     assert result.exit_code == 1
@@ -332,8 +433,9 @@ def test_collect_writes_a_minari_dataset_that_loads_back(tmp_path, monkeypatch, 
     import minari
 
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path))
-    result = runner.invoke(app, ["collect", "UR5eReacherGoalSim-v0", "--episodes", "4", "--data-path", str(tmp_path),
-                                 *kwargs])
+    result = runner.invoke(
+        app, ["collect", "UR5eReacherGoalSim-v0", "--episodes", "4", "--data-path", str(tmp_path), *kwargs]
+    )
     assert result.exit_code == 0, result.output
     dataset = minari.load_dataset("envfactory/ur5ereachergoalsim/expert-v0")
     assert dataset.total_episodes == 4
@@ -369,8 +471,9 @@ def test_collect_warns_of_nothing_and_records_what_it_is_given(tmp_path, monkeyp
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         plain = runner.invoke(app, command)
-        signed = runner.invoke(app, [*command, "--dataset-id", "test/signed-v0", "--author", "Ada",
-                                     "--author-email", "ada@example.org"])
+        signed = runner.invoke(
+            app, [*command, "--dataset-id", "test/signed-v0", "--author", "Ada", "--author-email", "ada@example.org"]
+        )
     assert plain.exit_code == 0 and signed.exit_code == 0, plain.output + signed.output
     assert [f"{w.category.__name__}: {w.message}" for w in caught] == []
     unsigned = minari.load_dataset("envfactory/ur5ereachergoalsim/expert-v0").storage.metadata
@@ -387,9 +490,22 @@ def test_a_model_trained_in_simulation_runs_on_the_real_id_without_its_simulatio
     a simulator has, says which, and keeps the rest (the action and observation settings it was trained with)."""
     assert _tiny_run(tmp_path / "run", "-k", "engine=mujoco", "-k", "randomize=true").exit_code == 0
     stand_in = twin("vx300s", "reach")
-    result = runner.invoke(app, ["run", "VX300SReacherGoalReal-v0", "--policy", str(tmp_path / "run" / "model.zip"),
-                                 "-n", "1", "--allow-real-robot-motion", "-k", f"rosbridge_port={stand_in.port}",
-                                 "-k", "max_episode_steps=2"])
+    result = runner.invoke(
+        app,
+        [
+            "run",
+            "VX300SReacherGoalReal-v0",
+            "--policy",
+            str(tmp_path / "run" / "model.zip"),
+            "-n",
+            "1",
+            "--allow-real-robot-motion",
+            "-k",
+            f"rosbridge_port={stand_in.port}",
+            "-k",
+            "max_episode_steps=2",
+        ],
+    )
     assert result.exit_code == 0, result.output
     assert "simulation-only kwargs are left out: engine='mujoco', randomize=True" in " ".join(result.output.split())
     assert "success rate" in result.output

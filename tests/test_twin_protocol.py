@@ -9,8 +9,7 @@ import math
 import pytest
 from websockets.sync.client import connect
 
-from envfactory.twin import Twin
-from envfactory.twin import msgtypes
+from envfactory.twin import Twin, msgtypes
 
 ARM = "/scaled_pos_joint_traj_controller/command"
 JOINTS = "/ur5e/joint_states"
@@ -62,12 +61,15 @@ def test_a_conflicting_advertise_is_refused_silently_until_a_level_is_set(stand_
     assert not [r for r in stand_in.received if r.msg == {"data": [1.0]}]  # never reached the arm
 
 
-@pytest.mark.parametrize("msg, reason", [
-    ({"joint_names": ["a"], "points": [], "velocity": 1}, "has no field 'velocity'"),
-    ({"points": [{"positions": [None]}]}, "must be a number"),
-    ({"points": [{"positions": 0.5}]}, "must be a list"),
-    ({"joint_names": "shoulder_pan_joint"}, "must be a list"),
-])
+@pytest.mark.parametrize(
+    "msg, reason",
+    [
+        ({"joint_names": ["a"], "points": [], "velocity": 1}, "has no field 'velocity'"),
+        ({"points": [{"positions": [None]}]}, "must be a number"),
+        ({"points": [{"positions": 0.5}]}, "must be a list"),
+        ({"joint_names": "shoulder_pan_joint"}, "must be a list"),
+    ],
+)
 def test_a_publish_that_does_not_fill_the_type_is_refused(stand_in, client, msg, reason):
     before = len(stand_in.received)
     client.send(op="set_level", level="error")
@@ -117,4 +119,3 @@ def test_without_rosapi_its_services_do_not_exist(stand_in, client):
         assert client.call("/rosapi/topic_type", topic=ARM)["result"] is False
     finally:
         stand_in.faults.no_rosapi = False
-

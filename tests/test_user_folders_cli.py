@@ -13,14 +13,14 @@ from pathlib import Path
 
 import minari
 import pytest
+from test_robot_folder import _robot_folder
 from typer.testing import CliRunner
 
-from envfactory.registration import registry
-from envfactory.cli.common import NAMING_PARAMETERS
 from envfactory.cli.app import app
+from envfactory.cli.common import NAMING_PARAMETERS
 from envfactory.factory import unregister_folder
 from envfactory.learn.demonstrations import SPEC_FOLDER_KEY, UnrecoverableEnv, _user_spec_folder, load_env
-from test_robot_folder import _robot_folder
+from envfactory.registration import registry
 
 runner = CliRunner()
 CLI = str(Path(sys.executable).parent / "envfactory")
@@ -61,16 +61,22 @@ def test_every_command_naming_a_robot_or_id_takes_specs():
         assert "--specs" in _ok(name, "--help"), name
 
 
-@pytest.mark.parametrize("args, names", [
-    (["collision-pairs", "myarm"], "no robot or ID named 'myarm' (robots: ned2, rx200, ur5e, vx300s)"),
-    (["collision-pairs", "ur5"], "no robot or ID named 'ur5' (did you mean 'ur5e'?)"),
-    (["twin", "myarm", "--port", "0"], "no robot named 'myarm' (robots with a real path: ned2, rx200, ur5e, vx300s)"),
-    (["run", USER_ID, "-n", "1"], f"unknown env ID {USER_ID!r}"),
-    (["describe", "UR5eReacherSim-v9"], "unknown env ID 'UR5eReacherSim-v9' (did you mean 'UR5eReacherSim-v0'?)"),
-    (["safety-view", "VX300SPushSimm-v0"], "(did you mean 'VX300SPushSim-v0'?)"),
-    (["collect", USER_ID, "-n", "1"], f"unknown env ID {USER_ID!r}"),
-    (["train", USER_ID, "-n", "100"], f"unknown env ID {USER_ID!r}"),
-])
+@pytest.mark.parametrize(
+    "args, names",
+    [
+        (["collision-pairs", "myarm"], "no robot or ID named 'myarm' (robots: ned2, rx200, ur5e, vx300s)"),
+        (["collision-pairs", "ur5"], "no robot or ID named 'ur5' (did you mean 'ur5e'?)"),
+        (
+            ["twin", "myarm", "--port", "0"],
+            "no robot named 'myarm' (robots with a real path: ned2, rx200, ur5e, vx300s)",
+        ),
+        (["run", USER_ID, "-n", "1"], f"unknown env ID {USER_ID!r}"),
+        (["describe", "UR5eReacherSim-v9"], "unknown env ID 'UR5eReacherSim-v9' (did you mean 'UR5eReacherSim-v0'?)"),
+        (["safety-view", "VX300SPushSimm-v0"], "(did you mean 'VX300SPushSim-v0'?)"),
+        (["collect", USER_ID, "-n", "1"], f"unknown env ID {USER_ID!r}"),
+        (["train", USER_ID, "-n", "100"], f"unknown env ID {USER_ID!r}"),
+    ],
+)
 def test_an_unknown_name_says_how_to_make_it_known(args, names):
     result = runner.invoke(app, args)
     assert result.exit_code == 1, result.output
@@ -98,8 +104,9 @@ def test_specs_serves_each_command(user_folder, tmp_path):
     """From a fresh robot: write its pair list, then describe, run and draw its ID, each given the folder."""
     pairs = user_folder / "robots" / "assets" / "myarm.collision.yaml"
     assert USER_ID not in registry.records()
-    assert "myarm.collision.yaml: 200 samples" in _ok("collision-pairs", "myarm", "--specs", user_folder,
-                                                      "--samples", 200)
+    assert "myarm.collision.yaml: 200 samples" in _ok(
+        "collision-pairs", "myarm", "--specs", user_folder, "--samples", 200
+    )
     assert pairs.is_file()
     assert f"{USER_ID} — ViperX-300 S, Reach" in _ok("describe", USER_ID, "--specs", user_folder)
     assert "success rate: 100% over 1 episodes" in _ok("run", USER_ID, "--specs", user_folder, "-n", "1")
@@ -115,8 +122,13 @@ def test_a_folder_recorded_by_register_serves_a_later_process(user_folder, tmp_p
     assert "recorded" in _ok("register", user_folder)
     pairs = user_folder / "robots" / "assets" / "myarm.collision.yaml"
     pairs.unlink()
-    later = subprocess.run([CLI, "collision-pairs", "myarm", "--samples", "200"], capture_output=True, text=True,
-                           env={**os.environ, "ENVFACTORY_CONFIG_DIR": str(config)}, timeout=300)
+    later = subprocess.run(
+        [CLI, "collision-pairs", "myarm", "--samples", "200"],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "ENVFACTORY_CONFIG_DIR": str(config)},
+        timeout=300,
+    )
     assert later.returncode == 0, later.stderr + later.stdout
     assert pairs.is_file()
 

@@ -38,7 +38,7 @@ def level_with_goal(achieved, desired, info, params, tolerance):
     return (np.abs(achieved[..., 2] - desired[..., 2]) < 0.05).astype(float)
 '''
 
-SPEC = '''
+SPEC = """
 defaults:
   - /robots@robot: ur5e
   - /tasks@task: reach
@@ -59,7 +59,7 @@ workspace: {{min: [-0.30, -0.85, 0.55], max: [1.20, 0.85, 1.50]}}
 registration:
   ids:
     {env_id}: {{backend: pybullet}}
-'''
+"""
 
 
 def _folder(tmp_path, module_name):
@@ -68,7 +68,8 @@ def _folder(tmp_path, module_name):
     (tmp_path / f"{module_name}.py").write_text(MODULE.replace("{prefix}", prefix))
     env_id = f"{prefix.capitalize()}Reach-v0"
     (tmp_path / "specs" / "mine.yaml").write_text(
-        textwrap.dedent(SPEC).format(module=module_name, prefix=prefix, env_id=env_id))
+        textwrap.dedent(SPEC).format(module=module_name, prefix=prefix, env_id=env_id)
+    )
     return env_id
 
 
@@ -89,8 +90,15 @@ def test_terms_from_a_module_beside_the_spec(tmp_path):
         distance = float(np.linalg.norm(ee - goal))
         level = float(abs(ee[2] - goal[2]) < 0.05)
         # the seed's dense reach reward, plus the user's term at weight 0.5
-        expected = (-2.0 * distance + 20.0 * (distance < 0.02) - 0.5 - 2.0 * info["action_out_of_bounds"]
-                    - 5.0 * info["action_rejected"] - 2.0 * info["goal_sampling_failed"] + 0.5 * level)
+        expected = (
+            -2.0 * distance
+            + 20.0 * (distance < 0.02)
+            - 0.5
+            - 2.0 * info["action_out_of_bounds"]
+            - 5.0 * info["action_rejected"]
+            - 2.0 * info["goal_sampling_failed"]
+            + 0.5 * level
+        )
         assert reward == pytest.approx(expected, abs=1e-6)
         env.close()
     finally:
@@ -100,7 +108,8 @@ def test_terms_from_a_module_beside_the_spec(tmp_path):
 def test_a_module_that_cannot_be_imported_is_named_with_file_and_line(tmp_path):
     (tmp_path / "specs").mkdir()
     (tmp_path / "specs" / "mine.yaml").write_text(
-        textwrap.dedent(SPEC).format(module="no_such_terms_module", prefix="x", env_id="NoTerms-v0"))
+        textwrap.dedent(SPEC).format(module="no_such_terms_module", prefix="x", env_id="NoTerms-v0")
+    )
     added, problems = register_specs(tmp_path)
     assert added == []
     message = str(problems[0])

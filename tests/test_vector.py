@@ -18,7 +18,7 @@ def step_async(env_id: str, num_envs: int = 2, steps: int = 3) -> None:
         observations, _ = envs.reset(seed=0)
         first, _ = single.reset(seed=0)  # sub-env 0 is seeded 0, as this env is
         single.close()
-        for key in (first if isinstance(first, dict) else {None: first}):
+        for key in first if isinstance(first, dict) else {None: first}:
             ours = observations[key][0] if key is not None else observations[0]
             theirs = first[key] if key is not None else first
             assert np.array_equal(ours, theirs), f"{env_id}: sub-env 0 does not start as a seed-0 env does ({key})"

@@ -34,28 +34,39 @@ def index_page(pages: Path, benchmarks: Path) -> str:
         facts = read_run_facts(page)
         script = facts.get("script") or (LEARNING[0] if page.name == LEARNING[1] else "")
         covered.add(script)
-        rows.append((f"[{md.prose(facts.get('title', page.stem))}]({page.name})",
-                     md.code(f"benchmarks/{script}") if script else "—",
-                     md.escape(facts.get("Settings", "—")), md.escape(facts.get("Date", "—")),
-                     md.escape(facts.get("Machine", "—"))))
-    intro = ("Every page here is written by a script in `benchmarks/`: run with `--markdown docs/benchmarks/NAME.md` "
-             "it writes its results table together with the exact command line, the date, the machine (cores, CPU "
-             "model), the load and the git revision. *Settings* says where a run left the script's defaults (fewer "
-             "episodes, steps or rounds keep a run short on a small shared machine): such figures, like those of a "
-             "run on a loaded machine, are a sample of the measurement, not its full run. Run a script again to "
-             "refresh its page, then `python docs/scripts/generate.py` to refresh this index.")
+        rows.append(
+            (
+                f"[{md.prose(facts.get('title', page.stem))}]({page.name})",
+                md.code(f"benchmarks/{script}") if script else "—",
+                md.escape(facts.get("Settings", "—")),
+                md.escape(facts.get("Date", "—")),
+                md.escape(facts.get("Machine", "—")),
+            )
+        )
+    intro = (
+        "Every page here is written by a script in `benchmarks/`: run with `--markdown docs/benchmarks/NAME.md` "
+        "it writes its results table together with the exact command line, the date, the machine (cores, CPU "
+        "model), the load and the git revision. *Settings* says where a run left the script's defaults (fewer "
+        "episodes, steps or rounds keep a run short on a small shared machine): such figures, like those of a "
+        "run on a loaded machine, are a sample of the measurement, not its full run. Run a script again to "
+        "refresh its page, then `python docs/scripts/generate.py` to refresh this index."
+    )
     table = md.grid(["Page", "Written by", "Settings", "Date", "Machine"], rows) if rows else "No page yet."
     blocks = [intro, table]
-    missing = [f"- `python benchmarks/{name} --markdown docs/benchmarks/{Path(name).stem}.md`: "
-               f"{md.prose(scripts[name][0])}"
-               for name, (_, reports) in scripts.items() if reports and name not in covered and name != LEARNING[0]]
+    missing = [
+        f"- `python benchmarks/{name} --markdown docs/benchmarks/{Path(name).stem}.md`: {md.prose(scripts[name][0])}"
+        for name, (_, reports) in scripts.items()
+        if reports and name not in covered and name != LEARNING[0]
+    ]
     if LEARNING[0] in scripts and LEARNING[0] not in covered:
         missing.append(f"- `benchmarks/{LEARNING[0]}` writes {LEARNING[1]} here: {md.prose(scripts[LEARNING[0]][0])}")
     if missing:
         blocks += ["## Not run for a page yet", "\n".join(missing)]
     others = [name for name, (_, reports) in scripts.items() if not reports and name != LEARNING[0]]
     if others:
-        blocks += ["## Scripts without a page",
-                   "These print a report that is no results table; run them to read it.\n\n"
-                   + "\n".join(f"- `benchmarks/{name}`: {md.prose(scripts[name][0])}" for name in others)]
+        blocks += [
+            "## Scripts without a page",
+            "These print a report that is no results table; run them to read it.\n\n"
+            + "\n".join(f"- `benchmarks/{name}`: {md.prose(scripts[name][0])}" for name in others),
+        ]
     return md.page("Benchmarks", *blocks)

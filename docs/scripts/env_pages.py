@@ -6,13 +6,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import mdtext as md  # the helpers beside this file
+
 from envfactory import factory
+from envfactory.compiler import Blueprint
 from envfactory.registration import registry
 from envfactory.schema.folders import family_files
-from envfactory.compiler import Blueprint
 from envfactory.views.describe import Part, description_parts, env_kind, id_summary, kwarg_paths, value_at
-
-import mdtext as md  # the helpers beside this file
 
 PICTURE_SEED = 0
 
@@ -61,19 +61,34 @@ def index_page(families: list[Family]) -> str:
     for family in families:
         for env_id in sorted(family.ids):
             robot, task, backend, obs, action = id_summary(factory.blueprint(env_id))
-            rows.append((md.code(env_id), robot, task, backend, obs, action,
-                         f"[{family.name}]({family.name}.md#{md.anchor(env_id)})"))
+            rows.append(
+                (
+                    md.code(env_id),
+                    robot,
+                    task,
+                    backend,
+                    obs,
+                    action,
+                    f"[{family.name}]({family.name}.md#{md.anchor(env_id)})",
+                )
+            )
     rows.sort()
-    intro = ("Every ID the shipped spec files register, as `envfactory list` shows them (which also lists the IDs "
-             "of your own spec folders). *Obs* is the observation vector's size; goal envs observe a Dict whose "
-             "`achieved_goal` and `desired_goal` add 3 each. *Action* is the action vector's size. Sim IDs run on "
-             "PyBullet (or MuJoCo with `engine=\"mujoco\"`); Real IDs drive a robot over rosbridge.")
-    families_list = "\n".join(f"- [{family.name}]({family.name}.md): {_label(family)}, "
-                              f"{len(family.ids)} IDs" for family in families)
-    return md.page("Environments", intro,
-                   md.grid(["ID", "Robot", "Task", "Backend", "Obs", "Action", "Family"], rows),
-                   "## Families\n\nOne page per spec file: the scene, the IDs, their observation, action and reward "
-                   "tables, and the kwargs they accept.\n\n" + families_list)
+    intro = (
+        "Every ID the shipped spec files register, as `envfactory list` shows them (which also lists the IDs "
+        "of your own spec folders). *Obs* is the observation vector's size; goal envs observe a Dict whose "
+        "`achieved_goal` and `desired_goal` add 3 each. *Action* is the action vector's size. Sim IDs run on "
+        'PyBullet (or MuJoCo with `engine="mujoco"`); Real IDs drive a robot over rosbridge.'
+    )
+    families_list = "\n".join(
+        f"- [{family.name}]({family.name}.md): {_label(family)}, {len(family.ids)} IDs" for family in families
+    )
+    return md.page(
+        "Environments",
+        intro,
+        md.grid(["ID", "Robot", "Task", "Backend", "Obs", "Action", "Family"], rows),
+        "## Families\n\nOne page per spec file: the scene, the IDs, their observation, action and reward "
+        "tables, and the kwargs they accept.\n\n" + families_list,
+    )
 
 
 def _label(family: Family) -> str:
@@ -85,13 +100,19 @@ def family_page(family: Family) -> str:
     blueprints = {env_id: factory.blueprint(env_id) for env_id in family.ids}
     first = family.ids[0]
     spec_file = family.path.relative_to(registry.builtin_root())
-    picture = (f"![{family.picture_id} after reset(seed={PICTURE_SEED})](../{family.picture})\n\n"
-               f"*{md.code(family.picture_id)} after `env.reset(seed={PICTURE_SEED})`, drawn by "
-               f"`env.render()` with `render_mode=\"rgb_array\"`.*")
-    intro = (f"{_label(family)}. Declared in {md.code(str(spec_file))}; `envfactory describe ID` prints each "
-             f"description below.")
-    how = (f"The first ID in full; for the others, only the parts that differ from {_link(first)}. The kwargs "
-           f"each ID takes, with their values, are [below](#kwargs).")
+    picture = (
+        f"![{family.picture_id} after reset(seed={PICTURE_SEED})](../{family.picture})\n\n"
+        f"*{md.code(family.picture_id)} after `env.reset(seed={PICTURE_SEED})`, drawn by "
+        f'`env.render()` with `render_mode="rgb_array"`.*'
+    )
+    intro = (
+        f"{_label(family)}. Declared in {md.code(str(spec_file))}; `envfactory describe ID` prints each "
+        f"description below."
+    )
+    how = (
+        f"The first ID in full; for the others, only the parts that differ from {_link(first)}. The kwargs "
+        f"each ID takes, with their values, are [below](#kwargs)."
+    )
     sections = [intro, picture, "## IDs", _ids_table(blueprints), "## Descriptions", how]
     reference = description_parts(blueprints[first])
     for env_id, compiled in blueprints.items():
@@ -112,8 +133,17 @@ def _ids_table(blueprints: dict[str, Blueprint]) -> str:
         record = registry.record(env_id)
         _, _, backend, obs, action = id_summary(compiled)
         registered = ", ".join(f"{name}={value!r}" for name, value in record.kwargs)
-        rows.append((_link(env_id), backend, env_kind(compiled), obs, action, str(compiled.max_episode_steps),
-                     md.code(registered) if registered else "—"))
+        rows.append(
+            (
+                _link(env_id),
+                backend,
+                env_kind(compiled),
+                obs,
+                action,
+                str(compiled.max_episode_steps),
+                md.code(registered) if registered else "—",
+            )
+        )
     return md.grid(["ID", "Backend", "Kind", "Obs", "Action", "Max steps", "Registered with"], rows)
 
 
@@ -148,13 +178,16 @@ def _kwargs_table(blueprints: dict[str, Blueprint]) -> str:
             value = repr(value_at(compiled.spec, path)) if name in kwarg_paths(compiled.spec) else None
             by_value.setdefault(value, []).append(env_id)
         rows.append([f"[{name}](../reference/kwargs.md#{md.kwarg_anchor(name)})", md.code(path), _values(by_value)])
-    return ("Every gym.make kwarg the IDs take, with its value in each (registered kwargs included); "
-            "`gym.make(ID, name=value)`, or `-k name=value` on the command line, sets it.\n\n"
-            + md.grid(["Kwarg", "Spec path", "Value"], rows))
+    return (
+        "Every gym.make kwarg the IDs take, with its value in each (registered kwargs included); "
+        "`gym.make(ID, name=value)`, or `-k name=value` on the command line, sets it.\n\n"
+        + md.grid(["Kwarg", "Spec path", "Value"], rows)
+    )
 
 
 def _values(by_value: dict[str | None, list[str]]) -> str:
     """`v` when every ID has it; else the exceptions by ID, then the value most IDs have."""
+
     def shown(value: str | None) -> str:
         return "not accepted" if value is None else md.code(value)
 

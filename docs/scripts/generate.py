@@ -21,10 +21,9 @@ DOCS = HERE.parent
 REPO = DOCS.parent
 sys.path.insert(0, str(REPO / "benchmarks"))  # report.py reads the benchmark pages' run facts
 
-import imageio.v3 as iio  # noqa: E402
-
 import benchmark_index  # noqa: E402  (the helpers beside this file)
 import env_pages  # noqa: E402
+import imageio.v3 as iio  # noqa: E402
 import mdtext  # noqa: E402
 import reference_pages  # noqa: E402
 from render_scene import render  # noqa: E402  (the scene as the README's picture draws it)
@@ -91,8 +90,11 @@ def write_pictures() -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--check", action="store_true",
-                        help="write nothing; exit 1 naming each generated Markdown page that is out of date")
+    parser.add_argument(
+        "--check",
+        action="store_true",
+        help="write nothing; exit 1 naming each generated Markdown page that is out of date",
+    )
     parser.add_argument("--no-pictures", action="store_true", help="write the pages, not the scene pictures")
     args = parser.parse_args(argv)
     generated = pages()

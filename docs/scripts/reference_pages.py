@@ -6,20 +6,19 @@ from __future__ import annotations
 import types
 import typing
 
+import mdtext as md  # the helpers beside this file
 import typer.core
 import typer.main
+from env_pages import Family
+from kwarg_meanings import MEANINGS
 from pydantic import BaseModel, create_model
 from typer import Context
 
 from envfactory import factory
 from envfactory.cli.app import app
-from envfactory.views.describe import kwarg_paths, value_at
 from envfactory.schema.models import EnvSpec
 from envfactory.views import term_catalog as catalog
-
-import mdtext as md  # the helpers beside this file
-from env_pages import Family
-from kwarg_meanings import MEANINGS
+from envfactory.views.describe import kwarg_paths, value_at
 
 # ------------------------------------------------------------------ cli.md
 
@@ -28,19 +27,30 @@ def cli_page() -> str:
     group = typer.main.get_command(app)
     root = Context(group, info_name="envfactory")
     names = group.list_commands(root)
-    blocks = [md.prose(group.help or ""),
-              "```\nenvfactory " + " ".join(group.collect_usage_pieces(root)) + "\n```",
-              "Options before the command:\n\n" + _options_table(group, root),
-              ("Every command also takes `--help`. A command that fails prints one line, `error: …`, and exits 1 "
-              "(`--debug` shows the traceback instead)."),
-              md.grid(["Command", "What it does"],
-                      [(f"[{name}](#{md.anchor('envfactory ' + name)})",
-                        md.prose(_first_line(group.commands[name].help))) for name in names])]
+    blocks = [
+        md.prose(group.help or ""),
+        "```\nenvfactory " + " ".join(group.collect_usage_pieces(root)) + "\n```",
+        "Options before the command:\n\n" + _options_table(group, root),
+        (
+            "Every command also takes `--help`. A command that fails prints one line, `error: …`, and exits 1 "
+            "(`--debug` shows the traceback instead)."
+        ),
+        md.grid(
+            ["Command", "What it does"],
+            [
+                (f"[{name}](#{md.anchor('envfactory ' + name)})", md.prose(_first_line(group.commands[name].help)))
+                for name in names
+            ],
+        ),
+    ]
     for name in names:
         command = group.commands[name]
         context = Context(command, info_name=name, parent=root)
-        blocks += [f"## envfactory {name}", md.prose(command.help or ""),
-                   f"```\nenvfactory {name} " + " ".join(command.collect_usage_pieces(context)) + "\n```"]
+        blocks += [
+            f"## envfactory {name}",
+            md.prose(command.help or ""),
+            f"```\nenvfactory {name} " + " ".join(command.collect_usage_pieces(context)) + "\n```",
+        ]
         arguments = [p for p in command.get_params(context) if isinstance(p, typer.core.TyperArgument)]
         if arguments:
             blocks.append("**Arguments**\n\n" + _params_table(arguments, context, "Argument"))
@@ -61,8 +71,7 @@ def _params_table(params, context: Context, heading: str) -> str:
 
 
 def _options_table(command, context: Context) -> str:
-    options = [p for p in command.get_params(context)
-               if isinstance(p, typer.core.TyperOption) and p.name != "help"]
+    options = [p for p in command.get_params(context) if isinstance(p, typer.core.TyperOption) and p.name != "help"]
     return _params_table(options, context, "Option") if options else "None besides `--help`."
 
 
@@ -94,25 +103,39 @@ def kwargs_page(families: list[Family]) -> str:
     _check_accepted(accepted)
     all_tasks = set().union(*tasks.values())
     blocks = [
-        ("A gym.make kwarg is an alias of one spec path: `gym.make(ID, name=value)` sets that path before the spec "
-        "is validated, so a bad value fails with the path and the kwarg named. The aliases are declared in the "
-        "spec YAML: `specs/_defaults.yaml` (every family) and each task file's `kwargs:` block. The command line "
-        "takes them as `-k name=value`, and `envfactory describe ID name=value` as overrides. An unknown kwarg "
-        "fails and lists the valid ones."),
-        ("*Type = schema default* is the spec field's type, its default when a spec leaves it out, and its limits. "
-        "*Shipped IDs* is the value the shipped IDs take (registered kwargs included); the env pages give each "
-        "ID's.")]
+        (
+            "A gym.make kwarg is an alias of one spec path: `gym.make(ID, name=value)` sets that path before the spec "
+            "is validated, so a bad value fails with the path and the kwarg named. The aliases are declared in the "
+            "spec YAML: `specs/_defaults.yaml` (every family) and each task file's `kwargs:` block. The command line "
+            "takes them as `-k name=value`, and `envfactory describe ID name=value` as overrides. An unknown kwarg "
+            "fails and lists the valid ones."
+        ),
+        (
+            "*Type = schema default* is the spec field's type, its default when a spec leaves it out, and its limits. "
+            "*Shipped IDs* is the value the shipped IDs take (registered kwargs included); the env pages give each "
+            "ID's."
+        ),
+    ]
     for title, _ in SECTIONS:
         rows = []
         for name in sorted(accepted):
-            (path, values), = accepted[name].items()
+            ((path, values),) = accepted[name].items()
             if section_of(path) != title:
                 continue
             where = "" if tasks[name] == all_tasks else f" ({', '.join(sorted(tasks[name]))} only)"
-            rows.append((f'<a id="{md.kwarg_anchor(name)}"></a>{md.code(name)}', md.code(path),
-                         md.escape(field_doc(path)), _values(values), md.prose(MEANINGS[name]) + md.escape(where)))
-        blocks += [f"## {title}", md.grid(["Kwarg", "Spec path", "Type = schema default", "Shipped IDs", "Meaning"],
-                                          rows)]
+            rows.append(
+                (
+                    f'<a id="{md.kwarg_anchor(name)}"></a>{md.code(name)}',
+                    md.code(path),
+                    md.escape(field_doc(path)),
+                    _values(values),
+                    md.prose(MEANINGS[name]) + md.escape(where),
+                )
+            )
+        blocks += [
+            f"## {title}",
+            md.grid(["Kwarg", "Spec path", "Type = schema default", "Shipped IDs", "Meaning"], rows),
+        ]
     return md.page("gym.make kwargs", *blocks)
 
 
@@ -123,9 +146,18 @@ def _check_accepted(accepted: dict) -> None:
     missing = sorted(set(accepted) - set(MEANINGS))
     stale = sorted(set(MEANINGS) - set(accepted))
     if missing or stale:
-        raise ValueError("docs/scripts/kwarg_meanings.py is out of step with the specs: "
-                         + "; ".join(filter(None, [missing and f"no meaning for {', '.join(missing)}",
-                                                   stale and f"no shipped spec declares {', '.join(stale)}"])))
+        raise ValueError(
+            "docs/scripts/kwarg_meanings.py is out of step with the specs: "
+            + "; ".join(
+                filter(
+                    None,
+                    [
+                        missing and f"no meaning for {', '.join(missing)}",
+                        stale and f"no shipped spec declares {', '.join(stale)}",
+                    ],
+                )
+            )
+        )
 
 
 def _values(values: list) -> str:
@@ -160,12 +192,19 @@ def field_doc(dotted: str) -> str:
 
 # ------------------------------------------------------------------ terms.md
 
+
 def terms_page() -> str:
-    blocks = [("Every observation, reward, termination, image, event and sensing term and every scripted expert "
-              "that ships with envfactory, with its params (`name: type = default (limits)`), size and unit: the tables "
-              "`envfactory terms` prints. A spec names a term by its name; `envfactory terms MODULE` lists a "
-              "module's own terms beside these.")]
+    blocks = [
+        (
+            "Every observation, reward, termination, image, event and sensing term and every scripted expert "
+            "that ships with envfactory, with its params (`name: type = default (limits)`), size and unit: the tables "
+            "`envfactory terms` prints. A spec names a term by its name; `envfactory terms MODULE` lists a "
+            "module's own terms beside these."
+        )
+    ]
     for title, columns, rows in catalog.TABLES:
-        blocks += [f"## {md.escape(title)}",
-                   md.grid(columns, ([md.code(name), *map(md.prose, rest)] for name, *rest in rows()))]
+        blocks += [
+            f"## {md.escape(title)}",
+            md.grid(columns, ([md.code(name), *map(md.prose, rest)] for name, *rest in rows())),
+        ]
     return md.page("Terms and experts", *blocks)

@@ -98,7 +98,9 @@ class Backend(Protocol):
         """The env's collision model (its own measuring copy), given once after construction: a simulator
         may play motions the safety check proved clear without dynamics; others ignore it."""
 
-    def reset(self, q_arm: np.ndarray, gripper: float | None, objects: dict[str, tuple[np.ndarray, np.ndarray]]) -> None:
+    def reset(
+        self, q_arm: np.ndarray, gripper: float | None, objects: dict[str, tuple[np.ndarray, np.ndarray]]
+    ) -> None:
         """Put the arm at `q_arm` (action order) and the gripper at `gripper` (None: leave it as it is), and each
         named object at its (position, quaternion). Blocks until done: a simulator sets the state at once; a
         real arm drives home at its reset speed, and its objects stay where people put them."""

@@ -32,10 +32,14 @@ def horn_rate(finger: float, finger_rate: float, radius: float, arm: float) -> f
 class DriverReadings:
     def __init__(self, robot: RobotSpec):
         urdf_names = [entry.urdf_joint for entry in robot.joint_states]
-        self.horns = [(index, urdf_names.index(entry.horn.finger), entry.horn.radius, entry.horn.arm)
-                      for index, entry in enumerate(robot.joint_states) if entry.horn is not None]
-        self.still = np.array([index for index, entry in enumerate(robot.joint_states) if not entry.reports_velocity],
-                              dtype=int)
+        self.horns = [
+            (index, urdf_names.index(entry.horn.finger), entry.horn.radius, entry.horn.arm)
+            for index, entry in enumerate(robot.joint_states)
+            if entry.horn is not None
+        ]
+        self.still = np.array(
+            [index for index, entry in enumerate(robot.joint_states) if not entry.reports_velocity], dtype=int
+        )
 
     def __bool__(self) -> bool:
         return bool(self.horns) or bool(self.still.size)

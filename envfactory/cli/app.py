@@ -16,15 +16,27 @@ from envfactory.cli.common import prepared, set_debug
 
 COMMANDS = [
     evaluate.evaluate,  # a policy over IDs and seeds (Ray with --workers)
-    learn.train, learn.collect,  # learning and datasets
-    safety.collision_pairs, safety.safety_view,  # the safety geometry
-    specs.validate, specs.list_ids, specs.describe, specs.register, specs.unregister, specs.terms,  # specs
-    run.run, run.sensing_spec,  # the main job, and what it measures on a real path
+    learn.train,
+    learn.collect,  # learning and datasets
+    safety.collision_pairs,
+    safety.safety_view,  # the safety geometry
+    specs.validate,
+    specs.list_ids,
+    specs.describe,
+    specs.register,
+    specs.unregister,
+    specs.terms,  # specs
+    run.run,
+    run.sensing_spec,  # the main job, and what it measures on a real path
     twin.twin,  # the digital twin
 ]
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
-                  help="A config-driven factory of Gymnasium environments for robot arms.")
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    help="A config-driven factory of Gymnasium environments for robot arms.",
+)
 
 
 @app.callback()

@@ -16,12 +16,10 @@ import yaml
 from rich.console import Console
 from rich.markup import escape
 
-from envfactory.registration import registry
 from envfactory.cli.lookup import MissingSpecFolder, register_spec_folders, unknown_id
 from envfactory.learn.extra import TRAIN_MODULES, MissingExtra, require
+from envfactory.registration import registry
 from envfactory.schema.errors import SpecError
-
-
 
 # Tables stay whole when the output is piped or captured.
 _WIDTH = None if sys.stdout.isatty() else 140
@@ -78,16 +76,22 @@ def guarded(command):
 
 # A command whose signature has one of these names a robot or an env ID: it takes --specs.
 NAMING_PARAMETERS = ("env_id", "robot")
-SPECS_HELP = ("A spec folder of your own (robots/, tasks/, specs/) whose IDs and robots this command may name, "
-              "repeatable; `envfactory register PATH` records one for every later command")
+SPECS_HELP = (
+    "A spec folder of your own (robots/, tasks/, specs/) whose IDs and robots this command may name, "
+    "repeatable; `envfactory register PATH` records one for every later command"
+)
 
 
 def with_spec_folders(command):
     """The command with a --specs option: its folders are registered before the command runs."""
 
     signature = inspect.signature(command, eval_str=True)
-    option = inspect.Parameter("specs", inspect.Parameter.KEYWORD_ONLY, annotation=Optional[List[Path]],
-                               default=typer.Option(None, "--specs", help=SPECS_HELP, show_default=False))
+    option = inspect.Parameter(
+        "specs",
+        inspect.Parameter.KEYWORD_ONLY,
+        annotation=Optional[List[Path]],
+        default=typer.Option(None, "--specs", help=SPECS_HELP, show_default=False),
+    )
 
     @functools.wraps(command)
     def run_with_folders(*args, specs: Optional[List[Path]] = None, **kwargs):
@@ -96,8 +100,9 @@ def with_spec_folders(command):
         except MissingSpecFolder as exc:
             fail(str(exc))
         for problem in problems:  # a broken family stays out; the rest of the folder serves the command
-            errors.print(f"warning: family skipped: {registry.one_line(problem)}", highlight=False, markup=False,
-                         soft_wrap=True)
+            errors.print(
+                f"warning: family skipped: {registry.one_line(problem)}", highlight=False, markup=False, soft_wrap=True
+            )
         return command(*args, **kwargs)
 
     run_with_folders.__signature__ = signature.replace(parameters=[*signature.parameters.values(), option])

@@ -17,8 +17,7 @@ from rich.table import Table
 from tqdm import tqdm
 
 from envfactory import cluster
-from envfactory.registration import registry
-from envfactory.cli.common import KWARG_HELP, check_output, fail, known_id, parse_kwargs, command, console, model_file
+from envfactory.cli.common import KWARG_HELP, check_output, command, console, fail, known_id, model_file, parse_kwargs
 from envfactory.cluster import trials as trial_runs
 from envfactory.cluster.bundles import FolderCopyError
 from envfactory.cluster.work import Evaluation, PolicySource, Workspace, run_here
@@ -26,9 +25,12 @@ from envfactory.envs.episodes import EpisodeResult, success_rate
 from envfactory.learn.extra import MissingExtra
 from envfactory.learn.hyperparams import HyperparameterError
 from envfactory.learn.runs import fresh_folder
+from envfactory.registration import registry
 
-WORKERS_HELP = ("Run as Ray tasks on this many workers (a local Ray instance of that many CPUs, or at most that "
-                "many tasks at once on --address); the results equal a run in one process. Needs the [ray] extra")
+WORKERS_HELP = (
+    "Run as Ray tasks on this many workers (a local Ray instance of that many CPUs, or at most that "
+    "many tasks at once on --address); the results equal a run in one process. Needs the [ray] extra"
+)
 ADDRESS_HELP = "Run on the Ray cluster already running at this address (e.g. ray://head:10001, or auto)"
 
 
@@ -59,8 +61,10 @@ def cluster_size(workers: int | None, address: str | None) -> int | None:
 
 def simulated_only(env_id: str, command_name: str) -> None:
     if registry.records()[env_id].backend != "pybullet":
-        fail(f"{env_id}: {command_name} runs simulated IDs only (it would drive the real arm for every episode); "
-              f"`envfactory run {env_id} --allow-real-robot-motion` runs a real arm, one episode after another")
+        fail(
+            f"{env_id}: {command_name} runs simulated IDs only (it would drive the real arm for every episode); "
+            f"`envfactory run {env_id} --allow-real-robot-motion` runs a real arm, one episode after another"
+        )
 
 
 def _policy_source(policy: str, algo: str | None) -> PolicySource:
@@ -73,14 +77,20 @@ def _policy_source(policy: str, algo: str | None) -> PolicySource:
 @command()
 def evaluate(
     env_id: List[str] = typer.Argument(..., metavar="ID...", help="The IDs to evaluate on (simulated)"),
-    policy: str = typer.Option("scripted", help="'scripted' (each task's expert) or a model.zip saved by "
-                                                 "`envfactory train` (made with the kwargs in its model.json)"),
+    policy: str = typer.Option(
+        "scripted",
+        help="'scripted' (each task's expert) or a model.zip saved by "
+        "`envfactory train` (made with the kwargs in its model.json)",
+    ),
     algo: Optional[str] = typer.Option(None, help="Algorithm of a --policy model with no model.json beside it"),
     episodes: int = typer.Option(20, "--episodes", "-n", min=1, help="Episodes per ID"),
     seed: int = typer.Option(0, help="Seed of the first episode; episode i uses seed + i, on every ID"),
     kwarg: List[str] = typer.Option(None, "--kwarg", "-k", help=KWARG_HELP),
-    out_csv: Optional[Path] = typer.Option(None, "--csv", help="Also write every episode (ID, seed, return, length, "
-                                                               "success, first success) to this CSV file"),
+    out_csv: Optional[Path] = typer.Option(
+        None,
+        "--csv",
+        help="Also write every episode (ID, seed, return, length, success, first success) to this CSV file",
+    ),
     workers: Optional[int] = workers_option(),
     address: Optional[str] = address_option(),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar"),
@@ -116,14 +126,25 @@ def evaluate(
 
 
 def _print_table(policy: str, env_ids: list[str], results: list[list[EpisodeResult]], seeds: range) -> None:
-    table = Table("ID", "Episodes", "Success", "Mean return", "Mean length", "Median first success",
-                  title=f"{policy} — seeds {seeds.start}..{seeds.stop - 1} — each episode until the env ends it")
+    table = Table(
+        "ID",
+        "Episodes",
+        "Success",
+        "Mean return",
+        "Mean length",
+        "Median first success",
+        title=f"{policy} — seeds {seeds.start}..{seeds.stop - 1} — each episode until the env ends it",
+    )
     for env_id, rows in zip(env_ids, results):
         firsts = [r.first_success for r in rows if r.first_success is not None]
-        table.add_row(env_id, str(len(rows)), f"{success_rate(rows):.0%}",
-                      f"{statistics.fmean(r.episode_return for r in rows):.2f}",
-                      f"{statistics.fmean(r.length for r in rows):.1f}",
-                      f"step {statistics.median(firsts):g}" if firsts else "-")
+        table.add_row(
+            env_id,
+            str(len(rows)),
+            f"{success_rate(rows):.0%}",
+            f"{statistics.fmean(r.episode_return for r in rows):.2f}",
+            f"{statistics.fmean(r.length for r in rows):.1f}",
+            f"step {statistics.median(firsts):g}" if firsts else "-",
+        )
     console.print(table)
     pooled = [r for rows in results for r in rows]
     console.print(f"success rate: {success_rate(pooled):.0%} over {len(pooled)} episodes", highlight=False)
@@ -138,14 +159,25 @@ def _write_csv(path: Path, env_ids: list[str], results: list[list[EpisodeResult]
         writer.writerow(CSV_COLUMNS)
         for env_id, rows in zip(env_ids, results):
             for r in rows:
-                writer.writerow([env_id, r.seed, repr(r.episode_return), r.length, int(r.success),
-                                 "" if r.first_success is None else r.first_success, r.rejected, r.abort_reason])
+                writer.writerow(
+                    [
+                        env_id,
+                        r.seed,
+                        repr(r.episode_return),
+                        r.length,
+                        int(r.success),
+                        "" if r.first_success is None else r.first_success,
+                        r.rejected,
+                        r.abort_reason,
+                    ]
+                )
 
 
-SEEDS_HELP = ("Train one run per seed (comma-separated: 0,1,2), each in its own folder inside the group folder "
-              "(--out, default runs/ID-ALGO-seeds0-1-2); then a summary table and the curves of all of them")
-SWEEP_HELP = ("Train every seed once per value: name=value1,value2 (values as -p takes them), repeatable for a "
-              "grid")
+SEEDS_HELP = (
+    "Train one run per seed (comma-separated: 0,1,2), each in its own folder inside the group folder "
+    "(--out, default runs/ID-ALGO-seeds0-1-2); then a summary table and the curves of all of them"
+)
+SWEEP_HELP = "Train every seed once per value: name=value1,value2 (values as -p takes them), repeatable for a grid"
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -158,17 +190,30 @@ def parse_seeds(text: str) -> list[int]:
     return seeds
 
 
-def train_trials(env_id: str, algo: str, seeds: list[int], sweep_items: list[str], out: Path | None,
-                 overrides: tuple[str, ...], steps: int | None, env_kwargs: dict, eval_every: int | None,
-                 eval_episodes: int | None, demos: str | None, workers: int | None, address: str | None,
-                 progress: bool) -> None:
+def train_trials(
+    env_id: str,
+    algo: str,
+    seeds: list[int],
+    sweep_items: list[str],
+    out: Path | None,
+    overrides: tuple[str, ...],
+    steps: int | None,
+    env_kwargs: dict,
+    eval_every: int | None,
+    eval_episodes: int | None,
+    demos: str | None,
+    workers: int | None,
+    address: str | None,
+    progress: bool,
+) -> None:
     """`envfactory train ID --seeds ... [--sweep ...]`: every trial, here or as Ray Tune trials, then the summary."""
     try:
         sweep = trial_runs.parse_sweep(sweep_items)
         asked = out or Path("runs") / f"{env_id}-{algo.lower()}-seeds{'-'.join(map(str, seeds))}"
         group = fresh_folder(asked)
-        planned = trial_runs.plan(env_id, group, seeds, sweep, algo, overrides, steps, env_kwargs, eval_every,
-                                  eval_episodes, demos)
+        planned = trial_runs.plan(
+            env_id, group, seeds, sweep, algo, overrides, steps, env_kwargs, eval_every, eval_episodes, demos
+        )
     except (HyperparameterError, FolderCopyError) as exc:
         fail(str(exc))
     if group != asked:
@@ -195,16 +240,28 @@ def _percent(value) -> str:
 def _print_trials(rows: list[dict], group: Path) -> None:
     table = Table("Trial", "Final success", "Best success", "Steps", "Wall s", "Error", title=f"trials in {group}")
     for row in rows:
-        table.add_row(row["trial"], _percent(row["final_success"]), _percent(row["best_success"]),
-                      str(row["timesteps"]), f"{row['wall_s']:.0f}", row["error"] or "")
+        table.add_row(
+            row["trial"],
+            _percent(row["final_success"]),
+            _percent(row["best_success"]),
+            str(row["timesteps"]),
+            f"{row['wall_s']:.0f}",
+            row["error"] or "",
+        )
     console.print(table)
     for setting, finished, mean, spread in trial_runs.by_setting(rows):
-        outcome = f"final success {mean:.0%} ± {spread:.0%} over {finished} finished trial(s)" if finished else \
-            "no trial finished"
+        outcome = (
+            f"final success {mean:.0%} ± {spread:.0%} over {finished} finished trial(s)"
+            if finished
+            else "no trial finished"
+        )
         console.print(f"{setting or 'all seeds'}: {outcome}", highlight=False)
-    curves = [group / name for name in (trial_runs.CURVES_FILE, trial_runs.WALL_CURVES_FILE) if (group / name).is_file()]
-    console.print(f"summary: {group / trial_runs.SUMMARY_FILE}"
-                  + (f"; curves: {', '.join(map(str, curves))}" if curves else ""))
+    curves = [
+        group / name for name in (trial_runs.CURVES_FILE, trial_runs.WALL_CURVES_FILE) if (group / name).is_file()
+    ]
+    console.print(
+        f"summary: {group / trial_runs.SUMMARY_FILE}" + (f"; curves: {', '.join(map(str, curves))}" if curves else "")
+    )
     failed = sum(bool(row["error"]) for row in rows)
     if failed:
         fail(f"{failed} of {len(rows)} trials failed (their errors are in the table and in the summary)")

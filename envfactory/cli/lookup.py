@@ -11,8 +11,10 @@ from envfactory.schema.compose import composed_config
 from envfactory.schema.errors import SpecError, suggest
 
 SPECS_SOURCE = "--specs"  # how a folder joined, as `registry.IdRecord.source` records it
-HOW_TO_ADD = (f"if it is in a spec folder of your own, make the folder known: --specs PATH (this command), "
-              f"`envfactory register PATH` (every later command) or {registry.SPEC_PATH_VARIABLE}=PATH (this shell)")
+HOW_TO_ADD = (
+    f"if it is in a spec folder of your own, make the folder known: --specs PATH (this command), "
+    f"`envfactory register PATH` (every later command) or {registry.SPEC_PATH_VARIABLE}=PATH (this shell)"
+)
 
 
 class MissingSpecFolder(ValueError):
@@ -25,8 +27,9 @@ def register_spec_folders(folders: list[Path]) -> list[SpecError]:
     (recorded, or on the variable) adds nothing and no clash."""
     missing = [folder for folder in folders if not folder.expanduser().is_dir()]
     if missing:
-        raise MissingSpecFolder("; ".join(f"--specs {folder}: {registry.not_a_folder(folder.expanduser())}"
-                                          for folder in missing))
+        raise MissingSpecFolder(
+            "; ".join(f"--specs {folder}: {registry.not_a_folder(folder.expanduser())}" for folder in missing)
+        )
     problems: list[SpecError] = []
     for folder in folders:
         problems += registry.register_folder(folder, source=SPECS_SOURCE)[1]

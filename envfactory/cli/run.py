@@ -11,15 +11,23 @@ from rich.table import Table
 
 from envfactory import factory
 from envfactory.backends.base import BackendError
-from envfactory.cli.common import (KWARG_HELP, check_output, command, console, errors, fail, known_id, model_file,
-                                   parse_kwargs)
+from envfactory.cli.common import (
+    KWARG_HELP,
+    check_output,
+    command,
+    console,
+    errors,
+    fail,
+    known_id,
+    model_file,
+    parse_kwargs,
+)
 from envfactory.envs.episodes import iter_episodes, success_rate
 from envfactory.experts import make_policy
 from envfactory.learn.trainer import load_policy, read_meta
 from envfactory.registration import registry
 from envfactory.schema.errors import SpecError
 from envfactory.terms.sensing_from_log import read_log, sensing_terms, sensing_yaml
-
 
 VIDEO_SUFFIXES = (".mp4", ".gif", ".webm", ".avi", ".mkv")
 
@@ -28,21 +36,31 @@ VIDEO_SUFFIXES = (".mp4", ".gif", ".webm", ".avi", ".mkv")
 def run(
     env_id: str,
     episodes: int = typer.Option(5, "--episodes", "-n", min=1),
-    policy: str = typer.Option("scripted", help="'scripted' (the task's expert), 'random', or a model.zip "
-                                                 "saved by `envfactory train`"),
+    policy: str = typer.Option(
+        "scripted", help="'scripted' (the task's expert), 'random', or a model.zip saved by `envfactory train`"
+    ),
     algo: Optional[str] = typer.Option(None, help="Algorithm of a --policy model with no model.json beside it"),
     seed: int = typer.Option(0, help="Seed of the first episode; episode i uses seed + i"),
     video: Optional[Path] = typer.Option(None, help="Record the episodes to this video file (e.g. out.mp4)"),
     override: List[str] = typer.Option(None, "--override", "-o", help="Hydra override, repeatable"),
     kwarg: List[str] = typer.Option(None, "--kwarg", "-k", help=KWARG_HELP),
     allow_real_robot_motion: bool = typer.Option(
-        False, "--allow-real-robot-motion", help="Let a Real ID move the arm (the motion gate); clear the workspace first"),
+        False,
+        "--allow-real-robot-motion",
+        help="Let a Real ID move the arm (the motion gate); clear the workspace first",
+    ),
     stop_at_success: bool = typer.Option(
-        False, "--stop-at-success", help="End each episode at its first success, even on Dense IDs (which go on to "
-                                         "the time limit), so Length reads as time-to-success"),
+        False,
+        "--stop-at-success",
+        help="End each episode at its first success, even on Dense IDs (which go on to "
+        "the time limit), so Length reads as time-to-success",
+    ),
     timing_log: Optional[Path] = typer.Option(
-        None, "--timing-log", help="Real IDs: write each step's info['timing'] (joint reading age, repeats, command "
-                                   "latency) as JSON lines, for `envfactory sensing-spec`"),
+        None,
+        "--timing-log",
+        help="Real IDs: write each step's info['timing'] (joint reading age, repeats, command "
+        "latency) as JSON lines, for `envfactory sensing-spec`",
+    ),
 ):
     """The main job: run episodes and print a per-episode table.
 
@@ -51,7 +69,6 @@ def run(
     first reached. --stop-at-success ends episodes there instead."""
     import gymnasium as gym
     from rich.progress import Progress
-
 
     known_id(env_id)
     kwargs = parse_kwargs(kwarg)
@@ -62,8 +79,11 @@ def run(
             # a model trained in simulation runs on the real arm as it is: what only a simulator has goes
             dropped = factory.simulation_only_kwargs(env_id, trained_kwargs)
             if dropped:
-                console.print(f"{env_id} is a real arm: the model's simulation-only kwargs are left out: "
-                              f"{', '.join(f'{name}={trained_kwargs[name]!r}' for name in dropped)}", highlight=False)
+                console.print(
+                    f"{env_id} is a real arm: the model's simulation-only kwargs are left out: "
+                    f"{', '.join(f'{name}={trained_kwargs[name]!r}' for name in dropped)}",
+                    highlight=False,
+                )
             trained_kwargs = {name: value for name, value in trained_kwargs.items() if name not in dropped}
         kwargs = {**trained_kwargs, **kwargs}  # the env it was trained on, unless -k says otherwise
     if video is not None:
@@ -77,8 +97,10 @@ def run(
     frames, results, failure = [], [], ""
     if timing_log is not None and env.unwrapped.blueprint.backend != "rosbridge":
         env.close()
-        fail(f"--timing-log records a real path's timing; {env_id} is simulated (its readings are never late): "
-              f"use a Real ID")
+        fail(
+            f"--timing-log records a real path's timing; {env_id} is simulated (its readings are never late): "
+            f"use a Real ID"
+        )
     try:
         timing = timing_log.open("w") if timing_log is not None else None
     except OSError as exc:
@@ -96,8 +118,15 @@ def run(
         with Progress(console=console, transient=True) as progress:
             task = progress.add_task(f"{env_id} ({policy})", total=episodes * limit)
             # the first reset is the first episode's: a real arm drives home once
-            for result in iter_episodes(env, actor, episodes, seed, on_frame=frames.append if video else None,
-                                        on_step=on_step, stop_on_success=stop_at_success):
+            for result in iter_episodes(
+                env,
+                actor,
+                episodes,
+                seed,
+                on_frame=frames.append if video else None,
+                on_step=on_step,
+                stop_on_success=stop_at_success,
+            ):
                 results.append(result)
     except KeyboardInterrupt:
         env.close()  # before the message: on a real robot this sends the stop
@@ -127,9 +156,12 @@ def run(
 def sensing_spec(
     log_file: Path = typer.Argument(..., help="A timing log written by `envfactory run REAL_ID --timing-log`"),
     env_id: str = typer.Option(..., "--id", help="The ID the sensing terms are for: its action cycle sets the step"),
-    cycle_time: Optional[float] = typer.Option(None, "--cycle-time", min=1e-3,
-                                               help="Seconds a step, when the terms are for another action cycle "
-                                                    "than the ID's (its action_cycle_time kwarg)"),
+    cycle_time: Optional[float] = typer.Option(
+        None,
+        "--cycle-time",
+        min=1e-3,
+        help="Seconds a step, when the terms are for another action cycle than the ID's (its action_cycle_time kwarg)",
+    ),
 ):
     """Sensing terms from what the real path measured: a timing log of joint reading ages, repeats and command
     latencies becomes observation_delay, action_delay and repeated_readings terms in whole steps, printed as a
@@ -161,19 +193,25 @@ def _bind_model(path: Path, env, algo: str | None):
         space = env.observation_space
         shapes = {k: v.shape for k, v in space.spaces.items()} if hasattr(space, "spaces") else space.shape
         reason = str(exc).splitlines()[0][:160]
-        fail(f"--policy {path}: cannot act in {env.spec.id} (action shape {env.action_space.shape}, observation "
-              f"shapes {shapes}): {type(exc).__name__}: {reason}; a model runs on the ID and kwargs it was "
-              f"trained with (model.json beside it, or -k)")
+        fail(
+            f"--policy {path}: cannot act in {env.spec.id} (action shape {env.action_space.shape}, observation "
+            f"shapes {shapes}): {type(exc).__name__}: {reason}; a model runs on the ID and kwargs it was "
+            f"trained with (model.json beside it, or -k)"
+        )
 
 
 # What the table measures: (its title's tail, the footnote under it), by --stop-at-success.
 EPISODE_END = {
-    False: ("each episode until the env ends it",
-            "Episodes end where the env ends them (terminated or truncated), as a learner sees them; Success is "
-            "is_success at the last step."),
-    True: ("each episode until its first success",
-           "Episodes end at their first success (--stop-at-success), else where the env ends them: on IDs that go on "
-           "after success (Dense) Length and Return stop short of what a learner sees."),
+    False: (
+        "each episode until the env ends it",
+        "Episodes end where the env ends them (terminated or truncated), as a learner sees them; Success is "
+        "is_success at the last step.",
+    ),
+    True: (
+        "each episode until its first success",
+        "Episodes end at their first success (--stop-at-success), else where the env ends them: on IDs that go on "
+        "after success (Dense) Length and Return stop short of what a learner sees.",
+    ),
 }
 
 
@@ -183,11 +221,20 @@ def _print_results(env_id: str, policy: str, results, stop_at_success: bool) -> 
     scope, footnote = EPISODE_END[stop_at_success]
     table = Table(*columns, *(["Aborted"] if aborted else []), title=f"{env_id} — {policy} — {scope}")
     for r in results:
-        row = [str(r.index), str(r.seed), f"{r.episode_return:.2f}", str(r.length), "yes" if r.success else "no",
-               "-" if r.first_success is None else f"step {r.first_success}", str(r.rejected)]
+        row = [
+            str(r.index),
+            str(r.seed),
+            f"{r.episode_return:.2f}",
+            str(r.length),
+            "yes" if r.success else "no",
+            "-" if r.first_success is None else f"step {r.first_success}",
+            str(r.rejected),
+        ]
         table.add_row(*row, *([r.abort_reason] if aborted else []))
     console.print(table)
     console.print(footnote, highlight=False)
     aborts = sum(bool(r.abort_reason) for r in results)
-    console.print(f"success rate: {success_rate(results):.0%} over {len(results)} episodes"
-                  + (f"; {aborts} aborted by a fault" if aborts else ""))
+    console.print(
+        f"success rate: {success_rate(results):.0%} over {len(results)} episodes"
+        + (f"; {aborts} aborted by a fault" if aborts else "")
+    )

@@ -7,14 +7,14 @@ from pathlib import Path
 import typer
 
 from envfactory import factory
-from envfactory.registration import registry
-from envfactory.cli.common import KWARG_HELP, fail, known_id, parse_kwargs, command, console
+from envfactory.cli.common import KWARG_HELP, command, console, fail, known_id, parse_kwargs
 from envfactory.cli.lookup import robot_ids, unknown_robot
 from envfactory.geometry.robot_model import regenerate_pairs
+from envfactory.registration import registry
 from envfactory.registration.registry import record
-from envfactory.views.safety_picture import render_clearance
 from envfactory.schema.compose import load_env_spec
 from envfactory.schema.errors import SpecError
+from envfactory.views.safety_picture import render_clearance
 
 
 def _robot_blueprint(name: str):

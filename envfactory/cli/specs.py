@@ -44,8 +44,9 @@ def validate(paths: List[Path] = typer.Argument(None, help="Spec folders or fami
             checked += len(records)
             if records:
                 spec = load_env_spec(records[0].family, (), dict(records[0].kwargs), env_id=records[0].env_id).spec
-                console.print(f"{path.stem}: {len(records)} ID(s) valid. {height_summary(spec)}", highlight=False,
-                              soft_wrap=True)
+                console.print(
+                    f"{path.stem}: {len(records)} ID(s) valid. {height_summary(spec)}", highlight=False, soft_wrap=True
+                )
         except SpecError as exc:
             failures += 1
             errors.print(str(exc), highlight=False, markup=False, soft_wrap=True)
@@ -68,8 +69,10 @@ def _validate_targets(folders: list[Path], given: bool) -> tuple[list[Path], lis
         elif path.exists() or not given:
             targets.append(path)
             if given:
-                notes.append(f"note: {path} is a family file; `envfactory register` and {registry.SPEC_PATH_VARIABLE} "
-                             f"take its spec folder, {registry.folder_of(path)}")
+                notes.append(
+                    f"note: {path} is a family file; `envfactory register` and {registry.SPEC_PATH_VARIABLE} "
+                    f"take its spec folder, {registry.folder_of(path)}"
+                )
     return targets, unread, notes
 
 
@@ -88,8 +91,9 @@ def list_ids(sources: bool = typer.Option(False, "--sources", help="Where the ID
             table.add_row(env_id, "?", "?", record.backend, "invalid", str(exc.problems[0]) if exc.problems else "")
             continue
         obs = str(compiled.observation_size) + (" + goal 3+3" if compiled.goal_env else "")
-        table.add_row(env_id, compiled.spec.robot.name, compiled.spec.task.name, compiled.backend, obs,
-                      str(compiled.action.size))
+        table.add_row(
+            env_id, compiled.spec.robot.name, compiled.spec.task.name, compiled.backend, obs, str(compiled.action.size)
+        )
     console.print(table)
 
 
@@ -102,8 +106,9 @@ def _list_sources() -> None:
     for folder, source in folders:
         ids = sorted(by_folder.get(folder.expanduser().resolve(), []))
         state = f"{len(ids)}" if folder.is_dir() else "0 (missing folder)"
-        table.add_row(source, str(folder), state + (f": {', '.join(ids[:4])}{', …' if len(ids) > 4 else ''}"
-                                                    if ids else ""))
+        table.add_row(
+            source, str(folder), state + (f": {', '.join(ids[:4])}{', …' if len(ids) > 4 else ''}" if ids else "")
+        )
     console.print(table)
 
 
@@ -123,8 +128,11 @@ def describe(
 @command()
 def register(
     paths: List[Path] = typer.Argument(..., help="Folders of user specs"),
-    save: bool = typer.Option(True, "--save/--no-save", help="Record the folders in the user config file, so "
-                                                             "later processes register them too"),
+    save: bool = typer.Option(
+        True,
+        "--save/--no-save",
+        help="Record the folders in the user config file, so later processes register them too",
+    ),
 ):
     """Validate user spec folders, smoke-build each simulated ID (reset plus one step), and record them."""
 
@@ -145,17 +153,21 @@ def register(
             failed = True
         if save and added and not problems:
             new = user_config.add_folder(path)
-            console.print(f"{'recorded' if new else 'already recorded'} {path.resolve()} in {user_config.config_file()}")
+            console.print(
+                f"{'recorded' if new else 'already recorded'} {path.resolve()} in {user_config.config_file()}"
+            )
         elif save and problems:
-            errors.print(f"{path}: not recorded in {user_config.config_file()}: fix the errors above and register "
-                         f"again", highlight=False, markup=False)
+            errors.print(
+                f"{path}: not recorded in {user_config.config_file()}: fix the errors above and register again",
+                highlight=False,
+                markup=False,
+            )
     if failed:
         raise typer.Exit(1)
 
 
 def _smoke_build(env_ids: list[str]) -> bool:
     import gymnasium as gym
-
 
     ok = True
     for env_id in env_ids:
@@ -191,8 +203,11 @@ def unregister(paths: List[Path] = typer.Argument(..., help="Folders recorded by
 
 
 @command()
-def terms(modules: List[str] = typer.Argument(None, help="Term modules to import first (as a spec's `terms:` "
-                                                         "list names them, relative to the current folder)")):
+def terms(
+    modules: List[str] = typer.Argument(
+        None, help="Term modules to import first (as a spec's `terms:` list names them, relative to the current folder)"
+    ),
+):
     """Every observation, reward, termination, image, event and sensing term and every expert, with params, size
     and unit."""
 
@@ -209,5 +224,3 @@ def terms(modules: List[str] = typer.Argument(None, help="Term modules to import
         for row in rows():
             table.add_row(*row)
         console.print(table)
-
-

@@ -23,8 +23,9 @@ def require_ray(what: str) -> None:
     """Raise MissingExtra, saying how to install the [ray] extra, when Ray is not installed."""
     absent = missing(RAY_MODULES)
     if absent:
-        raise MissingExtra(f"{what} needs the [ray] extra ({', '.join(absent)} not installed); install it with: "
-                           f"{RAY_INSTALL_HINT}")
+        raise MissingExtra(
+            f"{what} needs the [ray] extra ({', '.join(absent)} not installed); install it with: {RAY_INSTALL_HINT}"
+        )
 
 
 def load(module: str, what: str) -> ModuleType:

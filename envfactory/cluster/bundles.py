@@ -45,8 +45,10 @@ class FolderCopy:
             paths = [folder / name for name in names if (folder / name).is_file()]
         total = sum(p.stat().st_size for p in paths)
         if total > MAX_BYTES:
-            raise FolderCopyError(f"{folder}: {total / 1e6:.0f} MB of files, more than the {MAX_BYTES / 1e6:.0f} MB "
-                                  f"a folder may send to the workers")
+            raise FolderCopyError(
+                f"{folder}: {total / 1e6:.0f} MB of files, more than the {MAX_BYTES / 1e6:.0f} MB "
+                f"a folder may send to the workers"
+            )
         files = tuple(sorted((p.relative_to(folder).as_posix(), p.read_bytes()) for p in paths))
         return cls(str(folder), files, _digest(files))
 

@@ -43,14 +43,25 @@ def connected(workers: int | None = None, address: str | None = None) -> Iterato
         yield
         return
     try:
-        ray.init(address=address or "local", num_cpus=None if address else workers, include_dashboard=False,
-                 logging_level=logging.ERROR, log_to_driver=False)
+        ray.init(
+            address=address or "local",
+            num_cpus=None if address else workers,
+            include_dashboard=False,
+            logging_level=logging.ERROR,
+            log_to_driver=False,
+        )
     except (ConnectionError, RuntimeError, ValueError) as exc:
         where = f"the Ray cluster at {address}" if address else "a local Ray instance"
         # Ray's own setting, easily missed: a cluster started with token authentication (Ray's default) refuses
         # a driver that does not send the token, with no word of why
-        hint = (f" (a cluster started with token authentication needs {AUTH_MODE_VARIABLE}=token here too, and "
-                f"its token in ~/.ray/auth_token)") if address and AUTH_MODE_VARIABLE not in os.environ else ""
+        hint = (
+            (
+                f" (a cluster started with token authentication needs {AUTH_MODE_VARIABLE}=token here too, and "
+                f"its token in ~/.ray/auth_token)"
+            )
+            if address and AUTH_MODE_VARIABLE not in os.environ
+            else ""
+        )
         raise ClusterError(f"cannot start or reach {where}: {exc}{hint}") from None
     try:
         yield
@@ -87,8 +98,9 @@ class _Task:
     weight: int  # its share of the progress bar
 
 
-def _gather(submit: Callable[[int], ray.ObjectRef], tasks: list[_Task], window: int, bar: tqdm,
-            retries: int) -> list[list]:
+def _gather(
+    submit: Callable[[int], ray.ObjectRef], tasks: list[_Task], window: int, bar: tqdm, retries: int
+) -> list[list]:
     """Run tasks with at most `window` in flight (so `--workers` bounds a shared cluster too), in any order;
     each task's result under its slot. A failure raises ClusterError naming the task."""
     results: list[list] = [[] for _ in range(max((t.slot for t in tasks), default=-1) + 1)]
@@ -127,8 +139,11 @@ def run_episodes(works: list[EpisodeWork], seeds: range, workers: int, progress:
     """Each work over `seeds`, spread over the cluster; per work, the merged result (work.merge), equal to
     running it in one process."""
     pieces = split(seeds, workers * RANGES_PER_WORKER)
-    tasks = [_Task(f"{work.env_id} seeds {piece.start}..{piece.stop - 1}", slot, len(piece))
-             for slot, work in enumerate(works) for piece in pieces]
+    tasks = [
+        _Task(f"{work.env_id} seeds {piece.start}..{piece.stop - 1}", slot, len(piece))
+        for slot, work in enumerate(works)
+        for piece in pieces
+    ]
     shared = [ray.put(work) for work in works]  # sent once, not with every range (spec folders, models)
     arguments = [(shared[slot], piece) for slot in range(len(works)) for piece in pieces]
     with tqdm(total=len(works) * len(seeds), unit="episode", disable=not progress, desc="episodes") as bar:

@@ -29,8 +29,8 @@ from dataclasses import dataclass
 import gymnasium as gym
 from ray.tune.registry import register_env
 
-from envfactory.registration import registry
 from envfactory.cluster.work import Workspace
+from envfactory.registration import registry
 
 # keys RLlib itself puts into env_config (a vector env's size), which are no kwargs of the env
 RLLIB_CONFIG_KEYS = ("num_envs",)

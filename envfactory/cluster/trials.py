@@ -1,5 +1,5 @@
-"""Several training runs of one ID: one per seed, times each setting of a sweep, run one after another in this
-process or one per Ray Tune trial (tuning.py). Each trial is an ordinary `envfactory train` run with its own run folder (model,
+"""Several training runs of one ID: one per seed, times each setting of a sweep, run one after another in this process
+or one per Ray Tune trial (tuning.py). Each trial is an ordinary `envfactory train` run with its own run folder (model,
 record, curve) inside the group folder; the group gets a summary table and the curves of all of them.
 
 A trial writes its folder where it runs. On one machine that is the group folder itself; on a cluster of
@@ -90,20 +90,47 @@ def _top_level_split(text: str) -> list[str]:
     return parts + [current.strip()]
 
 
-def plan(env_id: str, group: Path, seeds: list[int], sweep: dict[str, list[str]], algo: str,
-         overrides: tuple[str, ...], steps: int | None, env_kwargs: dict, eval_every: int | None,
-         eval_episodes: int | None, demos: str | None) -> list[Trial]:
+def plan(
+    env_id: str,
+    group: Path,
+    seeds: list[int],
+    sweep: dict[str, list[str]],
+    algo: str,
+    overrides: tuple[str, ...],
+    steps: int | None,
+    env_kwargs: dict,
+    eval_every: int | None,
+    eval_episodes: int | None,
+    demos: str | None,
+) -> list[Trial]:
     """Every trial (seeds × sweep settings), each setting's hyperparameters checked before anything runs."""
-    settings = [tuple(f"{name}={value}" for name, value in zip(sweep, values))
-                for values in itertools.product(*sweep.values())] or [()]
+    settings = [
+        tuple(f"{name}={value}" for name, value in zip(sweep, values)) for values in itertools.product(*sweep.values())
+    ] or [()]
     for setting in settings:
         load(algo, env_id, (*overrides, *setting))  # a bad name or value fails here, naming its source
     group = group.expanduser().resolve()
     workspace = Workspace.for_ids([env_id])
     token = uuid.uuid4().hex
-    return [Trial(env_id, str(group / _folder_name(seed, setting)), algo, seed, setting, overrides, steps,
-                  env_kwargs, eval_every, eval_episodes, demos, workspace, token)
-            for setting in settings for seed in seeds]
+    return [
+        Trial(
+            env_id,
+            str(group / _folder_name(seed, setting)),
+            algo,
+            seed,
+            setting,
+            overrides,
+            steps,
+            env_kwargs,
+            eval_every,
+            eval_episodes,
+            demos,
+            workspace,
+            token,
+        )
+        for setting in settings
+        for seed in seeds
+    ]
 
 
 def _folder_name(seed: int, setting: tuple[str, ...]) -> str:
@@ -125,14 +152,26 @@ def run_trial(trial: Trial, on_evaluation: Callable[[Evaluation], None] | None =
     except OSError:
         seen = ""
     if seen != trial.token:
-        raise TrialError(f"{trial.label}: this worker ({socket.gethostname()}) does not see the group folder "
-                         f"{folder.parent}; on a cluster of several machines give --out a folder on a filesystem "
-                         f"every node mounts")
+        raise TrialError(
+            f"{trial.label}: this worker ({socket.gethostname()}) does not see the group folder "
+            f"{folder.parent}; on a cluster of several machines give --out a folder on a filesystem "
+            f"every node mounts"
+        )
     trial.workspace.enter([trial.env_id])
-    result = train(trial.env_id, folder, algo=trial.algo, seed=trial.seed, steps=trial.steps,
-                   overrides=(*trial.overrides, *trial.setting), env_kwargs=trial.env_kwargs,
-                   eval_every=trial.eval_every, eval_episodes=trial.eval_episodes, demos=trial.demos,
-                   progress_bar=False, on_evaluation=on_evaluation)
+    result = train(
+        trial.env_id,
+        folder,
+        algo=trial.algo,
+        seed=trial.seed,
+        steps=trial.steps,
+        overrides=(*trial.overrides, *trial.setting),
+        env_kwargs=trial.env_kwargs,
+        eval_every=trial.eval_every,
+        eval_episodes=trial.eval_episodes,
+        demos=trial.demos,
+        progress_bar=False,
+        on_evaluation=on_evaluation,
+    )
     return TrialOutcome(trial, result.evaluations)
 
 
@@ -151,19 +190,36 @@ def run_here(trials: list[Trial], on_done: Callable[[TrialOutcome], None] | None
     return outcomes
 
 
-SUMMARY_COLUMNS = ("trial", "seed", "setting", "final_success", "best_success", "timesteps", "wall_s", "folder",
-                   "error")
+SUMMARY_COLUMNS = (
+    "trial",
+    "seed",
+    "setting",
+    "final_success",
+    "best_success",
+    "timesteps",
+    "wall_s",
+    "folder",
+    "error",
+)
 
 
 def summary_rows(outcomes: list[TrialOutcome]) -> list[dict]:
     rows = []
     for outcome in outcomes:
         curve, trial = outcome.evaluations, outcome.trial
-        rows.append({"trial": Path(trial.folder).name, "seed": trial.seed, "setting": " ".join(trial.setting),
-                     "final_success": curve[-1].success_rate if curve else None,
-                     "best_success": max(e.success_rate for e in curve) if curve else None,
-                     "timesteps": curve[-1].timesteps if curve else 0, "wall_s": curve[-1].wall_s if curve else 0.0,
-                     "folder": trial.folder, "error": outcome.error})
+        rows.append(
+            {
+                "trial": Path(trial.folder).name,
+                "seed": trial.seed,
+                "setting": " ".join(trial.setting),
+                "final_success": curve[-1].success_rate if curve else None,
+                "best_success": max(e.success_rate for e in curve) if curve else None,
+                "timesteps": curve[-1].timesteps if curve else 0,
+                "wall_s": curve[-1].wall_s if curve else 0.0,
+                "folder": trial.folder,
+                "error": outcome.error,
+            }
+        )
     return rows
 
 
@@ -174,8 +230,15 @@ def by_setting(rows: list[dict]) -> list[tuple[str, int, float, float]]:
         grouped.setdefault(row["setting"], [])
         if row["final_success"] is not None:
             grouped[row["setting"]].append(row["final_success"])
-    return [(setting, len(values), statistics.fmean(values) if values else float("nan"),
-             statistics.pstdev(values) if values else float("nan")) for setting, values in grouped.items()]
+    return [
+        (
+            setting,
+            len(values),
+            statistics.fmean(values) if values else float("nan"),
+            statistics.pstdev(values) if values else float("nan"),
+        )
+        for setting, values in grouped.items()
+    ]
 
 
 def write_summary(group: Path, outcomes: list[TrialOutcome], title: str) -> list[dict]:

@@ -10,6 +10,7 @@ written part of its run folder; `envfactory train --resume FOLDER` continues one
 from __future__ import annotations
 
 from pathlib import Path
+
 from ray import tune
 from tqdm import tqdm
 
@@ -24,8 +25,15 @@ def _trainable(config: dict, trials: list[Trial]) -> None:
     trial = trials[config["trial"]]
 
     def report(row) -> None:
-        tune.report({"timesteps": row.timesteps, "success_rate": row.success_rate, "mean_return": row.mean_return,
-                     "mean_length": row.mean_length, "wall_s": row.wall_s})
+        tune.report(
+            {
+                "timesteps": row.timesteps,
+                "success_rate": row.success_rate,
+                "mean_return": row.mean_return,
+                "mean_length": row.mean_length,
+                "wall_s": row.wall_s,
+            }
+        )
 
     run_trial(trial, on_evaluation=report)
 
@@ -51,20 +59,29 @@ def run_trials(trials: list[Trial], cpus: int, progress: bool = True) -> list[Tr
         tuner = tune.Tuner(
             tune.with_resources(tune.with_parameters(_trainable, trials=trials), {"cpu": 1}),
             param_space={"trial": tune.grid_search(list(range(len(trials))))},
-            tune_config=tune.TuneConfig(max_concurrent_trials=cpus,
-                                        trial_dirname_creator=lambda t: Path(trials[t.config["trial"]].folder).name),
-            run_config=tune.RunConfig(storage_path=str(group / TUNE_FOLDER), name="trials", verbose=0,
-                                      callbacks=[_Progress(bar)],
-                                      failure_config=tune.FailureConfig(max_failures=0)))
+            tune_config=tune.TuneConfig(
+                max_concurrent_trials=cpus, trial_dirname_creator=lambda t: Path(trials[t.config["trial"]].folder).name
+            ),
+            run_config=tune.RunConfig(
+                storage_path=str(group / TUNE_FOLDER),
+                name="trials",
+                verbose=0,
+                callbacks=[_Progress(bar)],
+                failure_config=tune.FailureConfig(max_failures=0),
+            ),
+        )
         results = tuner.fit()
     outcomes: dict[int, TrialOutcome] = {}
     for result in results:
         index = result.config["trial"]
         if result.error is not None:
-            outcomes[index] = TrialOutcome(trials[index], error=f"{type(result.error).__name__}: "
-                                                                f"{result.error}".splitlines()[0])
+            outcomes[index] = TrialOutcome(
+                trials[index], error=f"{type(result.error).__name__}: {result.error}".splitlines()[0]
+            )
         else:
             curve = Path(trials[index].folder) / CSV_FILE
             outcomes[index] = TrialOutcome(trials[index], read_csv(curve) if curve.is_file() else [])
-    return [outcomes.get(index, TrialOutcome(trial, error="Tune returned no result for it"))
-            for index, trial in enumerate(trials)]
+    return [
+        outcomes.get(index, TrialOutcome(trial, error="Tune returned no result for it"))
+        for index, trial in enumerate(trials)
+    ]

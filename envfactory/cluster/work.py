@@ -18,12 +18,12 @@ from typing import Callable
 
 import gymnasium as gym
 
-from envfactory.registration import registry
 from envfactory.cluster.bundles import FolderCopy
 from envfactory.envs.episodes import EpisodeResult, iter_episodes
 from envfactory.experts import make_policy
 from envfactory.learn.demonstrations import Recording, _user_spec_folder, record
 from envfactory.learn.trainer import NORMALIZER_FILE, load_policy, read_meta
+from envfactory.registration import registry
 from envfactory.schema.folders import folder_of
 
 
@@ -52,20 +52,24 @@ class Workspace:
         for env_id in env_ids:
             if env_id not in sent:
                 if env_id not in registry.records():
-                    raise WorkspaceError(f"{env_id}: not registered in this process, and the job sent no spec "
-                                         f"folder declaring it")
+                    raise WorkspaceError(
+                        f"{env_id}: not registered in this process, and the job sent no spec folder declaring it"
+                    )
                 continue
             folder = sent[env_id].where()
             problems = [] if env_id in registry.records() else registry.register_folder(folder)[1]
             if env_id not in registry.records():
                 found = "; ".join(registry.one_line(problem) for problem in problems) or "it declares no such ID"
-                raise WorkspaceError(f"{env_id}: its spec folder {sent[env_id].origin} (here {folder}) does not "
-                                     f"register it: {found}")
+                raise WorkspaceError(
+                    f"{env_id}: its spec folder {sent[env_id].origin} (here {folder}) does not register it: {found}"
+                )
             declared = folder_of(registry.record(env_id).family.path).resolve()
             if declared != folder.resolve():
-                raise WorkspaceError(f"{env_id}: this process registers it from {declared}, not from the job's "
-                                     f"spec folder {sent[env_id].origin} (here {folder}); leave the other folder "
-                                     f"out of this machine's ENVFACTORY_SPEC_PATH or `envfactory register`")
+                raise WorkspaceError(
+                    f"{env_id}: this process registers it from {declared}, not from the job's "
+                    f"spec folder {sent[env_id].origin} (here {folder}); leave the other folder "
+                    f"out of this machine's ENVFACTORY_SPEC_PATH or `envfactory register`"
+                )
 
 
 MODEL_POLICY = "model"
@@ -167,7 +171,7 @@ class Collection(EpisodeWork):
 def split(seeds: range, pieces: int) -> list[range]:
     """`seeds` as at most `pieces` consecutive ranges of near-equal length."""
     size = max(1, math.ceil(len(seeds) / max(1, pieces)))
-    return [seeds[start:start + size] for start in range(0, len(seeds), size)]
+    return [seeds[start : start + size] for start in range(0, len(seeds), size)]
 
 
 def run_here(work: EpisodeWork, seeds: range, on_episode: Callable | None = None):

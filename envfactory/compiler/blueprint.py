@@ -14,12 +14,19 @@ from typing import Any, Callable
 import numpy as np
 from pydantic import BaseModel
 
-from envfactory.geometry.point_boxes import PointBoxes
 from envfactory.compiler.normalization import ActionScale
+from envfactory.geometry.point_boxes import PointBoxes
 from envfactory.schema.models import EnvSpec
 from envfactory.schema.randomization import Every
-from envfactory.terms.library import (Description, EventTerm, ImageTerm, ObservationTerm, RewardTerm, SensingTerm,
-                                      TerminationTerm)
+from envfactory.terms.library import (
+    Description,
+    EventTerm,
+    ImageTerm,
+    ObservationTerm,
+    RewardTerm,
+    SensingTerm,
+    TerminationTerm,
+)
 from envfactory.terms.stages import NoStage, Stage
 
 
@@ -178,8 +185,16 @@ class Blueprint:
             "goal_env": self.goal_env,
             "max_episode_steps": self.max_episode_steps,
             "observation": [_slot_json(slot) for slot in self.policy_observation],
-            "images": [{"key": image.name, "shape": list(image.shape), "dtype": image.term.dtype.__name__,
-                        "low": image.low, "high": image.high} for image in self.images],
+            "images": [
+                {
+                    "key": image.name,
+                    "shape": list(image.shape),
+                    "dtype": image.term.dtype.__name__,
+                    "low": image.low,
+                    "high": image.high,
+                }
+                for image in self.images
+            ],
             "action": {
                 "ee": self.action.ee,
                 "delta": self.action.delta,
@@ -188,24 +203,39 @@ class Blueprint:
                 "rows": [vars(row) for row in self.action.rows],
             },
             "reward_type": spec.env.reward_type,
-            "rewards": [{"name": t.name, "term": t.term.name, "weight": t.weight,
-                         "params": t.params.model_dump(by_alias=True)} for t in self.rewards],
+            "rewards": [
+                {"name": t.name, "term": t.term.name, "weight": t.weight, "params": t.params.model_dump(by_alias=True)}
+                for t in self.rewards
+            ],
             "terminations": [{"name": t.name, "term": t.term.name, "active": t.active} for t in self.terminations],
             "goal": spec.task.goal.model_dump(),
             "objects": {name: obj.model_dump() for name, obj in spec.task.objects.items()},
             "gripper": {"in_action": spec.task.gripper.in_action, "at_reset": spec.gripper_at_reset},
             "env": spec.env.model_dump(),
             "workspace": spec.workspace.model_dump(),
-            "robot": {"name": spec.robot.name, "mount": list(spec.robot.mount), "home": spec.robot.home,
-                      "ee_frame": spec.robot.ee_frame, "task_frame": spec.robot.task_frame},
+            "robot": {
+                "name": spec.robot.name,
+                "mount": list(spec.robot.mount),
+                "home": spec.robot.home,
+                "ee_frame": spec.robot.ee_frame,
+                "task_frame": spec.robot.task_frame,
+            },
         }
         if self.events or self.sensing:
             data["randomization"] = {
                 "enabled": self.randomized,
-                "events": [{"name": e.name, "term": e.term.name, "params": e.params.model_dump(),
-                            "every": e.every.model_dump() if e.every else None} for e in self.events],
-                "sensing": [{"name": e.name, "term": e.term.name, "params": e.params.model_dump()}
-                            for e in self.sensing],
+                "events": [
+                    {
+                        "name": e.name,
+                        "term": e.term.name,
+                        "params": e.params.model_dump(),
+                        "every": e.every.model_dump() if e.every else None,
+                    }
+                    for e in self.events
+                ],
+                "sensing": [
+                    {"name": e.name, "term": e.term.name, "params": e.params.model_dump()} for e in self.sensing
+                ],
             }
         return json.dumps(data, indent=2, sort_keys=True, default=_json_default)
 
@@ -242,7 +272,10 @@ def policy_slots(observation: tuple[ObservationSlot, ...], goal_env: bool) -> tu
 def _reindex(slots) -> tuple[ObservationSlot, ...]:
     out, start = [], 0
     for slot in slots:
-        out.append(ObservationSlot(slot.name, slot.term, slot.params, slot.bound, start, slot.size, slot.low,
-                                   slot.high, slot.description))
+        out.append(
+            ObservationSlot(
+                slot.name, slot.term, slot.params, slot.bound, start, slot.size, slot.low, slot.high, slot.description
+            )
+        )
         start += slot.size
     return tuple(out)

@@ -26,10 +26,10 @@ from envfactory.compiler.scene_checks import check_expert_workspace, check_scene
 from envfactory.experts import EXPERTS
 from envfactory.geometry.point_boxes import derived_boxes
 from envfactory.schema.compose import LoadedSpec
-from envfactory.schema.sources import Findings
-from envfactory.schema.validation import validation_problems
 from envfactory.schema.errors import suggest
 from envfactory.schema.models import EnvSpec
+from envfactory.schema.sources import Findings
+from envfactory.schema.validation import validation_problems
 from envfactory.terms import EVENTS, IMAGES, OBSERVATIONS, REWARDS, SENSING, TERMINATIONS, Layout, plugins
 from envfactory.terms.library import UnknownReference
 from envfactory.terms.rewards import step_info_keys
@@ -61,8 +61,9 @@ def _action_layout(spec: EnvSpec) -> ActionLayout:
     if spec.task.gripper.in_action:
         gripper, entry = robot.gripper, robot.joint_states[robot.gripper_state_index]
         rows.append(ActionRow(gripper.label, gripper.low, gripper.high, entry.name, entry.unit))
-    return ActionLayout(settings.ee, settings.delta, settings.delta_coeff, tuple(rows), spec.task.gripper.in_action,
-                        settings.normalize)
+    return ActionLayout(
+        settings.ee, settings.delta, settings.delta_coeff, tuple(rows), spec.task.gripper.in_action, settings.normalize
+    )
 
 
 def _params(model: type[BaseModel], raw: dict, path: str, found: Findings):
@@ -94,7 +95,7 @@ def _bind(term, layout: Layout, params, path: str, found: Findings, inert: tuple
 def _observation(spec: EnvSpec, layout: Layout, found: Findings):
     slots, start = [], 0
     for index, entry in enumerate(spec.task.observation):
-        (name, raw_params), = entry.items()
+        ((name, raw_params),) = entry.items()
         path = f"task.observation.{index}"
         term = _lookup(OBSERVATIONS, name, path, "observation", found)
         if term is None:
@@ -107,14 +108,32 @@ def _observation(spec: EnvSpec, layout: Layout, found: Findings):
             continue
         size = term.size(layout, params)
         low, high = term.bounds(layout, params, size)
-        slots.append(ObservationSlot(name, term, params, bound, start, size, np.asarray(low, float).reshape(size),
-                                     np.asarray(high, float).reshape(size), term.describe(layout, params)))
+        slots.append(
+            ObservationSlot(
+                name,
+                term,
+                params,
+                bound,
+                start,
+                size,
+                np.asarray(low, float).reshape(size),
+                np.asarray(high, float).reshape(size),
+                term.describe(layout, params),
+            )
+        )
         start += size
     return tuple(slots)
 
 
-def _resolved_terms(refs: dict, table: dict, path: str, kind: str, layout: Layout, found: Findings,
-                    inert: tuple[type[Exception], ...] = ()):
+def _resolved_terms(
+    refs: dict,
+    table: dict,
+    path: str,
+    kind: str,
+    layout: Layout,
+    found: Findings,
+    inert: tuple[type[Exception], ...] = (),
+):
     """(name, ref, term, params, bound) of every ref whose term, params and binding check out (a binding
     problem of an `inert` kind leaves the ref out without a finding)."""
     for name, ref in refs.items():
@@ -130,20 +149,25 @@ def _resolved_terms(refs: dict, table: dict, path: str, kind: str, layout: Layou
 
 
 def _rewards(refs: dict, path: str, layout: Layout, found: Findings):
-    return tuple(WeightedTerm(name, term, ref.weight, params, bound)
-                 for name, ref, term, params, bound in _resolved_terms(refs, REWARDS, path, "reward", layout, found))
+    return tuple(
+        WeightedTerm(name, term, ref.weight, params, bound)
+        for name, ref, term, params, bound in _resolved_terms(refs, REWARDS, path, "reward", layout, found)
+    )
 
 
 def _terminations(spec: EnvSpec, layout: Layout, found: Findings):
     reward_type = spec.env.reward_type.lower()
-    return tuple(TerminationSlot(name, term, params, bound, ref.when in ("always", reward_type))
-                 for name, ref, term, params, bound in _resolved_terms(spec.task.termination, TERMINATIONS,
-                                                                      "task.termination", "termination", layout,
-                                                                      found))
+    return tuple(
+        TerminationSlot(name, term, params, bound, ref.when in ("always", reward_type))
+        for name, ref, term, params, bound in _resolved_terms(
+            spec.task.termination, TERMINATIONS, "task.termination", "termination", layout, found
+        )
+    )
 
 
-def _randomization(spec: EnvSpec, layout: Layout, observation, goal_env: bool, env_id: str, backend: str,
-                   found: Findings) -> tuple[tuple[EventSlot, ...], tuple[SensingSlot, ...]]:
+def _randomization(
+    spec: EnvSpec, layout: Layout, observation, goal_env: bool, env_id: str, backend: str, found: Findings
+) -> tuple[tuple[EventSlot, ...], tuple[SensingSlot, ...]]:
     """The declared events and sensing terms. Their names, params and ranges are checked whether or not this ID
     turns them on (a typo is caught before anyone does); what they refer to in the task (an object, an
     observation term, a gripper) only when on: a user's task built on a shipped one may lay out its own
@@ -151,19 +175,26 @@ def _randomization(spec: EnvSpec, layout: Layout, observation, goal_env: bool, e
     declared = spec.task.randomization
     path = "task.randomization"
     inert = () if declared.enabled else (UnknownReference,)
-    events = tuple(EventSlot(name, term, params, bound, ref.every)
-                   for name, ref, term, params, bound in _resolved_terms(declared.events, EVENTS, f"{path}.events",
-                                                                        "event", layout, found, inert))
+    events = tuple(
+        EventSlot(name, term, params, bound, ref.every)
+        for name, ref, term, params, bound in _resolved_terms(
+            declared.events, EVENTS, f"{path}.events", "event", layout, found, inert
+        )
+    )
     sensed = replace(layout, observation_slots=policy_slots(observation, goal_env))
     robot_sensing = {name: ref for name, ref in spec.robot.sensing.items() if name not in declared.sensing}
-    sensing = tuple(SensingSlot(name, term, params, bound)
-                    for refs, where in ((robot_sensing, "robot.sensing"), (declared.sensing, f"{path}.sensing"))
-                    for name, ref, term, params, bound in _resolved_terms(refs, SENSING, where, "sensing", sensed,
-                                                                         found, inert))
+    sensing = tuple(
+        SensingSlot(name, term, params, bound)
+        for refs, where in ((robot_sensing, "robot.sensing"), (declared.sensing, f"{path}.sensing"))
+        for name, ref, term, params, bound in _resolved_terms(refs, SENSING, where, "sensing", sensed, found, inert)
+    )
     if declared.enabled and backend not in SIMULATORS:
-        found.add(f"{path}.enabled", f"{env_id} runs on backend {backend!r}: events set a simulator's physics and "
-                                     f"sensing terms imitate a real arm's sensing, so neither applies to a real arm "
-                                     f"(randomize Sim IDs only)")
+        found.add(
+            f"{path}.enabled",
+            f"{env_id} runs on backend {backend!r}: events set a simulator's physics and "
+            f"sensing terms imitate a real arm's sensing, so neither applies to a real arm "
+            f"(randomize Sim IDs only)",
+        )
     elif declared.enabled and not (events or sensing) and not found:
         found.add(f"{path}.enabled", "randomization is on but declares no events and no sensing terms")
     return events, sensing
@@ -176,20 +207,27 @@ def _check_info_keys(spec: EnvSpec, rewards, terminations, found: Findings) -> N
         for slot in slots:
             for key in slot.term.info_keys:
                 if key not in recorded:
-                    found.add(f"{path}", f"term {slot.term.name!r} ({slot.name}) reads "
-                                         f"step info {key!r}, which no step records "
-                                         f"(recorded: {', '.join(sorted(recorded))})")
+                    found.add(
+                        f"{path}",
+                        f"term {slot.term.name!r} ({slot.name}) reads "
+                        f"step info {key!r}, which no step records "
+                        f"(recorded: {', '.join(sorted(recorded))})",
+                    )
 
 
 def _achieved_from(spec: EnvSpec, found: Findings) -> str:
     source, _, quantity = spec.task.goal.achieved.partition(".")
     valid = ["ee.position", *(f"{name}.position" for name in spec.task.objects)]
     if quantity != "position" or (source != "ee" and source not in spec.task.objects):
-        found.add("task.goal.achieved", f"unknown achieved goal {spec.task.goal.achieved!r}"
-                                        f"{suggest(spec.task.goal.achieved, valid)}")
+        found.add(
+            "task.goal.achieved",
+            f"unknown achieved goal {spec.task.goal.achieved!r}{suggest(spec.task.goal.achieved, valid)}",
+        )
     elif spec.task.goal.lift is not None and source == "ee":
-        found.add("task.goal.lift", "the lift stage raises an object: the achieved goal "
-                                    "must be an object's position, not 'ee.position'")
+        found.add(
+            "task.goal.lift",
+            "the lift stage raises an object: the achieved goal must be an object's position, not 'ee.position'",
+        )
     return source
 
 
@@ -221,8 +259,10 @@ def _check_expert(spec: EnvSpec, found: Findings) -> None:
     if params is None:
         return
     if getattr(params, "object", None) not in (None, *spec.task.objects):
-        found.add("task.expert.params.object", f"'object: {params.object}' names no object of the task "
-                                               f"(known: {list(spec.task.objects) or 'none'})")
+        found.add(
+            "task.expert.params.object",
+            f"'object: {params.object}' names no object of the task (known: {list(spec.task.objects) or 'none'})",
+        )
     for name, message in expert.check(params, spec):
         found.add(f"task.expert.params.{name}", message)
 
@@ -232,8 +272,10 @@ def _engine(spec: EnvSpec, env_id: str, backend: str, found: Findings) -> str:
     if backend == "pybullet":
         return spec.sim.engine
     if spec.sim.engine != "pybullet":
-        found.add("sim.engine", f"engine {spec.sim.engine!r} simulates; {env_id} runs on backend {backend!r}, "
-                                f"where no engine applies")
+        found.add(
+            "sim.engine",
+            f"engine {spec.sim.engine!r} simulates; {env_id} runs on backend {backend!r}, where no engine applies",
+        )
     return backend
 
 
@@ -247,17 +289,18 @@ def _check_backend(spec: EnvSpec, env_id: str, backend: str, found: Findings) ->
         return
     ros = spec.robot.ros
     if ros is None:
-        found.add(path, f"backend rosbridge needs the robot's topics: robot "
-                        f"{spec.robot.name!r} declares no 'ros:' block")
+        found.add(
+            path, f"backend rosbridge needs the robot's topics: robot {spec.robot.name!r} declares no 'ros:' block"
+        )
         return
     for name in spec.task.objects:
         if name not in ros.object_poses:
-            found.add("robot.ros.object_poses", f"backend rosbridge needs a pose topic for "
-                                                f"object {name!r}")
+            found.add("robot.ros.object_poses", f"backend rosbridge needs a pose topic for object {name!r}")
     uses_gripper = spec.task.gripper.in_action or spec.gripper_at_reset is not None
     if uses_gripper and ros.gripper_command is None:
-        found.add("robot.ros.gripper_command", "backend rosbridge needs a gripper command "
-                                               "topic: the task drives the gripper")
+        found.add(
+            "robot.ros.gripper_command", "backend rosbridge needs a gripper command topic: the task drives the gripper"
+        )
 
 
 def _import_terms(loaded: LoadedSpec, found: Findings) -> None:
@@ -267,8 +310,7 @@ def _import_terms(loaded: LoadedSpec, found: Findings) -> None:
         try:
             plugins.import_module(name, loaded.family.folder)
         except Exception as exc:  # the module's own error, whatever its type
-            found.add(f"terms.{index}", f"cannot import term module {name!r}: "
-                                        f"{type(exc).__name__}: {exc}")
+            found.add(f"terms.{index}", f"cannot import term module {name!r}: {type(exc).__name__}: {exc}")
 
 
 def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: bool) -> Blueprint:
@@ -281,8 +323,14 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
     found = loaded.findings()
     _import_terms(loaded, found)
     action = _action_layout(spec)
-    layout = Layout(spec.robot, spec.task, action.size, action.policy_low, action.policy_high,
-                    derived_boxes(spec, loaded.file_of("robot.model").parent))
+    layout = Layout(
+        spec.robot,
+        spec.task,
+        action.size,
+        action.policy_low,
+        action.policy_high,
+        derived_boxes(spec, loaded.file_of("robot.model").parent),
+    )
     observation = _observation(spec, layout, found)
     reward_set = "sparse" if spec.env.reward_type == "Sparse" else "dense"
     rewards = _rewards(getattr(spec.task.reward, reward_set), f"task.reward.{reward_set}", layout, found)

@@ -40,8 +40,7 @@ class AffineScale:
 
     def box(self, low: np.ndarray, high: np.ndarray) -> spaces.Box:
         """The space a declared box becomes."""
-        return spaces.Box(self.to_unit(low).astype(np.float32), self.to_unit(high).astype(np.float32),
-                          dtype=np.float32)
+        return spaces.Box(self.to_unit(low).astype(np.float32), self.to_unit(high).astype(np.float32), dtype=np.float32)
 
 
 class ActionScale:

@@ -40,9 +40,17 @@ def check(spec: EnvSpec, asset_root: Path, found: Findings, family: Path | None 
     """Every problem `make` or `reset` would hit in the robot model and the reach of the task. The checks
     run once per robot, task, scene and settings: what they find is kept as (dotted path, message). `family`
     and `env_id` say whose pair list it is, for the advice on writing it."""
-    key = "\0".join((spec.robot.model_dump_json(), spec.task.model_dump_json(), spec.scene.model_dump_json(),
-                     spec.env.safety.model_dump_json(), spec.workspace.model_dump_json(), str(asset_root),
-                     _pairs_text(spec, asset_root)))
+    key = "\0".join(
+        (
+            spec.robot.model_dump_json(),
+            spec.task.model_dump_json(),
+            spec.scene.model_dump_json(),
+            spec.env.safety.model_dump_json(),
+            spec.workspace.model_dump_json(),
+            str(asset_root),
+            _pairs_text(spec, asset_root),
+        )
+    )
     if key not in _found:
         _found[key] = tuple(_problems(spec, asset_root))
     for path, message in _found[key]:
@@ -67,10 +75,12 @@ def _pairs_advice(spec: EnvSpec, asset_root: Path, family: Path | None, env_id: 
     pairs = pairs_file(spec, asset_root)
     if pairs is not None and pairs.resolve().is_relative_to(builtin):
         own = folder / "robots" / f"{robot}.collision.yaml"
-        return (f"that list belongs to the installed envfactory package and serves robot {robot!r} as shipped: do not "
-                f"rewrite it. Write a list of your own into your folder: point the robot at it in {family} with "
-                f"`robot: {{safety: {{collision_pairs: {own}}}}}` (a relative path is read from the robot YAML's "
-                f"folder, {asset_root}), then run {command}")
+        return (
+            f"that list belongs to the installed envfactory package and serves robot {robot!r} as shipped: do not "
+            f"rewrite it. Write a list of your own into your folder: point the robot at it in {family} with "
+            f"`robot: {{safety: {{collision_pairs: {own}}}}}` (a relative path is read from the robot YAML's "
+            f"folder, {asset_root}), then run {command}"
+        )
     return f"run {command} to write it (into {pairs}, the file robot.safety.collision_pairs names)"
 
 
@@ -106,9 +116,15 @@ def _problems(spec: EnvSpec, asset_root: Path) -> list[tuple[str, str]]:
         # a model whose numbers break the kinematics or the collision geometry
         return [("robot.model", f"the kinematics or collision geometry fail on this robot model: {exc}")]
     links = geometry.collision.links
-    bare = [(f"robot.safety.padding.{name}", f"link {name!r} has no collision geometry: its padding would change "
-                                             f"nothing (links with geometry: {', '.join(links)})")
-            for name in spec.robot.safety.padding if name not in links]
+    bare = [
+        (
+            f"robot.safety.padding.{name}",
+            f"link {name!r} has no collision geometry: its padding would change "
+            f"nothing (links with geometry: {', '.join(links)})",
+        )
+        for name in spec.robot.safety.padding
+        if name not in links
+    ]
     if bare:
         return bare
     try:
@@ -130,17 +146,38 @@ def _name_problems(spec: EnvSpec, model) -> list[tuple[str, str]]:
             return
         j = model.joints[joints[name]]
         if j.nq != 1:
-            problems.append((path, f"joint {name!r} must have one degree of freedom (a revolute or prismatic "
-                                   f"joint; continuous joints are not supported)"))
+            problems.append(
+                (
+                    path,
+                    f"joint {name!r} must have one degree of freedom (a revolute or prismatic "
+                    f"joint; continuous joints are not supported)",
+                )
+            )
             return
         if need_limits is not None:
             low, high = model.lowerPositionLimit[j.idx_q], model.upperPositionLimit[j.idx_q]
             if need_limits[0] < low - LIMIT_SLACK or need_limits[1] > high + LIMIT_SLACK:
-                hint = next(filter(None, (out_of_range_hint(key, value, low, high) for key, value in
-                                          (("lower", need_limits[0]), ("upper", need_limits[1])))), "") \
-                    if model.joints[joints[name]].shortname().startswith("JointModelR") else ""  # revolute: radians
-                problems.append((path.rsplit(".", 1)[0], f"limits [{need_limits[0]:g}, {need_limits[1]:g}] of "
-                                                         f"{name!r} exceed the URDF's [{low:.4g}, {high:.4g}]{hint}"))
+                hint = (
+                    next(
+                        filter(
+                            None,
+                            (
+                                out_of_range_hint(key, value, low, high)
+                                for key, value in (("lower", need_limits[0]), ("upper", need_limits[1]))
+                            ),
+                        ),
+                        "",
+                    )
+                    if model.joints[joints[name]].shortname().startswith("JointModelR")
+                    else ""
+                )  # revolute: radians
+                problems.append(
+                    (
+                        path.rsplit(".", 1)[0],
+                        f"limits [{need_limits[0]:g}, {need_limits[1]:g}] of "
+                        f"{name!r} exceed the URDF's [{low:.4g}, {high:.4g}]{hint}",
+                    )
+                )
 
     for index, arm_joint in enumerate(robot.arm_joints):
         joint(f"robot.arm_joints.{index}.name", arm_joint.name, (arm_joint.lower, arm_joint.upper))
@@ -154,10 +191,13 @@ def _name_problems(spec: EnvSpec, model) -> list[tuple[str, str]]:
             joint(f"robot.gripper.mimic.{name}.gain", name, (follows[0], follows[1]))
         for index, link in enumerate(robot.gripper.pads.links):
             if link not in frames:
-                problems.append((f"robot.gripper.pads.links.{index}", f"the URDF has no link {link!r}"
-                                                                      f"{suggest(link, frames)}"))
+                problems.append(
+                    (f"robot.gripper.pads.links.{index}", f"the URDF has no link {link!r}{suggest(link, frames)}")
+                )
     if robot.ee_frame not in frames:
-        problems.append(("robot.ee_frame", f"the URDF has no frame {robot.ee_frame!r}{suggest(robot.ee_frame, frames)}"))
+        problems.append(
+            ("robot.ee_frame", f"the URDF has no frame {robot.ee_frame!r}{suggest(robot.ee_frame, frames)}")
+        )
     return problems
 
 
@@ -188,33 +228,47 @@ def _gripper_direction_problems(spec: EnvSpec, model) -> list[tuple[str, str]]:
         return []
     a, b = list(itertools.combinations([link for link in links if model.existFrame(link)], 2))[pair]
     closing = "smaller" if gripper.open < gripper.closed else "larger"  # toward `open`, the nearer the pads
-    return [("robot.gripper.closed", f"open ({gripper.open:g}) and closed ({gripper.closed:g}) look swapped: in the "
-                                     f"URDF {a} and {b} are {at_open[pair] * 1000:.1f} mm apart at open and "
-                                     f"{at_closed[pair] * 1000:.1f} mm at closed, so 'closed' opens the fingers (they "
-                                     f"close toward {closing} values of {gripper.joint}); swap the two values")]
+    return [
+        (
+            "robot.gripper.closed",
+            f"open ({gripper.open:g}) and closed ({gripper.closed:g}) look swapped: in the "
+            f"URDF {a} and {b} are {at_open[pair] * 1000:.1f} mm apart at open and "
+            f"{at_closed[pair] * 1000:.1f} mm at closed, so 'closed' opens the fingers (they "
+            f"close toward {closing} values of {gripper.joint}); swap the two values",
+        )
+    ]
 
 
 def _gripper_links(model, gripper) -> list[str]:
     """The links the gripper's joints move, for a gripper that names no pads."""
     joints = {model.getJointId(name) for name in (gripper.joint, *gripper.mimic) if model.existJointName(name)}
-    return [frame.name for frame in model.frames
-            if frame.type == pin.FrameType.BODY and frame.parentJoint in joints]
+    return [frame.name for frame in model.frames if frame.type == pin.FrameType.BODY and frame.parentJoint in joints]
 
 
 def _padding_problems(spec: EnvSpec, model) -> list[tuple[str, str]]:
     """A padded link the URDF lacks would silently keep no extra clearance."""
     links = {frame.name for frame in model.frames}
-    return [(f"robot.safety.padding.{name}", f"the URDF has no link {name!r}{suggest(name, links)}")
-            for name in spec.robot.safety.padding if name not in links]
+    return [
+        (f"robot.safety.padding.{name}", f"the URDF has no link {name!r}{suggest(name, links)}")
+        for name in spec.robot.safety.padding
+        if name not in links
+    ]
 
 
 def _pose_problems(spec: EnvSpec, geometry: RobotGeometry) -> list[tuple[str, str]]:
     home = np.asarray(spec.robot.home, float)
     gripper = spec.gripper_assumed_at_reset
-    verdict = geometry.safety_check(spec.env.safety).check(home, home, gripper)  # a motion of length zero: the home pose itself
+    verdict = geometry.safety_check(spec.env.safety).check(
+        home, home, gripper
+    )  # a motion of length zero: the home pose itself
     if not verdict.accepted:
-        return [("robot.home", f"the home pose is unsafe ({verdict.reason}; the margin is "
-                               f"{spec.env.safety.surface_margin:g} m): every reset would start there")]
+        return [
+            (
+                "robot.home",
+                f"the home pose is unsafe ({verdict.reason}; the margin is "
+                f"{spec.env.safety.surface_margin:g} m): every reset would start there",
+            )
+        ]
     return []
 
 
@@ -253,24 +307,37 @@ def _reach_problems(spec: EnvSpec, geometry: RobotGeometry) -> list[tuple[str, s
         where = "task.goal.static" if not goal.random and goal.static is not None else "task.goal.box"
         listed = "; ".join(f"{_point(point)} ({why})" for point, why in misses[:4])
         more = f"; and {len(misses) - 4} more" if len(misses) > 4 else ""
-        what = (f"{len(misses)} of the {len(probes)} probe points of the goal box (centre and corners)"
-                if goal.random else "the static goal")
-        problems.append((where, f"the arm cannot reach {what}: {listed}{more}; valid: a goal "
-                                f"{'box whose every point is ' if goal.random else ''}within reach of robot "
-                                f"{spec.robot.name!r}"))
+        what = (
+            f"{len(misses)} of the {len(probes)} probe points of the goal box (centre and corners)"
+            if goal.random
+            else "the static goal"
+        )
+        problems.append(
+            (
+                where,
+                f"the arm cannot reach {what}: {listed}{more}; valid: a goal "
+                f"{'box whose every point is ' if goal.random else ''}within reach of robot "
+                f"{spec.robot.name!r}",
+            )
+        )
     for name, obj in spec.task.objects.items():
         position = np.asarray(obj.spawn.position, float)
         # a random spawn is drawn from position ± offset in x and y: its corners are probed too
         offset = np.array([*obj.spawn.offset, 0.0]) if obj.spawn.random else np.zeros(3)
-        spots = [position] + ([position + offset * [sx, sy, 0.0] for sx in (-1, 1) for sy in (-1, 1)]
-                              if np.any(offset) else [])
+        spots = [position] + (
+            [position + offset * [sx, sy, 0.0] for sx in (-1, 1) for sy in (-1, 1)] if np.any(offset) else []
+        )
         missed = [(spot, solution.position_error) for spot in spots if not (solution := solve(spot)).success]
         if missed:
             spot, error = missed[0]
             what = "its spawn point" if spot is position else "a corner of its spawn box (position ± offset)"
-            problems.append((f"task.objects.{name}.spawn.position",
-                             f"the arm cannot reach {name} at {what} {_point(spot)} (IK misses by {error:.3f} m"
-                             f"{f'; {len(missed)} of {len(spots)} spawn probes missed' if len(missed) > 1 else ''})"))
+            problems.append(
+                (
+                    f"task.objects.{name}.spawn.position",
+                    f"the arm cannot reach {name} at {what} {_point(spot)} (IK misses by {error:.3f} m"
+                    f"{f'; {len(missed)} of {len(spots)} spawn probes missed' if len(missed) > 1 else ''})",
+                )
+            )
     return problems
 
 
@@ -291,25 +358,37 @@ def _expert_problems(spec: EnvSpec, geometry: RobotGeometry) -> list[tuple[str, 
         if point.name not in ("grasp", "push"):
             continue
         # the expert squares the fingers to the object (a quarter turn grips alike) or lays them across the push
-        yaw, period = (0.0, np.pi / 2) if point.direction is None else \
-            (float(np.arctan2(point.direction[1], point.direction[0])), np.pi)
+        yaw, period = (
+            (0.0, np.pi / 2)
+            if point.direction is None
+            else (float(np.arctan2(point.direction[1], point.direction[0])), np.pi)
+        )
         rotation = nearest_top_down(down, home_rotation, closing, yaw, period)
         target = point.points[0]
         for gripper in point.gripper:
-            solution = kinematics.solve_ik(home, target, target_rotation=rotation, gripper=gripper,
-                                           rotation_weight=1.0)
+            solution = kinematics.solve_ik(home, target, target_rotation=rotation, gripper=gripper, rotation_weight=1.0)
             if not solution.success:
-                problems.append((point.param, f"the arm cannot reach the expert's {point.name} point {_point(target)} "
-                                              f"with the gripper pointing down (IK misses by "
-                                              f"{solution.position_error:.3f} m)"))
+                problems.append(
+                    (
+                        point.param,
+                        f"the arm cannot reach the expert's {point.name} point {_point(target)} "
+                        f"with the gripper pointing down (IK misses by "
+                        f"{solution.position_error:.3f} m)",
+                    )
+                )
                 break
             verdict = safety.check(solution.q_arm, solution.q_arm, gripper)
             if not verdict.accepted:
-                problems.append((point.param, f"the expert's {point.name} point {_point(target)} (the object's "
-                                              f"centre z {target[2] - point.offset:g} + {point.offset:g}) is a pose the "
-                                              f"safety check refuses ({verdict.reason}; the margin is "
-                                              f"{spec.env.safety.surface_margin:g} m) with the gripper at "
-                                              f"{gripper:g}: the expert can never get there; valid: a higher "
-                                              f"{point.param.rsplit('.', 1)[-1]}"))
+                problems.append(
+                    (
+                        point.param,
+                        f"the expert's {point.name} point {_point(target)} (the object's "
+                        f"centre z {target[2] - point.offset:g} + {point.offset:g}) is a pose the "
+                        f"safety check refuses ({verdict.reason}; the margin is "
+                        f"{spec.env.safety.surface_margin:g} m) with the gripper at "
+                        f"{gripper:g}: the expert can never get there; valid: a higher "
+                        f"{point.param.rsplit('.', 1)[-1]}",
+                    )
+                )
                 break
     return problems

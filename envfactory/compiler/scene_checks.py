@@ -60,8 +60,9 @@ class TaskFrameScene:
         """Whether the x/y box (task frame) lies within the table's footprint."""
         if not self.frame.rotated:
             return bool(np.all(np.asarray(low_xy) >= self.table_min) and np.all(np.asarray(high_xy) <= self.table_max))
-        corners = np.array([self.frame.to_world([x, y, 0.0])[:2] for x in (low_xy[0], high_xy[0])
-                            for y in (low_xy[1], high_xy[1])])
+        corners = np.array(
+            [self.frame.to_world([x, y, 0.0])[:2] for x in (low_xy[0], high_xy[0]) for y in (low_xy[1], high_xy[1])]
+        )
         low, high = self._world_table
         return bool(np.all(corners >= low) and np.all(corners <= high))
 
@@ -80,14 +81,18 @@ class TaskFrameScene:
         if robot.task_frame == "base":
             # a world height w is w - shift in the base frame: read as world, does the box sit on the table?
             if -RESTING_SLACK <= low_z - table_world <= NEAR_TABLE:
-                return (f"; these look like world-frame heights: robot {robot.name!r} gives goals and spawns in its "
-                        f"base frame (task_frame: base), whose origin is {shift:g} m up (robot.mount), so the table "
-                        f"top is at z {self.top_z:g} there: subtract {shift:g} from every z")
+                return (
+                    f"; these look like world-frame heights: robot {robot.name!r} gives goals and spawns in its "
+                    f"base frame (task_frame: base), whose origin is {shift:g} m up (robot.mount), so the table "
+                    f"top is at z {self.top_z:g} there: subtract {shift:g} from every z"
+                )
             return ""
         if -RESTING_SLACK <= low_z + shift - table_world <= NEAR_TABLE:
-            return (f"; these look like base-frame heights: robot {robot.name!r} gives goals and spawns in the world "
-                    f"frame (task_frame: world), where its base is {shift:g} m up (robot.mount) and the table top at "
-                    f"z {table_world:g}: add {shift:g} to every z")
+            return (
+                f"; these look like base-frame heights: robot {robot.name!r} gives goals and spawns in the world "
+                f"frame (task_frame: world), where its base is {shift:g} m up (robot.mount) and the table top at "
+                f"z {table_world:g}: add {shift:g} to every z"
+            )
         return ""
 
     def footprint(self) -> str:
@@ -102,10 +107,11 @@ def height_summary(spec: EnvSpec) -> str:
     scene = TaskFrameScene(spec)
     low, high = (box[2] for box in spec.task.goal.box)
     parts = [f"goal {scene.height(low):.3f}–{scene.height(high):.3f} m"]
-    parts += [f"{name} centre {scene.height(obj.spawn.position[2]):.3f} m (resting: {obj.size / 2:g})"
-              for name, obj in spec.task.objects.items()]
-    return (f"Heights above the table top (z {scene.top_z:g} in the {spec.robot.task_frame} frame): "
-            + ", ".join(parts))
+    parts += [
+        f"{name} centre {scene.height(obj.spawn.position[2]):.3f} m (resting: {obj.size / 2:g})"
+        for name, obj in spec.task.objects.items()
+    ]
+    return f"Heights above the table top (z {scene.top_z:g} in the {spec.robot.task_frame} frame): " + ", ".join(parts)
 
 
 def check_scene(spec: EnvSpec, found: Findings) -> None:
@@ -121,34 +127,49 @@ def _observation_bounds(spec: EnvSpec, found: Findings) -> None:
     """The observation Box must hold what the robot can do: its workspace and its joint ranges."""
     robot = spec.robot
     ee_low, ee_high = robot.ee_bounds
-    if any(lo < b for lo, b in zip(spec.workspace.min, ee_low)) or \
-            any(hi > b for hi, b in zip(spec.workspace.max, ee_high)):
-        found.add("robot.ee_bounds", f"ee_bounds {_box(ee_low, ee_high)} must contain the workspace "
-                                     f"{_box(spec.workspace.min, spec.workspace.max)}: the EE "
-                                     f"observation would leave its Box")
+    if any(lo < b for lo, b in zip(spec.workspace.min, ee_low)) or any(
+        hi > b for hi, b in zip(spec.workspace.max, ee_high)
+    ):
+        found.add(
+            "robot.ee_bounds",
+            f"ee_bounds {_box(ee_low, ee_high)} must contain the workspace "
+            f"{_box(spec.workspace.min, spec.workspace.max)}: the EE "
+            f"observation would leave its Box",
+        )
     index = {entry.urdf_joint: i for i, entry in enumerate(robot.joint_states)}
-    needs = [(joint.name, (joint.lower, joint.upper), velocity)
-             for joint, velocity in zip(robot.arm_joints, robot.arm_velocities)]
+    needs = [
+        (joint.name, (joint.lower, joint.upper), velocity)
+        for joint, velocity in zip(robot.arm_joints, robot.arm_velocities)
+    ]
     if robot.gripper is not None:
         needs.append((robot.gripper.joint, (robot.gripper.low, robot.gripper.high), robot.gripper.max_velocity))
     for name, (low, high), velocity in needs:
         i = index[name]
         entry = robot.joint_states[i]
         if entry.position[0] > low or entry.position[1] < high:
-            found.add(f"robot.joint_states.{i}.position", f"position bounds {_fmt(entry.position)} of "
-                                                          f"{entry.name} must contain its commanded range "
-                                                          f"{_fmt((low, high))}")
+            found.add(
+                f"robot.joint_states.{i}.position",
+                f"position bounds {_fmt(entry.position)} of "
+                f"{entry.name} must contain its commanded range "
+                f"{_fmt((low, high))}",
+            )
         if entry.velocity[0] > -velocity or entry.velocity[1] < velocity:
-            found.add(f"robot.joint_states.{i}.velocity", f"velocity bounds {_fmt(entry.velocity)} of "
-                                                          f"{entry.name} must contain ±{velocity:g}, "
-                                                          f"the fastest it is driven")
+            found.add(
+                f"robot.joint_states.{i}.velocity",
+                f"velocity bounds {_fmt(entry.velocity)} of "
+                f"{entry.name} must contain ±{velocity:g}, "
+                f"the fastest it is driven",
+            )
 
 
 def _table(spec: EnvSpec, scene: TaskFrameScene, found: Findings) -> None:
     table, floor = spec.scene.table, spec.env.safety.floor_z
     if table.top_z - table.thickness <= floor:
-        found.add("scene.table.top_z", f"the table top ({table.top_z:g} m, {table.thickness:g} m thick) must "
-                                       f"stand above the floor (env.safety.floor_z = {floor:g})")
+        found.add(
+            "scene.table.top_z",
+            f"the table top ({table.top_z:g} m, {table.thickness:g} m thick) must "
+            f"stand above the floor (env.safety.floor_z = {floor:g})",
+        )
     elif spec.robot.mount[2] < floor:
         found.add("robot.mount", f"the robot base z {spec.robot.mount[2]:g} lies below the floor ({floor:g})")
 
@@ -166,27 +187,41 @@ def _goal(spec: EnvSpec, scene: TaskFrameScene, found: Findings) -> None:
         bounds, name = (ee_low, ee_high), "robot.ee_bounds (the observation bounds)"
     outside = [axis for axis, lo, hi, b_lo, b_hi in zip("xyz", low, high, *bounds) if lo < b_lo or hi > b_hi]
     if outside:
-        found.add("task.goal.box", f"goal box {_box(low, high)} leaves {name} {_box(*bounds)} in "
-                                   f"{', '.join(outside)}; valid: a box inside it{other_frame if 'z' in outside else ''}")
+        found.add(
+            "task.goal.box",
+            f"goal box {_box(low, high)} leaves {name} {_box(*bounds)} in "
+            f"{', '.join(outside)}; valid: a box inside it{other_frame if 'z' in outside else ''}",
+        )
     if source != "ee" and source in spec.task.objects and not scene.inside_table(low[:2], high[:2]):
-        found.add("task.goal.box", f"goal box x/y {_box(low[:2], high[:2])} leaves the table "
-                                   f"({scene.footprint()}); {source} goals must lie over the table")
+        found.add(
+            "task.goal.box",
+            f"goal box x/y {_box(low[:2], high[:2])} leaves the table "
+            f"({scene.footprint()}); {source} goals must lie over the table",
+        )
     surface = scene.top_z if scene.over_table(low[:2], high[:2]) else scene.floor_z
     what = "table top" if surface == scene.top_z else "floor"
     where = f"(z {scene.top_z:g} in the {spec.robot.task_frame} frame)"
     if low[2] < surface:
-        found.add("task.goal.box", f"goal box bottom z {low[2]:g} lies below the {what} "
-                                   f"(z {surface:g} in the {spec.robot.task_frame} frame); valid: z >= {surface:g}"
-                                   f"{other_frame}")
+        found.add(
+            "task.goal.box",
+            f"goal box bottom z {low[2]:g} lies below the {what} "
+            f"(z {surface:g} in the {spec.robot.task_frame} frame); valid: z >= {surface:g}"
+            f"{other_frame}",
+        )
     elif other_frame and scene.height(low[2]) > abs(spec.robot.mount[2]) / 2:
         # nearer the table read in the other frame than in its own: a pasted height, wherever the arm reaches
-        found.add("task.goal.box", f"goal box bottom z {low[2]:g} lies {scene.height(low[2]):.3g} m above the table "
-                                   f"top {where}{other_frame}")
+        found.add(
+            "task.goal.box",
+            f"goal box bottom z {low[2]:g} lies {scene.height(low[2]):.3g} m above the table top {where}{other_frame}",
+        )
     elif source != "ee" and scene.height(high[2]) > MAX_OBJECT_GOAL_HEIGHT:
-        found.add("task.goal.box", f"goal box top z {high[2]:g} lies {scene.height(high[2]):.3g} m above the table "
-                                   f"top {where}: {source} is carried there from the table, and a goal more than "
-                                   f"{MAX_OBJECT_GOAL_HEIGHT:g} m above it is out of any pick-and-place task; valid: "
-                                   f"z <= {scene.top_z + MAX_OBJECT_GOAL_HEIGHT:.3g}")
+        found.add(
+            "task.goal.box",
+            f"goal box top z {high[2]:g} lies {scene.height(high[2]):.3g} m above the table "
+            f"top {where}: {source} is carried there from the table, and a goal more than "
+            f"{MAX_OBJECT_GOAL_HEIGHT:g} m above it is out of any pick-and-place task; valid: "
+            f"z <= {scene.top_z + MAX_OBJECT_GOAL_HEIGHT:.3g}",
+        )
 
 
 def _objects(spec: EnvSpec, scene: TaskFrameScene, found: Findings) -> None:
@@ -197,24 +232,39 @@ def _objects(spec: EnvSpec, scene: TaskFrameScene, found: Findings) -> None:
         reach = np.asarray(obj.spawn.offset if obj.spawn.random else (0.0, 0.0)) + half
         lo, hi = position[:2] - reach, position[:2] + reach
         if not scene.inside_table(lo, hi):
-            found.add(f"{path}.position", f"{name} at x/y {_fmt(position[:2])} ± offset "
-                                          f"{_fmt(obj.spawn.offset)} ± half its size {half:g} leaves "
-                                          f"the table ({scene.footprint()})")
+            found.add(
+                f"{path}.position",
+                f"{name} at x/y {_fmt(position[:2])} ± offset "
+                f"{_fmt(obj.spawn.offset)} ± half its size {half:g} leaves "
+                f"the table ({scene.footprint()})",
+            )
         resting = scene.top_z + half
         if position[2] < resting - RESTING_SLACK:
-            found.add(f"{path}.position", f"{name} centre z {position[2]:g} puts it inside the table: "
-                                          f"resting on the top it is at z {resting:g}"
-                                          f"{scene.other_frame_hint(spec, position[2] - half)}")
+            found.add(
+                f"{path}.position",
+                f"{name} centre z {position[2]:g} puts it inside the table: "
+                f"resting on the top it is at z {resting:g}"
+                f"{scene.other_frame_hint(spec, position[2] - half)}",
+            )
         elif position[2] > resting + RESTING_SLACK:
-            found.add(f"{path}.position", f"{name} centre z {position[2]:g} floats {position[2] - resting:.3g} m above "
-                                          f"the table: resting on the top it is at z {resting:g}"
-                                          f"{scene.other_frame_hint(spec, position[2] - half)}")
+            found.add(
+                f"{path}.position",
+                f"{name} centre z {position[2]:g} floats {position[2] - resting:.3g} m above "
+                f"the table: resting on the top it is at z {resting:g}"
+                f"{scene.other_frame_hint(spec, position[2] - half)}",
+            )
         lift = spec.task.goal.lift
-        if lift is not None and spec.task.goal.achieved == f"{name}.position" and \
-                position[2] + lift.height > spec.workspace.max[2]:
-            found.add("task.goal.lift.height", f"lifting {name} by {lift.height:g} m reaches z "
-                                               f"{position[2] + lift.height:g}, above the workspace "
-                                               f"(max z {spec.workspace.max[2]:g})")
+        if (
+            lift is not None
+            and spec.task.goal.achieved == f"{name}.position"
+            and position[2] + lift.height > spec.workspace.max[2]
+        ):
+            found.add(
+                "task.goal.lift.height",
+                f"lifting {name} by {lift.height:g} m reaches z "
+                f"{position[2] + lift.height:g}, above the workspace "
+                f"(max z {spec.workspace.max[2]:g})",
+            )
 
 
 def check_expert_workspace(spec: EnvSpec, found: Findings) -> None:
@@ -225,20 +275,29 @@ def check_expert_workspace(spec: EnvSpec, found: Findings) -> None:
         for axis, name in enumerate("xyz"):
             values = point.points[:, axis]
             if values.min() < low[axis] - point.slack:
-                bound, edge, value = "min", "below the workspace floor" if name == "z" else f"below its min {name}", \
-                    values.min()
+                bound, edge, value = (
+                    "min",
+                    "below the workspace floor" if name == "z" else f"below its min {name}",
+                    values.min(),
+                )
             elif values.max() > high[axis] + point.slack:
-                bound, edge, value = "max", "above the workspace ceiling" if name == "z" else f"above its max {name}", \
-                    values.max()
+                bound, edge, value = (
+                    "max",
+                    "above the workspace ceiling" if name == "z" else f"above its max {name}",
+                    values.max(),
+                )
             else:
                 continue
             limit = (low if bound == "min" else high)[axis]
             height = f" (the object's centre z {value - point.offset:g} + {point.offset:g})" if name == "z" else ""
-            found.add(f"workspace.{bound}", f"the expert's {point.name} point {name} {value:.3g}{height} lies {edge} "
-                                            f"(workspace.{bound} {name} {limit:g}) by more than the {point.slack * 1000:g} mm "
-                                            f"the expert allows: in EE mode (ee_action_type) the EE is never commanded "
-                                            f"outside the workspace, so the expert never gets there; "
-                                            f"valid: a workspace holding it, or another {found.where(point.param)}")
+            found.add(
+                f"workspace.{bound}",
+                f"the expert's {point.name} point {name} {value:.3g}{height} lies {edge} "
+                f"(workspace.{bound} {name} {limit:g}) by more than the {point.slack * 1000:g} mm "
+                f"the expert allows: in EE mode (ee_action_type) the EE is never commanded "
+                f"outside the workspace, so the expert never gets there; "
+                f"valid: a workspace holding it, or another {found.where(point.param)}",
+            )
             break
 
 
@@ -247,6 +306,9 @@ def _tolerance(spec: EnvSpec, found: Findings) -> None:
     limit = TOLERANCE_FRACTION * diagonal
     tolerance = spec.task.goal.tolerance
     if tolerance > limit:
-        found.add("task.goal.tolerance", f"tolerance {tolerance:g} m is implausible for this workspace: valid "
-                                         f"up to {limit:.3f} m ({TOLERANCE_FRACTION:.0%} of its "
-                                         f"{diagonal:.2f} m diagonal)")
+        found.add(
+            "task.goal.tolerance",
+            f"tolerance {tolerance:g} m is implausible for this workspace: valid "
+            f"up to {limit:.3f} m ({TOLERANCE_FRACTION:.0%} of its "
+            f"{diagonal:.2f} m diagonal)",
+        )

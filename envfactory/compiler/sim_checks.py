@@ -19,35 +19,52 @@ MIN_STEPS_PER_MOTION = 20
 
 def check_physics_rate(spec: EnvSpec, engine: str, found: Findings) -> None:
     """Refuse a physics rate too low for the action's motion or the robot's fastest joint."""
-    path, rate = ("sim.mujoco.physics_hz", spec.sim.mujoco.physics_hz) if engine == "mujoco" \
+    path, rate = (
+        ("sim.mujoco.physics_hz", spec.sim.mujoco.physics_hz)
+        if engine == "mujoco"
         else ("sim.physics_hz", spec.sim.physics_hz)
+    )
     speed = spec.env.timing.action_speed
     motions = [(1.0 / speed, f"each action's motion is interpolated over action_speed {speed:g} s")]
     robot = spec.robot
     for joint, velocity in zip(robot.arm_joints, robot.arm_velocities):
-        motions.append((velocity / (joint.upper - joint.lower),
-                        f"{joint.name} crosses its range [{joint.lower:g}, {joint.upper:g}] in "
-                        f"{(joint.upper - joint.lower) / velocity:.3g} s at {velocity:g}/s"))
+        motions.append(
+            (
+                velocity / (joint.upper - joint.lower),
+                f"{joint.name} crosses its range [{joint.lower:g}, {joint.upper:g}] in "
+                f"{(joint.upper - joint.lower) / velocity:.3g} s at {velocity:g}/s",
+            )
+        )
     gripper = robot.gripper
     if gripper is not None:
         travel = gripper.high - gripper.low
-        motions.append((gripper.max_velocity / travel,
-                        f"the gripper ({gripper.joint}) goes from open to closed in "
-                        f"{travel / gripper.max_velocity:.3g} s at {gripper.max_velocity:g}/s"))
+        motions.append(
+            (
+                gripper.max_velocity / travel,
+                f"the gripper ({gripper.joint}) goes from open to closed in "
+                f"{travel / gripper.max_velocity:.3g} s at {gripper.max_velocity:g}/s",
+            )
+        )
     per_second, why = max(motions, key=lambda motion: motion[0])
     floor = MIN_STEPS_PER_MOTION * per_second
     if rate < floor:
-        found.add(path, f"physics rate {rate:g} Hz is too low to simulate this robot: {why}, which needs at least "
-                        f"{MIN_STEPS_PER_MOTION} physics steps ({floor:.4g} Hz); below that joints overshoot their "
-                        f"limits and held objects sink into the table; valid: {path.rsplit('.', 1)[-1]} >= "
-                        f"{floor:.4g} (the default is 240 Hz)")
+        found.add(
+            path,
+            f"physics rate {rate:g} Hz is too low to simulate this robot: {why}, which needs at least "
+            f"{MIN_STEPS_PER_MOTION} physics steps ({floor:.4g} Hz); below that joints overshoot their "
+            f"limits and held objects sink into the table; valid: {path.rsplit('.', 1)[-1]} >= "
+            f"{floor:.4g} (the default is 240 Hz)",
+        )
 
 
 def check_display(spec: EnvSpec, engine: str, found: Findings) -> None:
     """A PyBullet window needs an X display: without one PyBullet ends the process from inside its C code."""
     if engine != "pybullet" or not spec.env.gui or not window_impossible():
         return
-    found.add("env.gui", "gui=True opens PyBullet's window, and this machine has no display (DISPLAY is unset): "
-                         "PyBullet would end the process with an X error; run without the GUI (gui=False, the "
-                         "default, and render_mode='rgb_array' for images) or where there is a display (a desktop "
-                         "session, ssh -X, or xvfb-run)")
+    found.add(
+        "env.gui",
+        "gui=True opens PyBullet's window, and this machine has no display (DISPLAY is unset): "
+        "PyBullet would end the process with an X error; run without the GUI (gui=False, the "
+        "default, and render_mode='rgb_array' for images) or where there is a display (a desktop "
+        "session, ssh -X, or xvfb-run)",
+    )

@@ -18,7 +18,6 @@ from envfactory.geometry.kinematics import Kinematics
 from envfactory.schema.models import RobotSpec, Workspace
 from envfactory.step_state import EnvState
 
-
 TURN_PER_STEP = 0.3  # rad: how far one EE-mode step turns the tool toward its declared orientation
 
 
@@ -38,12 +37,17 @@ class Command:
 
 
 class ActionAdapter:
-    def __init__(self, layout: ActionLayout, kinematics: Kinematics, workspace: Workspace, max_joint_delta: float,
-                 robot: RobotSpec):
+    def __init__(
+        self,
+        layout: ActionLayout,
+        kinematics: Kinematics,
+        workspace: Workspace,
+        max_joint_delta: float,
+        robot: RobotSpec,
+    ):
         self.layout = layout
         # EE mode keeps the tool pointing down (about as far round as it is) or as it is now
-        self.top_down = pin.rpy.rpyToMatrix(*robot.top_down_rpy) if robot.ee_mode_orientation == "top_down" \
-            else None
+        self.top_down = pin.rpy.rpyToMatrix(*robot.top_down_rpy) if robot.ee_mode_orientation == "top_down" else None
         self.closing_axis = "xyz".index(robot.gripper.closing_axis) if robot.gripper is not None else 1
         self.max_joint_delta = max_joint_delta
         self.kinematics = kinematics
@@ -100,20 +104,23 @@ class ActionAdapter:
         arm that points its gripper forward) it turns over a few steps, each solve staying near the pose."""
         current = state.ee_rotation
         if self.top_down is None:
-            return self.kinematics.solve_ik(state.q_arm, position, target_rotation=current, gripper=state.gripper,
-                                            max_iterations=40)
+            return self.kinematics.solve_ik(
+                state.q_arm, position, target_rotation=current, gripper=state.gripper, max_iterations=40
+            )
         turn = pin.log3(nearest_top_down(self.top_down, current, self.closing_axis) @ current.T)
         angle = float(np.linalg.norm(turn))
         for share in (1.0, 0.5, 0.25):
             rotation = pin.exp3(turn * min(1.0, share * TURN_PER_STEP / max(angle, 1e-12))) @ current
-            solution = self.kinematics.solve_ik(state.q_arm, position, target_rotation=rotation,
-                                                gripper=state.gripper, max_iterations=40)
+            solution = self.kinematics.solve_ik(
+                state.q_arm, position, target_rotation=rotation, gripper=state.gripper, max_iterations=40
+            )
             if solution.success or angle < 1e-6:
                 break
         return solution
 
-    def _ee_target(self, arm: np.ndarray, state: EnvState, gripper: float | None, out_of_bounds: bool,
-                   recorded: np.ndarray) -> Command:
+    def _ee_target(
+        self, arm: np.ndarray, state: EnvState, gripper: float | None, out_of_bounds: bool, recorded: np.ndarray
+    ) -> Command:
         target = state.ee_position + self.layout.delta_coeff * arm if self.layout.delta else arm
         bounded = _clamp(target, self.workspace_min, self.workspace_max)
         out_of_bounds |= bool((bounded != target).any())
@@ -121,13 +128,18 @@ class ActionAdapter:
         step = np.max(np.abs(solution.q_arm - state.q_arm))
         if solution.success and step > self.max_joint_delta and self.top_down is not None:
             # a turn that costs more joint motion than a step allows goes the allowed part of the way
-            return Command(state.q_arm + (solution.q_arm - state.q_arm) * (self.max_joint_delta / step), gripper,
-                           out_of_bounds, recorded=recorded)
+            return Command(
+                state.q_arm + (solution.q_arm - state.q_arm) * (self.max_joint_delta / step),
+                gripper,
+                out_of_bounds,
+                recorded=recorded,
+            )
         if not solution.success or step > self.max_joint_delta:
             # Holding the orientation can be out of reach near the workspace edge,
             # or cost a large wrist roll on a 6-DoF arm: then only the position counts.
             solution = self.kinematics.solve_ik(state.q_arm, bounded, gripper=state.gripper, max_iterations=60)
         if not solution.success:
-            return Command(None, gripper, out_of_bounds, f"IK found no joint target for EE {np.round(bounded, 3)}",
-                           recorded)
+            return Command(
+                None, gripper, out_of_bounds, f"IK found no joint target for EE {np.round(bounded, 3)}", recorded
+            )
         return Command(solution.q_arm, gripper, out_of_bounds, recorded=recorded)

@@ -22,8 +22,15 @@ class EpisodeResult:
     first_success: int | None = None  # the step count at which is_success first held (None: never)
 
 
-def iter_episodes(env, policy, episodes: int, seed: int, on_frame: Callable | None = None,
-                  on_step: Callable | None = None, stop_on_success: bool = True) -> Iterator[EpisodeResult]:
+def iter_episodes(
+    env,
+    policy,
+    episodes: int,
+    seed: int,
+    on_frame: Callable | None = None,
+    on_step: Callable | None = None,
+    stop_on_success: bool = True,
+) -> Iterator[EpisodeResult]:
     """With `stop_on_success` (the default, which the experts' figures are measured with) the runner
     ends an episode at its first success, so lengths read as time-to-success; Dense envs do not
     terminate at the goal, so there it cuts short what a learner sees. Without it each episode ends
@@ -68,8 +75,15 @@ def iter_episodes(env, policy, episodes: int, seed: int, on_frame: Callable | No
         yield EpisodeResult(index, episode_seed, total, length, success, rejected, abort, first_success)
 
 
-def run_episodes(env, policy, episodes: int, seed: int, on_frame: Callable | None = None,
-                 on_step: Callable | None = None, stop_on_success: bool = True) -> list[EpisodeResult]:
+def run_episodes(
+    env,
+    policy,
+    episodes: int,
+    seed: int,
+    on_frame: Callable | None = None,
+    on_step: Callable | None = None,
+    stop_on_success: bool = True,
+) -> list[EpisodeResult]:
     return list(iter_episodes(env, policy, episodes, seed, on_frame, on_step, stop_on_success))
 
 

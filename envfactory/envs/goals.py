@@ -13,8 +13,15 @@ class GoalSampler:
     """Uniform in the goal box, resampled until the arm can reach it safely (EE goals),
     or the static goal when random goals are off."""
 
-    def __init__(self, goal: GoalSpec, kinematics: Kinematics, safety: SafetyCheck, home: np.ndarray,
-                 check_reach: bool, gripper: float = 0.0):
+    def __init__(
+        self,
+        goal: GoalSpec,
+        kinematics: Kinematics,
+        safety: SafetyCheck,
+        home: np.ndarray,
+        check_reach: bool,
+        gripper: float = 0.0,
+    ):
         self.tolerance = goal.tolerance
         self.resample_achieved = not goal.allow_achieved_at_reset
         self.low = np.asarray(goal.box[0], float)

@@ -57,8 +57,9 @@ class ImageManager:
         return bool(self.slots)
 
     def spaces(self) -> dict[str, spaces.Box]:
-        return {slot.name: spaces.Box(slot.low, slot.high, shape=slot.shape, dtype=slot.term.dtype)
-                for slot in self.slots}
+        return {
+            slot.name: spaces.Box(slot.low, slot.high, shape=slot.shape, dtype=slot.term.dtype) for slot in self.slots
+        }
 
     def capture(self, backend) -> dict[str, np.ndarray]:
         if not self.slots:
@@ -67,8 +68,9 @@ class ImageManager:
         return {slot.name: slot.term.fn(frame) for slot in self.slots}
 
 
-def info_columns(info: dict | Sequence[dict] | np.ndarray, keys: Iterable[str], batch: tuple[int, ...]
-                 ) -> dict[str, np.ndarray]:
+def info_columns(
+    info: dict | Sequence[dict] | np.ndarray, keys: Iterable[str], batch: tuple[int, ...]
+) -> dict[str, np.ndarray]:
     """Step-time records as arrays: from one info dict (shared by the batch, left to
     broadcast), or from one dict per goal (HER), shaped batch + the record's own shape."""
     if isinstance(info, dict):
@@ -89,13 +91,20 @@ def _entry(info: dict, key: str):
     try:
         return info[key]
     except KeyError:
-        raise KeyError(f"step info lacks {key!r}, which a reward or termination term reads: pass the info dict the "
-                       f"step returned (info keys present: {sorted(info)})") from None
+        raise KeyError(
+            f"step info lacks {key!r}, which a reward or termination term reads: pass the info dict the "
+            f"step returned (info keys present: {sorted(info)})"
+        ) from None
 
 
 class RewardManager:
-    def __init__(self, terms: Sequence[WeightedTerm], terminations: Sequence[TerminationSlot], tolerance: float,
-                 info_keys: Sequence[str]):
+    def __init__(
+        self,
+        terms: Sequence[WeightedTerm],
+        terminations: Sequence[TerminationSlot],
+        tolerance: float,
+        info_keys: Sequence[str],
+    ):
         self.terms = tuple(terms)
         self.terminations = tuple(t for t in terminations if t.active)
         self.tolerance = tolerance
@@ -107,8 +116,15 @@ class RewardManager:
         batch = achieved.shape[:-1]
         columns = info_columns(info, self.info_keys, batch)
         if not batch:  # one step's reward: summed as plain numbers, numpy's 0-d arithmetic costs more
-            return np.asarray(sum((term.weight * float(term.term.fn(achieved, desired, columns, term.bound,
-                                                                    self.tolerance)) for term in self.terms), 0.0))
+            return np.asarray(
+                sum(
+                    (
+                        term.weight * float(term.term.fn(achieved, desired, columns, term.bound, self.tolerance))
+                        for term in self.terms
+                    ),
+                    0.0,
+                )
+            )
         total = np.zeros(batch)
         for term in self.terms:
             total = total + term.weight * term.term.fn(achieved, desired, columns, term.bound, self.tolerance)
@@ -133,7 +149,8 @@ class RewardManager:
         """(name, term, params, weight, meaning) of each active term."""
         rows = []
         for t in self.terms:
-            params = ", ".join(f"{key}={value}" for key, value in t.params.model_dump(by_alias=True).items()
-                               if value is not None)
+            params = ", ".join(
+                f"{key}={value}" for key, value in t.params.model_dump(by_alias=True).items() if value is not None
+            )
             rows.append((t.name, t.term.name, params, f"{t.weight:g}", t.term.description))
         return rows

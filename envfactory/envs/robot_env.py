@@ -17,6 +17,7 @@ from envfactory.backends import backend_factory
 from envfactory.backends.base import BackendError, EpisodeAbort
 from envfactory.backends.view import RENDER_SIZE
 from envfactory.compiler import Blueprint
+from envfactory.compiler.normalization import AffineScale
 from envfactory.envs.actions import ActionAdapter
 from envfactory.envs.goals import GoalSampler
 from envfactory.envs.managers import ImageManager, ObservationManager, RewardManager
@@ -26,7 +27,6 @@ from envfactory.geometry.frames import TaskFrame
 from envfactory.geometry.object_press import ObjectPressGuard
 from envfactory.geometry.robot_model import robot_geometry
 from envfactory.geometry.vectors import length
-from envfactory.compiler.normalization import AffineScale
 from envfactory.step_state import EnvState
 from envfactory.terms.rewards import STEP_FLAGS
 
@@ -38,6 +38,7 @@ class RobotEnv(gym.Env):
     translates the action (ActionAdapter), has the safety check and the object guard judge it, plays it on the
     backend for one action cycle, reads the state, and computes the observation, reward and termination from the
     blueprint's terms. Box observation; GoalRobotEnv gives the Dict one for HER."""
+
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 2}
 
     def __init__(self, blueprint: Blueprint, render_mode: str | None = None, **backend_options):
@@ -53,24 +54,36 @@ class RobotEnv(gym.Env):
         geometry = robot_geometry(spec, blueprint.asset_root)  # shared with every env of this robot
         self.safety = geometry.safety_check(spec.env.safety)  # this env's own: it measures and remembers
         self.kinematics = self.safety.kinematics
-        self.actions = ActionAdapter(blueprint.action, self.kinematics, spec.workspace, spec.env.safety.max_joint_delta,
-                                     robot)
-        self.object_guard = ObjectPressGuard(self.safety.collision, spec.task.objects, self.task_frame) \
-            if spec.task.objects else None
+        self.actions = ActionAdapter(
+            blueprint.action, self.kinematics, spec.workspace, spec.env.safety.max_joint_delta, robot
+        )
+        self.object_guard = (
+            ObjectPressGuard(self.safety.collision, spec.task.objects, self.task_frame) if spec.task.objects else None
+        )
         self.home = np.asarray(robot.home, float)
         self._ee_home = self.kinematics.ee_pose(self.home, spec.gripper_assumed_at_reset)[0]
-        self.goals = GoalSampler(spec.task.goal, self.kinematics, self.safety, self.home,
-                                 check_reach=blueprint.achieved_from == "ee", gripper=spec.gripper_assumed_at_reset)
-        self.rewards = RewardManager(blueprint.rewards, blueprint.terminations, spec.task.goal.tolerance,
-                                     blueprint.info_keys)
+        self.goals = GoalSampler(
+            spec.task.goal,
+            self.kinematics,
+            self.safety,
+            self.home,
+            check_reach=blueprint.achieved_from == "ee",
+            gripper=spec.gripper_assumed_at_reset,
+        )
+        self.rewards = RewardManager(
+            blueprint.rewards, blueprint.terminations, spec.task.goal.tolerance, blueprint.info_keys
+        )
         self.observations = ObservationManager(blueprint.policy_observation)
         self._vector_scale = self._goal_scale = None
         if spec.env.observation.normalize:  # normalize_observations
             self._vector_scale = AffineScale(self.observations.low, self.observations.high)
             self._goal_scale = AffineScale(*spec.task.goal.box)
         self.images = ImageManager(blueprint.images, spec.scene.camera)
-        self.action_space = spaces.Box(blueprint.action.policy_low.astype(np.float32),
-                                       blueprint.action.policy_high.astype(np.float32), dtype=np.float32)
+        self.action_space = spaces.Box(
+            blueprint.action.policy_low.astype(np.float32),
+            blueprint.action.policy_high.astype(np.float32),
+            dtype=np.float32,
+        )
         self.observation_space = self._observation_space()
 
         self._arm_in_states = np.array(robot.arm_state_indices)
@@ -88,11 +101,13 @@ class RobotEnv(gym.Env):
         self._clipped: list[str] = []  # observation columns the last observation had to clip
         self._clip_logged: set[str] = set()  # columns whose clipping this env has logged (info flags each step)
 
-        self.backend = backend_factory(blueprint.backend)(spec, geometry.urdf, self.task_frame, render_mode,
-                                                          **backend_options)
+        self.backend = backend_factory(blueprint.backend)(
+            spec, geometry.urdf, self.task_frame, render_mode, **backend_options
+        )
         self.backend.attach_geometry(self.safety.collision)
-        self.randomizer = Randomizer(blueprint, self.backend, self._timing.action_cycle_time) \
-            if blueprint.randomized else None
+        self.randomizer = (
+            Randomizer(blueprint, self.backend, self._timing.action_cycle_time) if blueprint.randomized else None
+        )
         self._sensing_starts = False  # the next observation is an episode's first: the sensors start from it
 
     # ------------------------------------------------------------ spaces
@@ -143,16 +158,20 @@ class RobotEnv(gym.Env):
                 self.randomizer.start_sensing(vector, state.previous_action)
                 self._sensing_starts = False
             # what the sensors make of it stays in the observation space (noise near a bound meets the bound)
-            vector = np.clip(self.randomizer.observe(vector), self.observations.low,
-                             self.observations.high).astype(np.float32)
+            vector = np.clip(self.randomizer.observe(vector), self.observations.low, self.observations.high).astype(
+                np.float32
+            )
         # logged once per column and env: a column that keeps leaving its bounds would otherwise flood a
         # training run's output; info['observation_clipped'] still names it at every step
         first = [item for item in self._clipped if item.partition("=")[0] not in self._clip_logged]
         if first:
             self._clip_logged.update(item.partition("=")[0] for item in first)
-            log.warning("%s: observation outside its declared bounds, clipped and flagged in "
-                        "info['observation_clipped'] (logged once per column): %s", self.blueprint.env_id,
-                        ", ".join(first))
+            log.warning(
+                "%s: observation outside its declared bounds, clipped and flagged in "
+                "info['observation_clipped'] (logged once per column): %s",
+                self.blueprint.env_id,
+                ", ".join(first),
+            )
         return vector if self._vector_scale is None else self._vector_scale.to_unit(vector).astype(np.float32)
 
     def _observe(self, state: EnvState):
@@ -175,8 +194,12 @@ class RobotEnv(gym.Env):
             reading = self.backend.read_joints().position
             gripper = float(reading[self._gripper_in_states]) if self._gripper_in_states is not None else 0.0
             # the gripper moves to its reset value on the way: the proof covers its whole range
-            verdict = self.safety.path_is_clear(reading[self._arm_in_states], self.home, gripper,
-                                                gripper if self._gripper_reset is None else self._gripper_reset)
+            verdict = self.safety.path_is_clear(
+                reading[self._arm_in_states],
+                self.home,
+                gripper,
+                gripper if self._gripper_reset is None else self._gripper_reset,
+            )
             if not verdict.accepted:
                 raise BackendError(f"the move home is unsafe ({verdict.reason}); bring the arm clear by hand")
         self.backend.reset(self.home, self._gripper_reset, spawn)
@@ -215,8 +238,9 @@ class RobotEnv(gym.Env):
             rejection = verdict.reason
         if not rejection and self.object_guard is not None:
             gripper_to = state.gripper if command.gripper is None else command.gripper
-            rejection = self.object_guard.check(state.q_arm, command.q_arm, state.gripper, gripper_to,
-                                                state.objects).reason
+            rejection = self.object_guard.check(
+                state.q_arm, command.q_arm, state.gripper, gripper_to, state.objects
+            ).reason
         if rejection and self._verbose:
             log.info("%s: action rejected: %s", self.blueprint.env_id, rejection)
         previous = command.recorded
@@ -240,8 +264,10 @@ class RobotEnv(gym.Env):
         """The action as an array of the action space's shape; anything else is refused before it moves the arm."""
         array = np.asarray(action)
         if array.shape != self.action_space.shape or array.dtype.kind not in "fiu":  # float, signed or unsigned int
-            raise ValueError(f"{self.blueprint.env_id}: the action has shape {array.shape} and dtype {array.dtype}; "
-                             f"the action space is {self.action_space}: nothing was sent to the arm")
+            raise ValueError(
+                f"{self.blueprint.env_id}: the action has shape {array.shape} and dtype {array.dtype}; "
+                f"the action space is {self.action_space}: nothing was sent to the arm"
+            )
         return array
 
     def _stop_backend(self) -> None:
@@ -250,8 +276,7 @@ class RobotEnv(gym.Env):
         except Exception as exc:  # the original failure matters more; say this one too
             log.error("%s: could not send the stop: %s", self.blueprint.env_id, exc)
 
-    def _finish(self, state: EnvState, out_of_bounds: bool, rejection: str, truncated: bool = False,
-                abort: str = ""):
+    def _finish(self, state: EnvState, out_of_bounds: bool, rejection: str, truncated: bool = False, abort: str = ""):
         achieved = self.achieved_goal(state)
         self._advance_stage(state, achieved)
         observation = self._observe(state)
@@ -266,8 +291,12 @@ class RobotEnv(gym.Env):
         distance = length(achieved - self._goal)
         flags = (out_of_bounds, bool(rejection), self._goal_failed)
         info = {key: float(value) for key, value in zip(STEP_FLAGS, flags, strict=True)}
-        info.update(rejection_reason=rejection, observation_clipped=list(self._clipped), distance=distance,
-                    is_success=distance < self.blueprint.spec.task.goal.tolerance)
+        info.update(
+            rejection_reason=rejection,
+            observation_clipped=list(self._clipped),
+            distance=distance,
+            is_success=distance < self.blueprint.spec.task.goal.tolerance,
+        )
         info.update(self.stage.info(self._goal))
         info.update(self.rewards.measure(state))
         if self.randomizer is not None:
@@ -332,14 +361,19 @@ class GoalRobotEnv(RobotEnv):
         goal_low, goal_high = (np.asarray(b, np.float32) for b in spec.task.goal.box)
         achieved = self.blueprint.boxes.of(self.blueprint.achieved_from)
         achieved_low, achieved_high = achieved.low.astype(np.float32), achieved.high.astype(np.float32)
-        box = self._goal_scale.box if self._goal_scale is not None else \
-            (lambda low, high: spaces.Box(low, high, dtype=np.float32))
-        return spaces.Dict({
-            "observation": self._vector_space(),
-            "achieved_goal": box(achieved_low, achieved_high),
-            "desired_goal": box(goal_low, goal_high),
-            **self.images.spaces(),
-        })
+        box = (
+            self._goal_scale.box
+            if self._goal_scale is not None
+            else (lambda low, high: spaces.Box(low, high, dtype=np.float32))
+        )
+        return spaces.Dict(
+            {
+                "observation": self._vector_space(),
+                "achieved_goal": box(achieved_low, achieved_high),
+                "desired_goal": box(goal_low, goal_high),
+                **self.images.spaces(),
+            }
+        )
 
     def _observe(self, state: EnvState):
         achieved, desired = self.achieved_goal(state), self._goal

@@ -55,8 +55,14 @@ class ArmMotion:
 
     # ------------------------------------------------------------ actions
 
-    def toward(self, target: np.ndarray, rotation: np.ndarray | None = None, gripper: float | None = None,
-               max_step: float = 0.03, max_turn: float = 0.3) -> np.ndarray:
+    def toward(
+        self,
+        target: np.ndarray,
+        rotation: np.ndarray | None = None,
+        gripper: float | None = None,
+        max_step: float = 0.03,
+        max_turn: float = 0.3,
+    ) -> np.ndarray:
         """One action moving the EE at most `max_step` along the straight line to `target`,
         turning it at most `max_turn` rad toward `rotation`."""
         env, layout = self.env, self.layout
@@ -77,8 +83,9 @@ class ArmMotion:
         if layout.ee:
             wanted = offset / layout.delta_coeff if layout.delta else waypoint
         else:
-            solution = env.kinematics.solve_ik(state.q_arm, waypoint, target_rotation=rotation,
-                                               gripper=state.gripper, rotation_weight=1.0)
+            solution = env.kinematics.solve_ik(
+                state.q_arm, waypoint, target_rotation=rotation, gripper=state.gripper, rotation_weight=1.0
+            )
             step = solution.q_arm - state.q_arm
             largest = np.max(np.abs(step))
             if largest > self.max_joint_delta:

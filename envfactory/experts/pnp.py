@@ -14,7 +14,6 @@ from envfactory.experts.motion import Expert
 from envfactory.experts.points import APPROACH_WITHIN, PARAMS, ExpertPoint, approach_point, spawn_spots
 from envfactory.terms.library import TermParams
 
-
 # How near the EE must come to a point for the expert to go on; the compiler's reach checks allow the same
 # slack (working_points).
 GRASP_WITHIN = 0.006  # closes within this of the grasp point, m
@@ -46,26 +45,43 @@ class PickPlaceExpert(Expert):
         gripper = spec.robot.gripper
         grip = (gripper.closed if params.grip is None else params.grip) if gripper is not None else 0.0
         held = (gripper.open, grip) if gripper is not None else (0.0,)
-        points = [ExpertPoint("grasp", f"{PARAMS}.grasp_height", spawn_spots(obj) + [0, 0, params.grasp_height],
-                              params.grasp_height, held, GRASP_WITHIN)]
+        points = [
+            ExpertPoint(
+                "grasp",
+                f"{PARAMS}.grasp_height",
+                spawn_spots(obj) + [0, 0, params.grasp_height],
+                params.grasp_height,
+                held,
+                GRASP_WITHIN,
+            )
+        ]
         goal = spec.task.goal
         if goal.achieved.partition(".")[0] == params.object:
             low, high = (np.asarray(b, float) for b in goal.box)
-            corners = np.array([[x, y, z] for x in (low[0], high[0]) for y in (low[1], high[1])
-                                for z in (low[2], high[2])])
+            corners = np.array(
+                [[x, y, z] for x in (low[0], high[0]) for y in (low[1], high[1]) for z in (low[2], high[2])]
+            )
             lifted = np.array([np.asarray(obj.spawn.position, float) + [0, 0, params.grasp_height + params.lift]])
-            points += [ExpertPoint("place", "task.goal.box", corners + [0, 0, params.grasp_height],
-                                   params.grasp_height, (grip,), goal.tolerance),
-                       ExpertPoint("lift", f"{PARAMS}.lift", lifted, params.grasp_height + params.lift, (grip,),
-                                   LIFT_WITHIN)]
+            points += [
+                ExpertPoint(
+                    "place",
+                    "task.goal.box",
+                    corners + [0, 0, params.grasp_height],
+                    params.grasp_height,
+                    (grip,),
+                    goal.tolerance,
+                ),
+                ExpertPoint("lift", f"{PARAMS}.lift", lifted, params.grasp_height + params.lift, (grip,), LIFT_WITHIN),
+            ]
         return points + [approach_point(params, obj)]
 
     @classmethod
     def check(cls, params, spec) -> list[tuple[str, str]]:
         gripper = spec.robot.gripper
         if params.grip is not None and gripper is not None and not gripper.low <= params.grip <= gripper.high:
-            return [("grip", f"grip {params.grip:g} lies outside the gripper's range [{gripper.low:g}, "
-                             f"{gripper.high:g}]")]
+            return [
+                ("grip", f"grip {params.grip:g} lies outside the gripper's range [{gripper.low:g}, {gripper.high:g}]")
+            ]
         return []
 
     def reset(self) -> None:
@@ -96,8 +112,7 @@ class PickPlaceExpert(Expert):
             if gripper.closure(state.gripper) < 0.1 and ee[2] > cube[2] + p.clearance - 0.02:
                 self.phase = "approach"
             else:
-                return motion.toward(np.append(ee[:2], cube[2] + p.clearance), gripper=gripper.open,
-                                     max_step=p.step)
+                return motion.toward(np.append(ee[:2], cube[2] + p.clearance), gripper=gripper.open, max_step=p.step)
         if self.phase == "approach":
             if np.linalg.norm(ee[:2] - cube[:2]) < 0.008 and abs(ee[2] - above[2]) < APPROACH_WITHIN:
                 self.phase = "descend"

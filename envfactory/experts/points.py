@@ -37,5 +37,11 @@ def spawn_spots(obj) -> np.ndarray:
 
 def approach_point(params, obj) -> ExpertPoint:
     """Above the object by the expert's clearance, on the way in."""
-    return ExpertPoint("approach", f"{PARAMS}.clearance", spawn_spots(obj) + [0, 0, params.clearance],
-                       params.clearance, (), APPROACH_WITHIN)
+    return ExpertPoint(
+        "approach",
+        f"{PARAMS}.clearance",
+        spawn_spots(obj) + [0, 0, params.clearance],
+        params.clearance,
+        (),
+        APPROACH_WITHIN,
+    )

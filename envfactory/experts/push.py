@@ -13,7 +13,6 @@ from envfactory.experts.motion import Expert
 from envfactory.experts.points import PARAMS, ExpertPoint, approach_point
 from envfactory.terms.library import TermParams
 
-
 # The push starts once the EE is within this above the push height, m; the compiler's reach checks allow the
 # same slack (working_points).
 PUSH_WITHIN = 0.02
@@ -21,7 +20,9 @@ PUSH_WITHIN = 0.02
 
 class PushParams(TermParams):
     object: str = "cube"
-    paddle: float = Field(default=0.02, gt=0, le=0.5)  # from the EE to the pushing face of the gripper, plus a margin, m
+    paddle: float = Field(
+        default=0.02, gt=0, le=0.5
+    )  # from the EE to the pushing face of the gripper, plus a margin, m
     height: float = Field(default=0.0, ge=-0.5, le=0.5)  # EE height above the cube centre while pushing, m
     clearance: float = Field(default=0.08, gt=0, le=1.0)  # EE height above the cube centre when moving around it, m
     step: float = Field(default=0.03, gt=0, le=0.5)  # EE travel per action, m
@@ -43,8 +44,15 @@ class PushExpert(Expert):
         direction = goal[:2] - spawn[:2]
         direction = direction / np.linalg.norm(direction) if np.linalg.norm(direction) > 1e-9 else np.array([1.0, 0])
         behind = spawn[:2] - direction * (obj.size / 2 + params.paddle)
-        push = ExpertPoint("push", f"{PARAMS}.height", np.array([[*behind, spawn[2] + params.height]]),
-                           params.height, (spec.gripper_assumed_at_reset,), PUSH_WITHIN, direction)
+        push = ExpertPoint(
+            "push",
+            f"{PARAMS}.height",
+            np.array([[*behind, spawn[2] + params.height]]),
+            params.height,
+            (spec.gripper_assumed_at_reset,),
+            PUSH_WITHIN,
+            direction,
+        )
         return [push, approach_point(params, obj)]
 
     def __call__(self, observation):
@@ -63,8 +71,10 @@ class PushExpert(Expert):
         # the cube reaches further along a diagonal than across a face
         yaw = state.objects[p.object].rpy[2]
         half = env.blueprint.spec.task.objects[p.object].size / 2
-        reach = half * (abs(np.cos(yaw) * direction[0] + np.sin(yaw) * direction[1])
-                        + abs(-np.sin(yaw) * direction[0] + np.cos(yaw) * direction[1]))
+        reach = half * (
+            abs(np.cos(yaw) * direction[0] + np.sin(yaw) * direction[1])
+            + abs(-np.sin(yaw) * direction[0] + np.cos(yaw) * direction[1])
+        )
         offset = reach + p.paddle
         behind = cube[:2] - direction * offset
         relative = ee[:2] - cube[:2]

@@ -77,18 +77,21 @@ class UncheckablePairs(ValueError):
 
 # What a pair list depends on (the keys of its `inputs` digests), and how a stale list names each: where a
 # robot YAML or spec sets it.
-INPUTS = {"shapes": "collision shapes (the URDF's, and where they sit)",
-          "joints": "joints (the URDF's kinds and placements)",
-          "limits": "arm joint limits (robot.arm_joints lower/upper)",
-          "gripper": "gripper open/closed/mimic (robot.gripper)",
-          "padding": "padding (robot.safety.padding)",
-          "margin": "margin (env.safety.surface_margin)"}
+INPUTS = {
+    "shapes": "collision shapes (the URDF's, and where they sit)",
+    "joints": "joints (the URDF's kinds and placements)",
+    "limits": "arm joint limits (robot.arm_joints lower/upper)",
+    "gripper": "gripper open/closed/mimic (robot.gripper)",
+    "padding": "padding (robot.safety.padding)",
+    "margin": "margin (env.safety.surface_margin)",
+}
 SHAPES, JOINTS, LIMITS, GRIPPER, PADDING, MARGIN = INPUTS
 WHAT_CHANGED = "what changed: "  # a stale message names the inputs it found changed after this
 
 
-def _fingerprint_records(collision: CollisionModel, margin: float, padding: dict[str, float] | None = None,
-                         gripper: tuple | None = None) -> list[tuple[str, bytes]]:
+def _fingerprint_records(
+    collision: CollisionModel, margin: float, padding: dict[str, float] | None = None, gripper: tuple | None = None
+) -> list[tuple[str, bytes]]:
     """(input, record) of everything the pair list depends on, in digest order. `padding` (link -> m) and
     `gripper` (open, closed, mimic) stand in for the robot's own, to test what an older list was made for."""
     kin = collision.kinematics
@@ -104,14 +107,32 @@ def _fingerprint_records(collision: CollisionModel, margin: float, padding: dict
         # may settle on another of equally good axes when the base is turned
         placement = unturn * geometry_object.placement if shape.joint == 0 else geometry_object.placement
         pad = shape.padding if padding is None else padding.get(shape.link, 0.0)
-        records.append((SHAPES, json.dumps([shape.name, shape.link, model.names[shape.joint],
-                                            _shape_digest(geometry_object.geometry, rounded), round(pad, 6),
-                                            rounded(placement.homogeneous)]).encode()))
+        records.append(
+            (
+                SHAPES,
+                json.dumps(
+                    [
+                        shape.name,
+                        shape.link,
+                        model.names[shape.joint],
+                        _shape_digest(geometry_object.geometry, rounded),
+                        round(pad, 6),
+                        rounded(placement.homogeneous),
+                    ]
+                ).encode(),
+            )
+        )
     for joint in range(1, model.njoints):
         placement = model.jointPlacements[joint]
         placement = unturn * placement if model.parents[joint] == 0 else placement
-        records.append((JOINTS, json.dumps([model.names[joint], model.joints[joint].shortname(),
-                                            rounded(placement.homogeneous)]).encode()))
+        records.append(
+            (
+                JOINTS,
+                json.dumps(
+                    [model.names[joint], model.joints[joint].shortname(), rounded(placement.homogeneous)]
+                ).encode(),
+            )
+        )
     robot = kin.robot
     records.append((LIMITS, json.dumps([[j.name, j.lower, j.upper] for j in robot.arm_joints]).encode()))
     if robot.gripper is not None:
@@ -121,8 +142,9 @@ def _fingerprint_records(collision: CollisionModel, margin: float, padding: dict
     return records
 
 
-def fingerprint(collision: CollisionModel, margin: float, padding: dict[str, float] | None = None,
-                gripper: tuple | None = None) -> str:
+def fingerprint(
+    collision: CollisionModel, margin: float, padding: dict[str, float] | None = None, gripper: tuple | None = None
+) -> str:
     """A digest of everything the pair list depends on: shapes, joints, their limits and the margin."""
     digest = hashlib.sha256()
     for _, record in _fingerprint_records(collision, margin, padding, gripper):
@@ -152,13 +174,18 @@ def stale_inputs(collision: CollisionModel, data: dict, margin: float) -> list[s
     found = []
     padded = {shape.link: shape.padding for shape in collision.shapes if shape.padding}
     if padded and fingerprint(collision, margin, padding={}) == data.get("fingerprint"):
-        found.append(f"{INPUTS[PADDING]}: {', '.join(f'{link} +{pad:g} m' for link, pad in sorted(padded.items()))} added "
-                     f"since the list was generated (it was made without padding)")
+        found.append(
+            f"{INPUTS[PADDING]}: {', '.join(f'{link} +{pad:g} m' for link, pad in sorted(padded.items()))} added "
+            f"since the list was generated (it was made without padding)"
+        )
     gripper = robot.gripper
-    if gripper is not None and fingerprint(collision, margin, gripper=(gripper.closed, gripper.open, gripper.mimic)) \
-            == data.get("fingerprint"):
-        found.append(f"{INPUTS[GRIPPER]}: open ({gripper.open:g}) and closed ({gripper.closed:g}) are swapped against the "
-                     f"values the list was generated for")
+    if gripper is not None and fingerprint(
+        collision, margin, gripper=(gripper.closed, gripper.open, gripper.mimic)
+    ) == data.get("fingerprint"):
+        found.append(
+            f"{INPUTS[GRIPPER]}: open ({gripper.open:g}) and closed ({gripper.closed:g}) are swapped against the "
+            f"values the list was generated for"
+        )
     return found
 
 
@@ -176,8 +203,7 @@ def _shape_digest(geometry, rounded) -> list:
     return [kind, len(points), hashlib.sha256(points.tobytes()).hexdigest()[:16]]
 
 
-def sample_pairs(collision: CollisionModel, margin: float, samples: int = DEFAULT_SAMPLES,
-                 seed: int = 0) -> dict:
+def sample_pairs(collision: CollisionModel, margin: float, samples: int = DEFAULT_SAMPLES, seed: int = 0) -> dict:
     """Classify every structurally measured self pair by its clearance over random configurations."""
     collision.set_ignored_pairs({})
     kin = collision.kinematics
@@ -248,15 +274,19 @@ def _own_margin(lowest: float, contact: float) -> float:
 
 def _touching_message(collision: CollisionModel, touching: list, margin: float, contact: float) -> str:
     robot = collision.kinematics.robot.name
-    pairs = "; ".join(f"{first} and {second} (links {collision.shapes[_shape_named(collision, first)].link} and "
-                      f"{collision.shapes[_shape_named(collision, second)].link}): {low * 1000:.1f} mm at the closest"
-                      for (first, second), low in touching)
-    return (f"robot {robot!r}: these self pairs are within the {margin * 1000:g} mm margin in every sampled pose "
-            f"and within {contact * 1000:.1f} mm (contact, to the engines' disagreement) in some: {pairs}. "
-            f"No margin can be kept for them without refusing legal poses, and skipping them would let a motion "
-            f"fold those links into each other. Refine their collision shapes in the URDF (split a link's shape "
-            f"into tighter primitives fitted to the maker's meshes) until they no longer touch over the joint "
-            f"ranges, then run `envfactory collision-pairs {robot}` again")
+    pairs = "; ".join(
+        f"{first} and {second} (links {collision.shapes[_shape_named(collision, first)].link} and "
+        f"{collision.shapes[_shape_named(collision, second)].link}): {low * 1000:.1f} mm at the closest"
+        for (first, second), low in touching
+    )
+    return (
+        f"robot {robot!r}: these self pairs are within the {margin * 1000:g} mm margin in every sampled pose "
+        f"and within {contact * 1000:.1f} mm (contact, to the engines' disagreement) in some: {pairs}. "
+        f"No margin can be kept for them without refusing legal poses, and skipping them would let a motion "
+        f"fold those links into each other. Refine their collision shapes in the URDF (split a link's shape "
+        f"into tighter primitives fitted to the maker's meshes) until they no longer touch over the joint "
+        f"ranges, then run `envfactory collision-pairs {robot}` again"
+    )
 
 
 def _shape_named(collision: CollisionModel, name: str) -> int:
@@ -312,8 +342,9 @@ def _shapes_of(collision: CollisionModel, pair: int) -> tuple[int, int]:
 
 def write_pairs(path: Path, robot_name: str, result: dict) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)  # a user's own list may go into a folder not made yet
-    path.write_text(HEADER.format(robot=robot_name) + yaml.safe_dump(result, sort_keys=False, width=120,
-                                                                     default_flow_style=None))
+    path.write_text(
+        HEADER.format(robot=robot_name) + yaml.safe_dump(result, sort_keys=False, width=120, default_flow_style=None)
+    )
 
 
 def read_pairs(path: Path, collision: CollisionModel, margin: float) -> PairRules:
@@ -329,39 +360,58 @@ def read_pairs(path: Path, collision: CollisionModel, margin: float) -> PairRule
     expected = fingerprint(collision, data.get("margin", margin) if isinstance(data, dict) else margin)
     if not isinstance(data, dict) or data.get("fingerprint") != expected:
         changed = stale_inputs(collision, data, data.get("margin", margin)) if isinstance(data, dict) else []
-        what = (f"{WHAT_CHANGED}{'; '.join(changed)}" if changed else
-                f"the list does not tell which of its inputs changed (it keeps no digest per input): it covers the "
-                f"{', '.join(INPUTS.values())}")
-        raise StalePairs(f"{path}: the collision pair list is stale for robot {robot!r}: it was generated for "
-                         f"another robot model or settings; {what}")
+        what = (
+            f"{WHAT_CHANGED}{'; '.join(changed)}"
+            if changed
+            else f"the list does not tell which of its inputs changed (it keeps no digest per input): it covers the "
+            f"{', '.join(INPUTS.values())}"
+        )
+        raise StalePairs(
+            f"{path}: the collision pair list is stale for robot {robot!r}: it was generated for "
+            f"another robot model or settings; {what}"
+        )
     unknown = _unknown_entries(text, data, collision)
     if unknown:
-        raise StalePairs(f"{path}:{unknown[0][0]}: the collision pair list names collision shapes robot {robot!r} "
-                         f"does not have: {'; '.join(message for _, message in unknown)}; such an entry would be "
-                         f"ignored (a skipped pair that is no pair of this robot). Shapes are named after their link "
-                         f"and a count (e.g. {collision.shapes[0].name})")
+        raise StalePairs(
+            f"{path}:{unknown[0][0]}: the collision pair list names collision shapes robot {robot!r} "
+            f"does not have: {'; '.join(message for _, message in unknown)}; such an entry would be "
+            f"ignored (a skipped pair that is no pair of this robot). Shapes are named after their link "
+            f"and a count (e.g. {collision.shapes[0].name})"
+        )
     if data.get("checksum") != checksum(data):
         line = next((number for number, text in enumerate(text.splitlines(), 1) if text.startswith("checksum:")), 1)
-        raise StalePairs(f"{path}:{line}: the collision pair list differs from what `envfactory collision-pairs` "
-                         f"wrote (its entries no longer match this checksum{'' if 'checksum' in data else ', or it has none'}): "
-                         f"an edited list could skip a pair that can touch")
+        raise StalePairs(
+            f"{path}:{line}: the collision pair list differs from what `envfactory collision-pairs` "
+            f"wrote (its entries no longer match this checksum{'' if 'checksum' in data else ', or it has none'}): "
+            f"an edited list could skip a pair that can touch"
+        )
     if data.get("margin", margin) > margin:
         # a pair always within a wide margin need not be always within a narrower one
         raise StalePairs(f"{path}: sampled with margin {data['margin']} m, above the spec's surface_margin {margin} m")
     skipped = {frozenset(entry[:2]): entry[2] for entry in data.get("skipped", [])}
     # A list from before pairs got margins of their own skips the pairs always within the margin: its
     # checksum still holds, so the reasons are read to refuse it
-    unproven = sorted(f"{' and '.join(sorted(key))} ({why})" for key, why in skipped.items()
-                      if why not in STRUCTURAL and not str(why).endswith("(grid proof)"))
+    unproven = sorted(
+        f"{' and '.join(sorted(key))} ({why})"
+        for key, why in skipped.items()
+        if why not in STRUCTURAL and not str(why).endswith("(grid proof)")
+    )
     if unproven:
-        raise StalePairs(f"{path}: the collision pair list skips pairs neither exempt by structure nor proven apart: "
-                         f"{'; '.join(unproven)}. Such pairs are measured now")
+        raise StalePairs(
+            f"{path}: the collision pair list skips pairs neither exempt by structure nor proven apart: "
+            f"{'; '.join(unproven)}. Such pairs are measured now"
+        )
     margins = {frozenset(entry[:2]): float(entry[2]) for entry in data.get("pair_margins", [])}
-    odd = sorted(" and ".join(sorted(key)) for key, value in margins.items()
-                 if key in skipped or not 0.0 <= value <= data.get("margin", margin))
+    odd = sorted(
+        " and ".join(sorted(key))
+        for key, value in margins.items()
+        if key in skipped or not 0.0 <= value <= data.get("margin", margin)
+    )
     if odd:
-        raise StalePairs(f"{path}: pair_margins gives {'; '.join(odd)} a margin below zero, above the list's "
-                         f"margin, or a margin while skipping them")
+        raise StalePairs(
+            f"{path}: pair_margins gives {'; '.join(odd)} a margin below zero, above the list's "
+            f"margin, or a margin while skipping them"
+        )
     return PairRules(skipped, margins)
 
 
@@ -375,8 +425,14 @@ def _unknown_entries(text: str, data: dict, collision: CollisionModel) -> list[t
         for entry in entries if isinstance(entries, list) else []:
             shapes = [str(name) for name in entry[:2]] if isinstance(entry, list) else [str(entry)]
             for name in (name for name in shapes if name not in known):
-                line = next((number for number, row in enumerate(text.splitlines(), 1)
-                             if name in row and row.lstrip().startswith("-")), 1)
+                line = next(
+                    (
+                        number
+                        for number, row in enumerate(text.splitlines(), 1)
+                        if name in row and row.lstrip().startswith("-")
+                    ),
+                    1,
+                )
                 found.append((line, f"{section} entry {entry} (line {line}): no shape {name!r}{suggest(name, names)}"))
     return sorted(found)
 

@@ -77,13 +77,17 @@ class TaskFrame:
     def table_corners(self, table) -> np.ndarray:
         """The table top's four corners (x, y) in the task frame."""
         half = np.asarray(table.size, float) / 2
-        corners = [[table.center[0] + sx * half[0], table.center[1] + sy * half[1], table.top_z]
-                   for sx in (-1, 1) for sy in (-1, 1)]
+        corners = [
+            [table.center[0] + sx * half[0], table.center[1] + sy * half[1], table.top_z]
+            for sx in (-1, 1)
+            for sy in (-1, 1)
+        ]
         return np.array([self.to_task(c)[:2] for c in corners])
 
 
-def nearest_top_down(down: np.ndarray, current: np.ndarray, closing_axis: int, yaw: float | None = None,
-                     period: float = np.pi) -> np.ndarray:
+def nearest_top_down(
+    down: np.ndarray, current: np.ndarray, closing_axis: int, yaw: float | None = None, period: float = np.pi
+) -> np.ndarray:
     """The top-down orientation (`down` turned about the vertical) whose finger-closing axis, seen from above,
     lies at `yaw` modulo `period` (the fingers are symmetric: a half turn grips alike; a box's faces: a
     quarter turn), turned as little as possible from `current`; with no `yaw`, where `current` has it now.

@@ -25,6 +25,7 @@ from envfactory.geometry.kernels.finger_sweep import swept_box_gap, swept_box_ga
 class GripperSweep:
     """Each finger's box tabulated once in its mount's frame over the gripper's range, and the bound it gives on
     a finger's clearance from an obstacle or an arm link anywhere in a gripper range, at one pose."""
+
     # no point of a finger's box is farther than this from its place at the nearest tabulated gripper value
     PAD = 0.0005
 
@@ -42,8 +43,9 @@ class GripperSweep:
             return
         # the fastest any corner moves per unit of gripper travel: the structure's one measurement of the fingers
         shapes = collision.shapes
-        rate = collision.structure.finger_speeds(self.shapes, [shapes[s].corners for s in self.shapes],
-                                                 [0.0] * len(self.shapes))
+        rate = collision.structure.finger_speeds(
+            self.shapes, [shapes[s].corners for s in self.shapes], [0.0] * len(self.shapes)
+        )
         self.samples = max(int(np.ceil(rate.max() * (self.high - self.low) / (2 * self.PAD))) + 1, 2)
         values = np.linspace(self.low, self.high, self.samples)
         self.spacing = values[1] - values[0]
@@ -69,7 +71,9 @@ class GripperSweep:
         one_finger = finger_a != finger_b  # two fingers move against each other: the gripper's own design
         self_finger = np.where(finger_a, collision.self_a, collision.self_b)
         self_other = np.where(finger_a, collision.self_b, collision.self_a)
-        self.pair_row = np.concatenate([self.row_of[collision.scene_shape], np.where(one_finger, self.row_of[self_finger], -1)])
+        self.pair_row = np.concatenate(
+            [self.row_of[collision.scene_shape], np.where(one_finger, self.row_of[self_finger], -1)]
+        )
         self.pair_obstacle = np.concatenate([collision.scene_obstacle, np.full(len(self_other), -1)]).astype(np.int64)
         self.pair_other = np.concatenate([np.full(len(collision.scene_shape), -1), self_other]).astype(np.int64)
         self.pair_other_joint = np.where(self.pair_other >= 0, collision._shape_joint[self.pair_other], 0)
@@ -86,11 +90,23 @@ class GripperSweep:
             return -math.inf
         collision._place_frames()
         row = self._row_of_pair[pair]
-        return swept_box_gap(collision._frames, self.mount_joint, self.corners, first, last, row,
-                                            self._obstacle_of_pair[pair], collision.obstacle_low,
-                                            collision.obstacle_high, self._other_of_pair[pair],
-                                            self._other_joint_of_pair[pair], collision._local_corners) \
+        return (
+            swept_box_gap(
+                collision._frames,
+                self.mount_joint,
+                self.corners,
+                first,
+                last,
+                row,
+                self._obstacle_of_pair[pair],
+                collision.obstacle_low,
+                collision.obstacle_high,
+                self._other_of_pair[pair],
+                self._other_joint_of_pair[pair],
+                collision._local_corners,
+            )
             - self._pad_of_pair[pair]
+        )
 
     def sweepable_one(self, pair: int) -> bool:
         return self._row_of_pair[pair] >= 0
@@ -121,8 +137,19 @@ class GripperSweep:
         collision._place_frames()
         rows = self.pair_row[pairs]
         out = np.empty(len(pairs))
-        swept_box_gaps(collision._frames, self.mount_joint, self.corners, first, last, rows,
-                                      self.pair_obstacle[pairs], collision.obstacle_low, collision.obstacle_high,
-                                      self.pair_other[pairs], self.pair_other_joint[pairs], collision._local_corners,
-                                      out)
+        swept_box_gaps(
+            collision._frames,
+            self.mount_joint,
+            self.corners,
+            first,
+            last,
+            rows,
+            self.pair_obstacle[pairs],
+            collision.obstacle_low,
+            collision.obstacle_high,
+            self.pair_other[pairs],
+            self.pair_other_joint[pairs],
+            collision._local_corners,
+            out,
+        )
         return out - self.pad[rows] - collision.pair_padding[pairs]

@@ -38,6 +38,7 @@ class IkResult:
 class Kinematics:
     """Pinocchio FK, Jacobians and damped least-squares IK of one robot, in the task frame. Holds its own
     pinocchio data (a measuring copy per env), so it is not shared between threads."""
+
     def __init__(self, urdf_path: Path, robot: RobotSpec, task_frame: TaskFrame | None = None):
         """`task_frame`: where results are expressed; None for the model's own frame."""
         self.robot = robot
@@ -182,16 +183,21 @@ class Kinematics:
                     # the position comes first; the orientation gets what the joints can do without moving the point
                     step = self._prioritised_step(jacobian, position_error, rotation_weight * rotation_error, damping)
                 else:
-                    step = damped_step(np.vstack([jacobian[:3], rotation_weight * jacobian[3:]]),
-                                        np.concatenate([position_error, rotation_weight * rotation_error]), damping)
+                    step = damped_step(
+                        np.vstack([jacobian[:3], rotation_weight * jacobian[3:]]),
+                        np.concatenate([position_error, rotation_weight * rotation_error]),
+                        damping,
+                    )
             # (np.minimum/np.maximum: np.clip's dispatch costs more than the arithmetic, a few times an iteration)
-            q_arm = np.minimum(np.maximum(q_arm + np.minimum(np.maximum(step, -0.3), 0.3), self.arm_lower),
-                               self.arm_upper)
+            q_arm = np.minimum(
+                np.maximum(q_arm + np.minimum(np.maximum(step, -0.3), 0.3), self.arm_lower), self.arm_upper
+            )
         return IkResult(q_arm, error < tolerance, error)
 
     @staticmethod
-    def _prioritised_step(jacobian: np.ndarray, position_error: np.ndarray, rotation_error: np.ndarray,
-                          damping: float) -> np.ndarray:
+    def _prioritised_step(
+        jacobian: np.ndarray, position_error: np.ndarray, rotation_error: np.ndarray, damping: float
+    ) -> np.ndarray:
         """A joint step that closes the position error, plus the orientation step projected onto the joint
         motions that leave the point where it is (damped least squares for both)."""
         position_rows, rotation_rows = jacobian[:3], jacobian[3:]

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from envfactory.geometry.kernels.motion import motion_clear_of_spheres
 from envfactory.geometry.collision import CollisionModel
+from envfactory.geometry.kernels.motion import motion_clear_of_spheres
 
 # Closer than this to a movable object, a motion gets full dynamics. Bullet builds contact points
 # within its 2 cm breaking threshold but pushes only on a gap closed within one substep (a few mm
@@ -52,9 +52,26 @@ class ObjectClearance:
             coordinates[self.arm] = (gripper_from + gripper_to) / 2
         joints = collision._joints
         clear = motion_clear_of_spheres(
-            coordinates, q_from, np.asarray(q_to, float) - q_from, joints.parent, joints.placement, joints.kind,
-            joints.axis, joints.coordinate, joints.gain, collision._shape_joint, collision._local_ends, self.moving,
-            collision.radius, self.lever, abs(gripper_to - gripper_from), np.asarray(centers, float),
-            self.base_in_world, np.asarray(radii, float), float(margin), self.LEVELS)
+            coordinates,
+            q_from,
+            np.asarray(q_to, float) - q_from,
+            joints.parent,
+            joints.placement,
+            joints.kind,
+            joints.axis,
+            joints.coordinate,
+            joints.gain,
+            collision._shape_joint,
+            collision._local_ends,
+            self.moving,
+            collision.radius,
+            self.lever,
+            abs(gripper_to - gripper_from),
+            np.asarray(centers, float),
+            self.base_in_world,
+            np.asarray(radii, float),
+            float(margin),
+            self.LEVELS,
+        )
         collision.forget_pose()  # the kernel posed its coordinates along the motion
         return bool(clear)

@@ -38,16 +38,25 @@ class ObjectPressGuard:
         self.collision = collision
         self.frame = frame
         self.base_in_world = np.asarray(collision.kinematics.robot.mount, float)
-        self.guarded = np.array([shape for shape in collision.moving_shapes if not collision.moved_by_gripper[shape]],
-                                dtype=int)
+        self.guarded = np.array(
+            [shape for shape in collision.moving_shapes if not collision.moved_by_gripper[shape]], dtype=int
+        )
         self.half_extents = {name: (spec.size / 2,) * 3 for name, spec in objects.items()}
         self.boxes = {name: coal.Box(*(2 * h for h in half)) for name, half in self.half_extents.items()}
-        self.surfaces = [(o.name, float(o.high[2]), tuple(map(float, o.low[:2])), tuple(map(float, o.high[:2])))
-                         for o in collision.obstacles]
+        self.surfaces = [
+            (o.name, float(o.high[2]), tuple(map(float, o.low[:2])), tuple(map(float, o.high[:2])))
+            for o in collision.obstacles
+        ]
         self.bounding_radius = {name: float(np.linalg.norm(half)) for name, half in self.half_extents.items()}
 
-    def check(self, q_from: np.ndarray, q_to: np.ndarray, gripper_from: float, gripper_to: float,
-              objects: dict[str, ObjectState]) -> Verdict:
+    def check(
+        self,
+        q_from: np.ndarray,
+        q_to: np.ndarray,
+        gripper_from: float,
+        gripper_to: float,
+        objects: dict[str, ObjectState],
+    ) -> Verdict:
         for name, state in objects.items():
             center = self.frame.to_world(state.position)
             rotation = self.frame.rotation @ state.rotation if self.frame.rotated else state.rotation
@@ -62,8 +71,11 @@ class ObjectPressGuard:
             if deeper.any():
                 worst = int(np.argmin(np.where(deeper, end, np.inf)))
                 link = self.collision.shapes[self.guarded[worst]].link
-                return Verdict(False, f"{link} would press the {name} (resting on the {surface}) "
-                                      f"{-end[worst] * 1000:.0f} mm deep at the end of the motion")
+                return Verdict(
+                    False,
+                    f"{link} would press the {name} (resting on the {surface}) "
+                    f"{-end[worst] * 1000:.0f} mm deep at the end of the motion",
+                )
         return ACCEPTED
 
     def _resting_on(self, center: np.ndarray, rotation: np.ndarray, half: tuple[float, ...]) -> str | None:
@@ -74,8 +86,9 @@ class ObjectPressGuard:
                 return name
         return None
 
-    def _clearances(self, q_arm: np.ndarray, gripper: float, name: str, center: np.ndarray,
-                    rotation: np.ndarray) -> np.ndarray:
+    def _clearances(
+        self, q_arm: np.ndarray, gripper: float, name: str, center: np.ndarray, rotation: np.ndarray
+    ) -> np.ndarray:
         """Each guarded shape's clearance from the object: exact where its capsule reaches the
         object's bounding sphere, the capsule's (a lower bound, positive) elsewhere."""
         collision = self.collision

@@ -53,33 +53,58 @@ def table_obstacles(table: TableSpec) -> list[Obstacle]:
     half_x, half_y = table.size[0] / 2, table.size[1] / 2
     column_height = table.top_z - table.thickness
     return [
-        Obstacle(TABLE_TOP, (x, y, table.top_z - table.thickness / 2), (half_x, half_y, table.thickness / 2),
-                 TABLE_RGBA),
-        Obstacle("table column", (x, y, column_height / 2),
-                 (TABLE_COLUMN_HALF_WIDTH, TABLE_COLUMN_HALF_WIDTH, column_height / 2), COLUMN_RGBA),
+        Obstacle(
+            TABLE_TOP, (x, y, table.top_z - table.thickness / 2), (half_x, half_y, table.thickness / 2), TABLE_RGBA
+        ),
+        Obstacle(
+            "table column",
+            (x, y, column_height / 2),
+            (TABLE_COLUMN_HALF_WIDTH, TABLE_COLUMN_HALF_WIDTH, column_height / 2),
+            COLUMN_RGBA,
+        ),
     ]
 
 
 def scene_obstacles(spec: EnvSpec) -> list[Obstacle]:
     """Every fixed body of the scene, world frame, in a stable order."""
     floor_z = spec.env.safety.floor_z
-    obstacles = [Obstacle("floor", (0.0, 0.0, floor_z - FLOOR_THICKNESS / 2),
-                          (FLOOR_HALF_EXTENT, FLOOR_HALF_EXTENT, FLOOR_THICKNESS / 2), FLOOR_RGBA)]
+    obstacles = [
+        Obstacle(
+            "floor",
+            (0.0, 0.0, floor_z - FLOOR_THICKNESS / 2),
+            (FLOOR_HALF_EXTENT, FLOOR_HALF_EXTENT, FLOOR_THICKNESS / 2),
+            FLOOR_RGBA,
+        )
+    ]
     obstacles += table_obstacles(spec.scene.table)
     robot = spec.robot
     if robot.pedestal is not None:
         mount, pedestal = robot.mount, robot.pedestal
         half_x, half_y = pedestal.size[0] / 2, pedestal.size[1] / 2
-        obstacles.append(Obstacle("pedestal plate", (mount[0], mount[1], mount[2] - PEDESTAL_PLATE / 2),
-                                  (half_x, half_y, PEDESTAL_PLATE / 2), pedestal.rgba))
+        obstacles.append(
+            Obstacle(
+                "pedestal plate",
+                (mount[0], mount[1], mount[2] - PEDESTAL_PLATE / 2),
+                (half_x, half_y, PEDESTAL_PLATE / 2),
+                pedestal.rgba,
+            )
+        )
         leg_height = mount[2] - PEDESTAL_PLATE - floor_z
         for sx in (-1, 1):
             for sy in (-1, 1):
-                center = (mount[0] + sx * (half_x - PEDESTAL_LEG_HALF_WIDTH),
-                          mount[1] + sy * (half_y - PEDESTAL_LEG_HALF_WIDTH), floor_z + leg_height / 2)
-                obstacles.append(Obstacle(f"pedestal leg {'-+'[sx > 0]}x{'-+'[sy > 0]}y", center,
-                                          (PEDESTAL_LEG_HALF_WIDTH, PEDESTAL_LEG_HALF_WIDTH, leg_height / 2),
-                                          pedestal.rgba))
+                center = (
+                    mount[0] + sx * (half_x - PEDESTAL_LEG_HALF_WIDTH),
+                    mount[1] + sy * (half_y - PEDESTAL_LEG_HALF_WIDTH),
+                    floor_z + leg_height / 2,
+                )
+                obstacles.append(
+                    Obstacle(
+                        f"pedestal leg {'-+'[sx > 0]}x{'-+'[sy > 0]}y",
+                        center,
+                        (PEDESTAL_LEG_HALF_WIDTH, PEDESTAL_LEG_HALF_WIDTH, leg_height / 2),
+                        pedestal.rgba,
+                    )
+                )
     for name, box in spec.scene.obstacles.items():
         obstacles.append(Obstacle(name, tuple(box.center), tuple(s / 2 for s in box.size), tuple(box.rgba)))
     return obstacles

@@ -129,8 +129,10 @@ def point_boxes(spec, kinematics) -> PointBoxes:
 
 def _joint_boxes(robot, kinematics) -> tuple[Box, Box]:
     """(positions, velocities) of the /joint_states entries."""
-    positions, velocities = (Box(*(np.array([getattr(entry, kind)[i] for entry in robot.joint_states], float)
-                                   for i in (0, 1))) for kind in ("position", "velocity"))
+    positions, velocities = (
+        Box(*(np.array([getattr(entry, kind)[i] for entry in robot.joint_states], float) for i in (0, 1)))
+        for kind in ("position", "velocity")
+    )
     if kinematics is None:
         return positions, velocities
     model = kinematics.model

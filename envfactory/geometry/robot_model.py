@@ -89,8 +89,13 @@ def robot_geometry(spec: EnvSpec, asset_root: Path) -> RobotGeometry:
     matches it. The key covers the pair list's text, so a regenerated or edited list is read again."""
     pairs = pairs_file(spec, asset_root)
     pairs_text = pairs.read_text() if pairs is not None and pairs.is_file() else ""
-    key = _digest(spec.robot.model_dump_json(include=COLLISION_FIELDS), spec.scene.model_dump_json(),
-                  spec.env.safety.model_dump_json(), str(asset_root), pairs_text)
+    key = _digest(
+        spec.robot.model_dump_json(include=COLLISION_FIELDS),
+        spec.scene.model_dump_json(),
+        spec.env.safety.model_dump_json(),
+        str(asset_root),
+        pairs_text,
+    )
 
     def build():
         urdf, kinematics = robot_chain(spec, asset_root)

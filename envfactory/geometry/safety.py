@@ -21,8 +21,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from envfactory.geometry.kernels.motion import DOUBT_AT_ENDS, PROVEN
 from envfactory.geometry.collision import CollisionModel
+from envfactory.geometry.kernels.motion import DOUBT_AT_ENDS, PROVEN
 from envfactory.schema.models import SafetySettings
 
 
@@ -76,6 +76,7 @@ class Motion:
 class SafetyCheck:
     """One env's safety check of every command (sim and real): joint bounds, the largest joint change, and the
     clearance over the whole motion, with its own measuring copy of the shared CollisionModel (one per env)."""
+
     # Bisection stops at pieces this small. Deep pieces are needed only where a pair starts
     # inside the margin and must prove it does not get closer.
     FINEST_PIECE = 1.0 / 512
@@ -131,8 +132,13 @@ class SafetyCheck:
 
     # ------------------------------------------------------------ motions
 
-    def check(self, q_arm_now: np.ndarray, q_arm_target: np.ndarray, gripper_now: float = 0.0,
-              gripper_target: float | None = None) -> Verdict:
+    def check(
+        self,
+        q_arm_now: np.ndarray,
+        q_arm_target: np.ndarray,
+        gripper_now: float = 0.0,
+        gripper_target: float | None = None,
+    ) -> Verdict:
         """Whether the arm may move from now to the target (and the gripper to its target, if given)."""
         q_arm_target = np.asarray(q_arm_target, float)
         if not np.isfinite(q_arm_target).all():
@@ -147,20 +153,32 @@ class SafetyCheck:
         if not (math.isfinite(largest) and math.isfinite(gripper_now)):
             return Verdict(False, "non-finite joint reading: where the arm is now is unknown")
         if largest > self.settings.max_joint_delta + 1e-12:
-            return Verdict(False, f"joint change {largest:.3f} rad exceeds max_joint_delta {self.settings.max_joint_delta}")
+            return Verdict(
+                False, f"joint change {largest:.3f} rad exceeds max_joint_delta {self.settings.max_joint_delta}"
+            )
         if gripper_target is not None and not np.isfinite(gripper_target):
             return Verdict(False, "non-finite gripper target")
-        return self._motion_verdict(np.asarray(q_arm_now, float), q_arm_target, gripper_now,
-                                    gripper_now if gripper_target is None else float(gripper_target),
-                                    self.FINEST_PIECE, remember=True)
+        return self._motion_verdict(
+            np.asarray(q_arm_now, float),
+            q_arm_target,
+            gripper_now,
+            gripper_now if gripper_target is None else float(gripper_target),
+            self.FINEST_PIECE,
+            remember=True,
+        )
 
-    def path_is_clear(self, q_from: np.ndarray, q_to: np.ndarray, gripper_from: float = 0.0,
-                      gripper_to: float | None = None) -> Verdict:
+    def path_is_clear(
+        self, q_from: np.ndarray, q_to: np.ndarray, gripper_from: float = 0.0, gripper_to: float | None = None
+    ) -> Verdict:
         """Clearance along a long joint-space move (a real arm driving home), with no joint-change limit."""
         gripper_to = gripper_from if gripper_to is None else gripper_to
         q_from, q_to = np.asarray(q_from, float), np.asarray(q_to, float)
-        if not (np.isfinite(q_from).all() and np.isfinite(q_to).all() and math.isfinite(gripper_from)
-                and math.isfinite(gripper_to)):
+        if not (
+            np.isfinite(q_from).all()
+            and np.isfinite(q_to).all()
+            and math.isfinite(gripper_from)
+            and math.isfinite(gripper_to)
+        ):
             return Verdict(False, "non-finite joint reading or target")
         return self._motion_verdict(q_from, q_to, gripper_from, gripper_to, self.FINEST_PIECE / 8, remember=False)
 
@@ -177,18 +195,34 @@ class SafetyCheck:
         # them, in one compiled pass: far cheaper than coal at the ends). Only where they leave a pair in doubt
         # does the rest of this run, on what that pass measured.
         way = q_to - q_from
-        proof = collision.motion_proof(q_from, way, gripper_from, gripper_to, self.margin,
-                                       self._reusable_end(gripper_range), self.REUSE_WITHIN, self.CAPSULE_LEVELS,
-                                       self.DEEPER_LEVELS)
+        proof = collision.motion_proof(
+            q_from,
+            way,
+            gripper_from,
+            gripper_to,
+            self.margin,
+            self._reusable_end(gripper_range),
+            self.REUSE_WITHIN,
+            self.CAPSULE_LEVELS,
+            self.DEEPER_LEVELS,
+        )
         # (the end pose as Motion.arm_at(1.0) gives it)
         end = Anchor(1.0, q_from + way, proof.end_bound, np.zeros(collision.pair_count, dtype=np.int8))
         if proof.outcome == PROVEN:
             if remember:
                 self._last_end = (end, gripper_range)
             return ACCEPTED
-        motion = Motion(q_from, q_to, gripper_from, gripper_to, proof.travel, proof.reserve, self.margin.copy(),
-                        proof.gripper_moves,
-                        collision.gripper_sweep.bracket(gripper_from, gripper_to) if proof.gripper_moves else (0, -1))
+        motion = Motion(
+            q_from,
+            q_to,
+            gripper_from,
+            gripper_to,
+            proof.travel,
+            proof.reserve,
+            self.margin.copy(),
+            proof.gripper_moves,
+            collision.gripper_sweep.bracket(gripper_from, gripper_to) if proof.gripper_moves else (0, -1),
+        )
         start = Anchor(0.0, q_from, proof.start_bound, np.zeros(collision.pair_count, dtype=np.int8))
         weak = proof.unproven
         if proof.outcome == DOUBT_AT_ENDS:
@@ -212,8 +246,9 @@ class SafetyCheck:
                 continue
             if short.size <= self.FEW_PAIRS:
                 for pair in short:
-                    verdict = self._prove_pair(int(pair), a.fraction, a.bound[pair], b.fraction, b.bound[pair],
-                                               motion, finest)
+                    verdict = self._prove_pair(
+                        int(pair), a.fraction, a.bound[pair], b.fraction, b.bound[pair], motion, finest
+                    )
                     if not verdict.accepted:
                         return verdict
                 continue
@@ -246,19 +281,38 @@ class SafetyCheck:
             self._refine(end, inside, motion, level=2)
             stuck = inside[end.bound[inside] <= now]
             if stuck.size:
-                verdict = Verdict(False, self._describe(stuck[0], end.bound[stuck[0]],
-                                                        " and the motion does not move it away"))
+                verdict = Verdict(
+                    False, self._describe(stuck[0], end.bound[stuck[0]], " and the motion does not move it away")
+                )
         if not verdict.accepted:
             return verdict, inside[:0]
         weak = self._weak(start, end, motion, 1.0, None)
         if weak.size:
-            weak = collision.unproven_by_capsules(motion.q_from, motion.way, motion.gripper_middle, weak, start.bound,
-                                                  end.bound, motion.travel, motion.reserve, motion.threshold,
-                                                  self.CAPSULE_LEVELS, self.DEEPER_LEVELS)
+            weak = collision.unproven_by_capsules(
+                motion.q_from,
+                motion.way,
+                motion.gripper_middle,
+                weak,
+                start.bound,
+                end.bound,
+                motion.travel,
+                motion.reserve,
+                motion.threshold,
+                self.CAPSULE_LEVELS,
+                self.DEEPER_LEVELS,
+            )
         return ACCEPTED, weak
 
-    def _prove_pair(self, pair: int, start: float, start_clearance: float, end: float, end_clearance: float,
-                    motion: Motion, finest: float) -> Verdict:
+    def _prove_pair(
+        self,
+        pair: int,
+        start: float,
+        start_clearance: float,
+        end: float,
+        end_clearance: float,
+        motion: Motion,
+        finest: float,
+    ) -> Verdict:
         """The bisection for one pair between two measured poses, on plain floats: the deep pieces
         near a pair that sits close to its threshold are many, and each costs one coal query."""
         travel, threshold = float(motion.travel[pair]), float(motion.threshold[pair])
@@ -301,8 +355,9 @@ class SafetyCheck:
             if clearance >= motion.threshold[pair]:
                 return clearance
         # coal across the gripper's range (the table, where it applies, fell short above)
-        coarse = [self._pose_with_gripper(q_arm, motion, fraction).exact_one(pair)
-                  for fraction in self.COARSE_FRACTIONS]
+        coarse = [
+            self._pose_with_gripper(q_arm, motion, fraction).exact_one(pair) for fraction in self.COARSE_FRACTIONS
+        ]
         return self._gripper_range_bound(q_arm, motion, pair, coarse)
 
     def _unproven(self, pair: int, fraction: float) -> Verdict:
@@ -353,8 +408,10 @@ class SafetyCheck:
         if sweep.size == 0:
             return
         # coal at a few gripper values along its range, shared by the pairs; then each pair on its own
-        coarse = [self._pose_with_gripper(anchor.q_arm, motion, fraction).exact(sweep).tolist()
-                  for fraction in self.COARSE_FRACTIONS]
+        coarse = [
+            self._pose_with_gripper(anchor.q_arm, motion, fraction).exact(sweep).tolist()
+            for fraction in self.COARSE_FRACTIONS
+        ]
         for row, pair in enumerate(sweep.tolist()):
             anchor.bound[pair] = self._gripper_range_bound(anchor.q_arm, motion, pair, [ends[row] for ends in coarse])
         anchor.level[sweep] = 2
@@ -369,8 +426,10 @@ class SafetyCheck:
         if min(coarse) < threshold:
             # measured below its threshold at a gripper value of the range, it has no bound at or above it: halving
             # down to the resolution (dozens of queries, on every refused motion) would only settle how far below
-            return min((coarse[k] + coarse[k + 1]) / 2 - reserve * (fractions[k + 1] - fractions[k])
-                       for k in range(len(fractions) - 1))
+            return min(
+                (coarse[k] + coarse[k + 1]) / 2 - reserve * (fractions[k + 1] - fractions[k])
+                for k in range(len(fractions) - 1)
+            )
         bound = math.inf
         intervals = [(fractions[k], coarse[k], fractions[k + 1], coarse[k + 1]) for k in range(len(fractions) - 1)]
         while intervals:

@@ -24,7 +24,9 @@ if TYPE_CHECKING:
 # namespace (`drake:acceleration`, `drake:collision_filter_group`), which
 # ElementTree refuses; neither PyBullet nor Pinocchio uses them.
 _UNDECLARED_ATTRIBUTE = re.compile(r'\s[A-Za-z_][\w.-]*:[\w.-]+="[^"]*"')
-_UNDECLARED_ELEMENT = re.compile(r"<([A-Za-z_][\w.-]*):([\w.-]+)\b[^>]*/>|<([A-Za-z_][\w.-]*):([\w.-]+)\b.*?</\3:\4>", re.S)
+_UNDECLARED_ELEMENT = re.compile(
+    r"<([A-Za-z_][\w.-]*):([\w.-]+)\b[^>]*/>|<([A-Za-z_][\w.-]*):([\w.-]+)\b.*?</\3:\4>", re.S
+)
 _TINY_INERTIAL = {"mass": "0.001", "inertia": "1e-6"}
 
 _cache_dir: Path | None = None
@@ -58,7 +60,9 @@ def resolve_part_path(part: "UrdfPart", asset_root: Path, where: str = "robot.mo
         try:
             return Path(airo_models.get_urdf_path(part.airo_models))
         except ValueError as exc:
-            raise AssemblyError(f"{where}.airo_models", f"airo-models has no robot {part.airo_models!r}: {exc}") from None
+            raise AssemblyError(
+                f"{where}.airo_models", f"airo-models has no robot {part.airo_models!r}: {exc}"
+            ) from None
     path = Path(part.urdf)
     path = path if path.is_absolute() else (asset_root / path)
     if not path.is_file():
@@ -73,8 +77,11 @@ def _resolve_mesh(filename: str, urdf_path: Path, packages: dict[str, str], asse
         package, _, rest = filename.removeprefix("package://").partition("/")
         if package not in packages:
             declared = ", ".join(sorted(packages)) or "none"
-            raise AssemblyError("robot.model.packages", f"{where} references {filename!r}: declare its package, e.g. "
-                                                        f"'packages: {{{package}: <folder>}}' (declared: {declared})")
+            raise AssemblyError(
+                "robot.model.packages",
+                f"{where} references {filename!r}: declare its package, e.g. "
+                f"'packages: {{{package}: <folder>}}' (declared: {declared})",
+            )
         folder = Path(packages[package])
         return (folder if folder.is_absolute() else asset_root / folder).resolve() / rest
     filename = filename.removeprefix("file://")
@@ -101,15 +108,23 @@ def _load_part(path: Path, packages: dict[str, str], asset_root: Path, where: st
     for joint in root.findall("joint"):
         ends = [joint.find(tag) for tag in ("parent", "child")]
         if not joint.get("name") or any(end is None or not end.get("link") for end in ends):
-            raise AssemblyError(where, f"the URDF {path} has a joint {joint.get('name')!r} without a name, "
-                                       f"<parent link=...> or <child link=...>")
+            raise AssemblyError(
+                where,
+                f"the URDF {path} has a joint {joint.get('name')!r} without a name, "
+                f"<parent link=...> or <child link=...>",
+            )
     for mesh in root.iter("mesh"):
         mesh_path = _resolve_mesh(mesh.get("filename", ""), path, packages, asset_root, f"{where} ({path.name})")
         if mesh_path.suffix.lower() not in MESH_FORMATS:
-            raise AssemblyError(where, f"mesh {mesh_path} in {path.name}: format {mesh_path.suffix or '(none)'} is "
-                                       f"not loadable (valid: {', '.join(MESH_FORMATS)})")
+            raise AssemblyError(
+                where,
+                f"mesh {mesh_path} in {path.name}: format {mesh_path.suffix or '(none)'} is "
+                f"not loadable (valid: {', '.join(MESH_FORMATS)})",
+            )
         if not mesh_path.is_file():
-            raise AssemblyError(where, f"mesh {mesh.get('filename')!r} in {path.name} not found (looked at {mesh_path})")
+            raise AssemblyError(
+                where, f"mesh {mesh.get('filename')!r} in {path.name} not found (looked at {mesh_path})"
+            )
         mesh.set("filename", str(mesh_path))
     return root
 
@@ -171,20 +186,22 @@ def assemble(model: "ModelSpec", asset_root: Path, robot_name: str) -> Path:
             raise AssemblyError(f"{where}.prefix", f"part repeats link names {sorted(clash)}: give it a prefix")
         if index > 0:
             if part.parent not in link_names:
-                raise AssemblyError(f"{where}.parent", f"no link named {part.parent!r} in the parts before it"
-                                                       f"{suggest(part.parent, link_names)}")
+                raise AssemblyError(
+                    f"{where}.parent",
+                    f"no link named {part.parent!r} in the parts before it{suggest(part.parent, link_names)}",
+                )
             child = _root_link(part_root, where)
-            robot.append(
-                _fixed_joint(f"{part.prefix}mount", part.parent, child, part.xyz, part.rpy)
-            )
+            robot.append(_fixed_joint(f"{part.prefix}mount", part.parent, child, part.xyz, part.rpy))
         for element in part_root:
             robot.append(element)
         link_names |= names
 
     for frame_name, frame in model.frames.items():
         if frame.parent not in link_names:
-            raise AssemblyError(f"robot.model.frames.{frame_name}.parent",
-                                f"no link named {frame.parent!r}{suggest(frame.parent, link_names)}")
+            raise AssemblyError(
+                f"robot.model.frames.{frame_name}.parent",
+                f"no link named {frame.parent!r}{suggest(frame.parent, link_names)}",
+            )
         if frame_name in link_names:
             raise AssemblyError(f"robot.model.frames.{frame_name}", f"the URDF already has a link {frame_name!r}")
         ET.SubElement(robot, "link", name=frame_name)

@@ -40,14 +40,21 @@ class CloningSettings:
         known = set(cls.__dataclass_fields__)
         unknown = sorted(set(block) - known)
         if unknown:
-            raise HyperparameterError(f"{where}: unknown name(s) {', '.join(unknown)}; it takes "
-                                      f"{', '.join(sorted(known))}")
+            raise HyperparameterError(
+                f"{where}: unknown name(s) {', '.join(unknown)}; it takes {', '.join(sorted(known))}"
+            )
         settings = cls(**block)
-        if not isinstance(settings.bc_weight, (int, float)) or isinstance(settings.bc_weight, bool) \
-                or settings.bc_weight < 0:
+        if (
+            not isinstance(settings.bc_weight, (int, float))
+            or isinstance(settings.bc_weight, bool)
+            or settings.bc_weight < 0
+        ):
             raise HyperparameterError(f"{where}: bc_weight={settings.bc_weight!r} must be a number >= 0")
-        if not isinstance(settings.bc_batch_size, int) or isinstance(settings.bc_batch_size, bool) \
-                or settings.bc_batch_size < 1:
+        if (
+            not isinstance(settings.bc_batch_size, int)
+            or isinstance(settings.bc_batch_size, bool)
+            or settings.bc_batch_size < 1
+        ):
             raise HyperparameterError(f"{where}: bc_batch_size={settings.bc_batch_size!r} must be an integer >= 1")
         if not isinstance(settings.q_filter, bool):
             raise HyperparameterError(f"{where}: q_filter={settings.q_filter!r} must be true or false")
@@ -70,9 +77,14 @@ def q_value(critic, observations, actions):
 class CloningTerm:
     """Mixed into SB3's SAC, TD3 or TQC (see `cloning_class`): the BC term's gradient joins each actor update."""
 
-    def __init__(self, *args, bc_weight: float = CloningSettings.bc_weight,
-                 bc_batch_size: int = CloningSettings.bc_batch_size, q_filter: bool = CloningSettings.q_filter,
-                 **kwargs):
+    def __init__(
+        self,
+        *args,
+        bc_weight: float = CloningSettings.bc_weight,
+        bc_batch_size: int = CloningSettings.bc_batch_size,
+        q_filter: bool = CloningSettings.q_filter,
+        **kwargs,
+    ):
         self.bc_weight, self.bc_batch_size, self.q_filter = float(bc_weight), int(bc_batch_size), bool(q_filter)
         self.demo_buffer = None
         super().__init__(*args, **kwargs)
@@ -99,8 +111,10 @@ class CloningTerm:
         keep = torch.ones(own.shape[0], device=own.device)
         if self.q_filter:
             with torch.no_grad():
-                keep = (q_value(self.critic, batch.observations, batch.actions)
-                        > q_value(self.critic, batch.observations, own)).float()
+                keep = (
+                    q_value(self.critic, batch.observations, batch.actions)
+                    > q_value(self.critic, batch.observations, own)
+                ).float()
         loss = self.bc_weight * (((own - batch.actions) ** 2).sum(dim=1) * keep).mean()
         loss.backward()
         self.logger.record_mean("train/bc_loss", loss.item())

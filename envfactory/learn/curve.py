@@ -41,9 +41,17 @@ class CurveWriter:
 
 def read_csv(path: Path) -> list[Evaluation]:
     with open(path, newline="") as handle:
-        return [Evaluation(int(r["timesteps"]), float(r["success_rate"]), float(r["mean_return"]),
-                           float(r["mean_length"]), int(r["episodes"]), float(r["wall_s"]))
-                for r in csv.DictReader(handle)]
+        return [
+            Evaluation(
+                int(r["timesteps"]),
+                float(r["success_rate"]),
+                float(r["mean_return"]),
+                float(r["mean_length"]),
+                int(r["episodes"]),
+                float(r["wall_s"]),
+            )
+            for r in csv.DictReader(handle)
+        ]
 
 
 AXES = {"timesteps": ("environment steps", 1.0), "wall_s": ("wall-clock time (min)", 1 / 60)}
@@ -60,8 +68,13 @@ def plot(curves: dict[str, list[Evaluation]], path: Path, title: str, x: str = "
     label_x, scale = AXES[x]
     figure, axis = plt.subplots(figsize=(6, 4))
     for label, rows in curves.items():
-        axis.plot([getattr(r, x) * scale for r in rows], [100 * r.success_rate for r in rows], marker="o",
-                  markersize=3, label=label)
+        axis.plot(
+            [getattr(r, x) * scale for r in rows],
+            [100 * r.success_rate for r in rows],
+            marker="o",
+            markersize=3,
+            label=label,
+        )
     axis.set_xlabel(label_x)
     axis.set_ylabel("success rate (%)")
     axis.set_ylim(-2, 102)

@@ -48,10 +48,16 @@ class Demonstrations:
 
     def summary(self) -> dict:
         """What model.json records, and what a resumed run checks the dataset against."""
-        return {"reference": self.reference, "dataset_id": self.dataset_id, "path": str(self.path),
-                "env_id": self.env_id, "env_kwargs": self.env_kwargs, "episodes": len(self.episodes),
-                "transitions": self.transitions,
-                "terminated": sum(bool(e.terminations[-1]) for e in self.episodes if len(e.actions))}
+        return {
+            "reference": self.reference,
+            "dataset_id": self.dataset_id,
+            "path": str(self.path),
+            "env_id": self.env_id,
+            "env_kwargs": self.env_kwargs,
+            "episodes": len(self.episodes),
+            "transitions": self.transitions,
+            "terminated": sum(bool(e.terminations[-1]) for e in self.episodes if len(e.actions)),
+        }
 
 
 def _data_folder(reference: str) -> Path:
@@ -64,13 +70,16 @@ def _data_folder(reference: str) -> Path:
         if (folder / "metadata.json").is_file():
             return folder
     if given.exists():
-        raise DemonstrationError(f"--demos {reference}: no Minari dataset in this folder (no metadata.json in it "
-                                 f"or in {given / 'data'})")
+        raise DemonstrationError(
+            f"--demos {reference}: no Minari dataset in this folder (no metadata.json in it or in {given / 'data'})"
+        )
     folder = get_dataset_path(reference) / "data"
     if not (folder / "metadata.json").is_file():
-        raise DemonstrationError(f"--demos {reference}: no such dataset in {get_dataset_path()} (Minari's folder; "
-                                 f"set MINARI_DATASETS_PATH or give the dataset's folder); write one with "
-                                 f"`envfactory collect ID`")
+        raise DemonstrationError(
+            f"--demos {reference}: no such dataset in {get_dataset_path()} (Minari's folder; "
+            f"set MINARI_DATASETS_PATH or give the dataset's folder); write one with "
+            f"`envfactory collect ID`"
+        )
     return folder
 
 
@@ -83,15 +92,31 @@ def open_demonstrations(reference: str) -> Demonstrations:
         dataset = MinariDataset(folder)
         raw = list(dataset.iterate_episodes())
     except Exception as exc:  # h5py, json or Minari's own checks: the dataset, not the run, is at fault
-        raise DemonstrationError(f"--demos {reference}: cannot read the dataset in {folder} "
-                                 f"({type(exc).__name__}: {exc})") from None
+        raise DemonstrationError(
+            f"--demos {reference}: cannot read the dataset in {folder} ({type(exc).__name__}: {exc})"
+        ) from None
     spec = dataset.spec.env_spec
     kwargs = {k: v for k, v in (spec.kwargs if spec else {}).items() if k != "env_id"}
-    episodes = [Episode(e.observations, np.asarray(e.actions, np.float32), np.asarray(e.rewards, np.float32),
-                        np.asarray(e.terminations, bool), np.asarray(e.truncations, bool)) for e in raw]
-    demonstrations = Demonstrations(reference, dataset.spec.dataset_id, folder.resolve(), spec.id if spec else None,
-                                    kwargs, dataset.observation_space, dataset.action_space,
-                                    [e for e in episodes if len(e.actions)])  # a goal met at reset teaches nothing
+    episodes = [
+        Episode(
+            e.observations,
+            np.asarray(e.actions, np.float32),
+            np.asarray(e.rewards, np.float32),
+            np.asarray(e.terminations, bool),
+            np.asarray(e.truncations, bool),
+        )
+        for e in raw
+    ]
+    demonstrations = Demonstrations(
+        reference,
+        dataset.spec.dataset_id,
+        folder.resolve(),
+        spec.id if spec else None,
+        kwargs,
+        dataset.observation_space,
+        dataset.action_space,
+        [e for e in episodes if len(e.actions)],
+    )  # a goal met at reset teaches nothing
     if not demonstrations.episodes:
         raise DemonstrationError(f"--demos {reference}: the dataset holds no transitions")
     return demonstrations
@@ -104,18 +129,26 @@ def check_matches(demonstrations: Demonstrations, env_id: str, env_kwargs: dict,
     if demonstrations.env_id != env_id:
         raise DemonstrationError(f"{name}: collected on {demonstrations.env_id}, but this run trains {env_id}")
     if demonstrations.env_kwargs != env_kwargs:
-        differ = sorted(k for k in set(demonstrations.env_kwargs) | set(env_kwargs)
-                        if demonstrations.env_kwargs.get(k, "unset") != env_kwargs.get(k, "unset"))
+        differ = sorted(
+            k
+            for k in set(demonstrations.env_kwargs) | set(env_kwargs)
+            if demonstrations.env_kwargs.get(k, "unset") != env_kwargs.get(k, "unset")
+        )
         flags = " ".join(f"-k {k}={v}" for k, v in env_kwargs.items())
         raise DemonstrationError(
             f"{name}: collected with kwargs {demonstrations.env_kwargs}, but this run makes {env_id} with "
             f"{env_kwargs} (they differ in {', '.join(differ)}); collect a matching dataset with "
-            f"`envfactory collect {env_id} {flags} --dataset-id NEW_ID`")
-    for what, recorded, own in (("observation", demonstrations.observation_space, env.observation_space),
-                                ("action", demonstrations.action_space, env.action_space)):
+            f"`envfactory collect {env_id} {flags} --dataset-id NEW_ID`"
+        )
+    for what, recorded, own in (
+        ("observation", demonstrations.observation_space, env.observation_space),
+        ("action", demonstrations.action_space, env.action_space),
+    ):
         if recorded != own:
-            raise DemonstrationError(f"{name}: its {what} space {recorded} is not the env's {own} (collected with "
-                                     f"another version of the spec?)")
+            raise DemonstrationError(
+                f"{name}: its {what} space {recorded} is not the env's {own} (collected with "
+                f"another version of the spec?)"
+            )
 
 
 def _row(observations, index: int):
@@ -134,9 +167,14 @@ def transitions(demonstrations: Demonstrations, scale_action) -> Iterator[tuple]
         for t in range(count):
             terminated = bool(episode.terminations[t])
             truncated = not terminated and (bool(episode.truncations[t]) or t == count - 1)
-            yield (_row(episode.observations, t), _row(episode.observations, t + 1), actions[t][None],
-                   np.array([episode.rewards[t]], np.float32), np.array([terminated or truncated]),
-                   [{"TimeLimit.truncated": truncated}])  # SB3's flag: bootstrap through a time limit
+            yield (
+                _row(episode.observations, t),
+                _row(episode.observations, t + 1),
+                actions[t][None],
+                np.array([episode.rewards[t]], np.float32),
+                np.array([terminated or truncated]),
+                [{"TimeLimit.truncated": truncated}],
+            )  # SB3's flag: bootstrap through a time limit
 
 
 def fill(buffer, demonstrations: Demonstrations, scale_action) -> int:
@@ -154,7 +192,8 @@ def cloning_buffer(demonstrations: Demonstrations, observation_space, action_spa
     from stable_baselines3.common.buffers import DictReplayBuffer, ReplayBuffer
 
     kind = DictReplayBuffer if isinstance(observation_space, spaces.Dict) else ReplayBuffer
-    buffer = kind(demonstrations.transitions, observation_space, action_space, device=device,
-                  handle_timeout_termination=False)
+    buffer = kind(
+        demonstrations.transitions, observation_space, action_space, device=device, handle_timeout_termination=False
+    )
     fill(buffer, demonstrations, scale_action)
     return buffer

@@ -27,10 +27,10 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-from envfactory.registration import registry
 from envfactory.envs.episodes import EpisodeResult, iter_episodes
 from envfactory.experts import make_policy
 from envfactory.learn import extra
+from envfactory.registration import registry
 from envfactory.schema.folders import folder_of
 from envfactory.version import __version__
 
@@ -56,16 +56,28 @@ class EpisodeRecorder(gym.Wrapper):
 
     def reset(self, *, seed=None, options=None):
         observation, info = self.env.reset(seed=seed, options=options)
-        self._current = {"seed": seed, "observations": [observation], "actions": [], "rewards": [],
-                         "terminations": [], "truncations": [], "successes": [bool(info["is_success"])]}
+        self._current = {
+            "seed": seed,
+            "observations": [observation],
+            "actions": [],
+            "rewards": [],
+            "terminations": [],
+            "truncations": [],
+            "successes": [bool(info["is_success"])],
+        }
         return observation, info
 
     def step(self, action):
         observation, reward, terminated, truncated, info = self.env.step(action)
         episode = self._current
-        for key, value in (("observations", observation), ("actions", np.asarray(action, np.float32)),
-                           ("rewards", float(reward)), ("terminations", bool(terminated)),
-                           ("truncations", bool(truncated)), ("successes", bool(info["is_success"]))):
+        for key, value in (
+            ("observations", observation),
+            ("actions", np.asarray(action, np.float32)),
+            ("rewards", float(reward)),
+            ("terminations", bool(terminated)),
+            ("truncations", bool(truncated)),
+            ("successes", bool(info["is_success"])),
+        ):
             episode[key].append(value)
         if terminated or truncated:
             self.episodes.append(episode)
@@ -100,10 +112,15 @@ class Recording:
     def merged(parts: list["Recording"]) -> "Recording":
         """Recordings of disjoint seed ranges as one, in seed order whatever order they came in, each
         episode numbered by its place in it: the recording of one process running every seed in turn."""
-        pairs = sorted((pair for part in parts for pair in zip(part.episodes, part.results)),
-                       key=lambda pair: pair[1].seed)
-        return Recording(parts[0].env_spec, parts[0].expert, [e for e, _ in pairs],
-                         [replace(r, index=index) for index, (_, r) in enumerate(pairs)])
+        pairs = sorted(
+            (pair for part in parts for pair in zip(part.episodes, part.results)), key=lambda pair: pair[1].seed
+        )
+        return Recording(
+            parts[0].env_spec,
+            parts[0].expert,
+            [e for e, _ in pairs],
+            [replace(r, index=index) for index, (_, r) in enumerate(pairs)],
+        )
 
 
 def record(env_id: str, seeds: range, env_kwargs: dict | None = None, on_episode=None) -> Recording:
@@ -122,10 +139,19 @@ def record(env_id: str, seeds: range, env_kwargs: dict | None = None, on_episode
         env.close()
 
 
-def collect(env_id: str, episodes: int, dataset_id: str | None = None, seed: int = 0,
-            env_kwargs: dict | None = None, data_path: Path | None = None, overwrite: bool = False,
-            on_episode=None, recorder=record, author: str | None = None,
-            author_email: str | None = None) -> Collected:
+def collect(
+    env_id: str,
+    episodes: int,
+    dataset_id: str | None = None,
+    seed: int = 0,
+    env_kwargs: dict | None = None,
+    data_path: Path | None = None,
+    overwrite: bool = False,
+    on_episode=None,
+    recorder=record,
+    author: str | None = None,
+    author_email: str | None = None,
+) -> Collected:
     """Record `episodes` expert episodes (seeds seed, seed + 1, ...) and write them as a Minari dataset.
     `recorder` runs the episodes (`record`'s signature); envfactory.cluster passes one that spreads them
     over Ray workers, and the dataset is the same."""
@@ -145,29 +171,42 @@ def collect(env_id: str, episodes: int, dataset_id: str | None = None, seed: int
         shutil.rmtree(folder)
     recording = recorder(env_id, range(seed, seed + episodes), env_kwargs, on_episode)
     successes = sum(int(result.success) for result in recording.results)
-    buffers = [EpisodeBuffer(id=index, seed=e["seed"], observations=_stacked(e["observations"]),
-                             actions=e["actions"], rewards=e["rewards"], terminations=e["terminations"],
-                             truncations=e["truncations"],
-                             # per step, so a learner can tell a demonstration that ends successful
-                             infos={"is_success": np.array(e["successes"])})
-               for index, e in enumerate(recording.episodes)]
+    buffers = [
+        EpisodeBuffer(
+            id=index,
+            seed=e["seed"],
+            observations=_stacked(e["observations"]),
+            actions=e["actions"],
+            rewards=e["rewards"],
+            terminations=e["terminations"],
+            truncations=e["truncations"],
+            # per step, so a learner can tell a demonstration that ends successful
+            infos={"is_success": np.array(e["successes"])},
+        )
+        for index, e in enumerate(recording.episodes)
+    ]
     try:
         with warnings.catch_warnings():
             for field, given in (("author", author), ("author_email", author_email)):
                 if given is None:  # who runs collect is theirs to say (--author): never guessed, left out
                     warnings.filterwarnings("ignore", message=f"`{field}` is set to None", category=UserWarning)
             dataset = minari.create_dataset_from_buffers(
-                dataset_id, buffers, env=recording.env_spec, eval_env=recording.env_spec,  # evaluate where collected
-                author=author, author_email=author_email,
+                dataset_id,
+                buffers,
+                env=recording.env_spec,
+                eval_env=recording.env_spec,  # evaluate where collected
+                author=author,
+                author_email=author_email,
                 code_permalink=f"envfactory {__version__}, envfactory/learn/demonstrations.py (collect)",
                 algorithm_name=f"envfactory scripted expert ({recording.expert})",
                 description=f"{len(buffers)} episodes of the scripted expert on {env_id} with kwargs "
-                            f"{env_kwargs or {}}, seeds {seed}..{seed + len(buffers) - 1}, each run until the env "
-                            f"ends it (terminated or truncated); {successes} reach the goal, "
-                            f"{sum(e['successes'][-1] for e in recording.episodes)} end successful "
-                            f"(infos['is_success'] per step). Recover the env with "
-                            f"envfactory.learn.demonstrations.load_env(dataset).",
-                data_format="hdf5")
+                f"{env_kwargs or {}}, seeds {seed}..{seed + len(buffers) - 1}, each run until the env "
+                f"ends it (terminated or truncated); {successes} reach the goal, "
+                f"{sum(e['successes'][-1] for e in recording.episodes)} end successful "
+                f"(infos['is_success'] per step). Recover the env with "
+                f"envfactory.learn.demonstrations.load_env(dataset).",
+                data_format="hdf5",
+            )
         spec_folder = _user_spec_folder(env_id)
         if spec_folder is not None:
             dataset.storage.update_metadata({SPEC_FOLDER_KEY: spec_folder})
@@ -199,12 +238,16 @@ def register_dataset_env(dataset) -> str:
     folder = dataset.storage.metadata.get(SPEC_FOLDER_KEY)
     where = f"dataset {dataset.id}: its env {env_id}"
     if folder is None:
-        raise UnrecoverableEnv(f"{where} is not registered and the dataset records no spec folder; register the "
-                               f"folder that declares it (envfactory.register_specs(PATH), `envfactory register "
-                               f"PATH` or {registry.SPEC_PATH_VARIABLE}) and load it again")
+        raise UnrecoverableEnv(
+            f"{where} is not registered and the dataset records no spec folder; register the "
+            f"folder that declares it (envfactory.register_specs(PATH), `envfactory register "
+            f"PATH` or {registry.SPEC_PATH_VARIABLE}) and load it again"
+        )
     if not Path(folder).is_dir():
-        raise UnrecoverableEnv(f"{where} comes from the spec folder {folder}, which no longer exists; register the "
-                               f"folder where it is now (envfactory.register_specs(PATH)) and load it again")
+        raise UnrecoverableEnv(
+            f"{where} comes from the spec folder {folder}, which no longer exists; register the "
+            f"folder where it is now (envfactory.register_specs(PATH)) and load it again"
+        )
     _, problems = registry.register_folder(folder)
     if env_id not in registry.records():
         found = "; ".join(registry.one_line(problem) for problem in problems) or "no family declares it"

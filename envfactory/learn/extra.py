@@ -24,5 +24,6 @@ def missing(modules: dict[str, str]) -> list[str]:
 def require(modules: dict[str, str], what: str) -> None:
     absent = missing(modules)
     if absent:
-        raise MissingExtra(f"{what} needs the [train] extra ({', '.join(absent)} not installed); "
-                           f"install it with: {INSTALL_HINT}")
+        raise MissingExtra(
+            f"{what} needs the [train] extra ({', '.join(absent)} not installed); install it with: {INSTALL_HINT}"
+        )

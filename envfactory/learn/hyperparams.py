@@ -82,8 +82,9 @@ def _read(path: Path) -> dict:
         where = f"{path}:{mark.line + 1}" if mark else str(path)
         raise HyperparameterError(f"{where}: not valid YAML ({getattr(exc, 'problem', exc)})") from None
     if not isinstance(data, dict) or any(not isinstance(v, dict) for v in data.values()):
-        raise HyperparameterError(f"{path}: must map keys (default, a family or an env ID) to blocks of "
-                                  f"hyperparameters")
+        raise HyperparameterError(
+            f"{path}: must map keys (default, a family or an env ID) to blocks of hyperparameters"
+        )
     return _numbers(data)
 
 
@@ -108,8 +109,9 @@ def parse_overrides(items: list[str]) -> dict:
         try:
             value = yaml.safe_load(text)
         except yaml.YAMLError as exc:
-            raise HyperparameterError(f"hyperparameter {item!r}: the value is not valid YAML "
-                                      f"({str(exc).splitlines()[0]})") from None
+            raise HyperparameterError(
+                f"hyperparameter {item!r}: the value is not valid YAML ({str(exc).splitlines()[0]})"
+            ) from None
         target = block
         *parents, leaf = name.split(".")
         for parent in parents:

@@ -32,8 +32,11 @@ def evaluate(env, policy, episodes: int) -> tuple[float, float, float]:
 
     results = run_episodes(env, policy, episodes, seed=EVAL_SEED)
     n = len(results)
-    return (sum(r.success for r in results) / n, sum(r.episode_return for r in results) / n,
-            sum(r.length for r in results) / n)
+    return (
+        sum(r.success for r in results) / n,
+        sum(r.episode_return for r in results) / n,
+        sum(r.length for r in results) / n,
+    )
 
 
 @dataclass
@@ -135,8 +138,12 @@ def learn(run: Part, progress_bar: bool, on_evaluation) -> TrainResult:
         model.set_logger(logger)
         record.begin_part(model.num_timesteps, run.target)
         with _sigterm_stops():
-            model.learn(run.target - model.num_timesteps, callback=EvaluateEvery(), progress_bar=progress_bar,
-                        reset_num_timesteps=not run.resumed)
+            model.learn(
+                run.target - model.num_timesteps,
+                callback=EvaluateEvery(),
+                progress_bar=progress_bar,
+                reset_num_timesteps=not run.resumed,
+            )
             if not run.writer.rows or run.writer.rows[-1].timesteps != model.num_timesteps:
                 evaluation(model.num_timesteps)
             checkpoint(with_buffer=True)

@@ -14,8 +14,11 @@ from envfactory.learn import extra
 from envfactory.learn.bc import CloningSettings, cloning_class
 from envfactory.learn.hyperparams import HyperparameterError, Hyperparameters
 
-ALGORITHM_CLASSES = {"sac": ("stable_baselines3", "SAC"), "td3": ("stable_baselines3", "TD3"),
-                     "tqc": ("sb3_contrib", "TQC")}
+ALGORITHM_CLASSES = {
+    "sac": ("stable_baselines3", "SAC"),
+    "td3": ("stable_baselines3", "TD3"),
+    "tqc": ("sb3_contrib", "TQC"),
+}
 MODEL_FILE, NORMALIZER_FILE = "model.zip", "vecnormalize.pkl"
 
 
@@ -57,12 +60,14 @@ def _check_types(cls, hyper: Hyperparameters, kwargs: dict) -> None:
         takes_text = str in choices or wanted in (None, inspect.Parameter.empty)
         number = isinstance(value, (int, float)) and not isinstance(value, bool)
         if wanted in (int, float) and not number or (isinstance(value, str) and not takes_text):
-            raise HyperparameterError(f"{hyper.algo}: hyperparameter {name} must be a number, got {value!r} "
-                                      f"({type(value).__name__}; {where})")
+            raise HyperparameterError(
+                f"{hyper.algo}: hyperparameter {name} must be a number, got {value!r} ({type(value).__name__}; {where})"
+            )
         if wanted is int and isinstance(value, float):
             if not value.is_integer():
-                raise HyperparameterError(f"{hyper.algo}: hyperparameter {name} must be a whole number, got "
-                                          f"{value!r} ({where})")
+                raise HyperparameterError(
+                    f"{hyper.algo}: hyperparameter {name} must be a whole number, got {value!r} ({where})"
+                )
             kwargs[name] = int(value)  # 1e6 written for a count
 
 
@@ -71,9 +76,11 @@ def _algorithm_kwargs(cls, hyper: Hyperparameters, env) -> dict:
     accepted = set(inspect.signature(cls.__init__).parameters)
     unknown = sorted(set(kwargs) - accepted - {"noise_std"})
     if unknown:
-        raise HyperparameterError(f"{hyper.algo}: unknown hyperparameter(s) {', '.join(unknown)} (from "
-                                  f"{'; '.join(hyper.sources)}); {cls.__name__} takes "
-                                  f"{', '.join(sorted(accepted - {'self', 'env', 'policy'}))}")
+        raise HyperparameterError(
+            f"{hyper.algo}: unknown hyperparameter(s) {', '.join(unknown)} (from "
+            f"{'; '.join(hyper.sources)}); {cls.__name__} takes "
+            f"{', '.join(sorted(accepted - {'self', 'env', 'policy'}))}"
+        )
     _check_types(cls, hyper, kwargs)
     noise_std = kwargs.pop("noise_std", None)
     if noise_std is not None:
@@ -88,8 +95,9 @@ def _algorithm_kwargs(cls, hyper: Hyperparameters, env) -> dict:
     return kwargs
 
 
-def make_model(env_id: str, hyper: Hyperparameters, env, seed: int, limit: int | None,
-               cloning: CloningSettings | None = None):
+def make_model(
+    env_id: str, hyper: Hyperparameters, env, seed: int, limit: int | None, cloning: CloningSettings | None = None
+):
     """The algorithm on `env` (a gymnasium env, or a VecEnv around one), and the kwargs its constructor got;
     `limit` is the episode limit; with `cloning`, the algorithm carries the behaviour-cloning term."""
     from stable_baselines3 import HerReplayBuffer
@@ -101,9 +109,11 @@ def make_model(env_id: str, hyper: Hyperparameters, env, seed: int, limit: int |
     if goal_env:
         if limit and kwargs.get("learning_starts", 100) <= limit:
             # HER samples goals from finished episodes only: SB3 would fail at the first update
-            raise HyperparameterError(f"{hyper.algo}: learning_starts={kwargs.get('learning_starts', 100)} must "
-                                      f"exceed the episode limit of {env_id} ({limit} steps) with HER (from "
-                                      f"{'; '.join(hyper.sources)})")
+            raise HyperparameterError(
+                f"{hyper.algo}: learning_starts={kwargs.get('learning_starts', 100)} must "
+                f"exceed the episode limit of {env_id} ({limit} steps) with HER (from "
+                f"{'; '.join(hyper.sources)})"
+            )
         kwargs["replay_buffer_class"] = HerReplayBuffer
         kwargs["replay_buffer_kwargs"] = dict(hyper.trainer("her") or {})
     if cloning is not None:
@@ -130,8 +140,10 @@ def load_policy(path: Path, env, algo: str | None = None) -> ModelPolicy:
     extra.require(extra.TRAIN_MODULES, "a --policy model")
     algo = (algo or read_meta(path).get("algo") or "").lower()
     if algo not in ALGORITHM_CLASSES:
-        raise ValueError(f"{path}: which algorithm trained it? no {path.with_suffix('.json').name} beside it; "
-                         f"pass --algo ({', '.join(ALGORITHM_CLASSES)})")
+        raise ValueError(
+            f"{path}: which algorithm trained it? no {path.with_suffix('.json').name} beside it; "
+            f"pass --algo ({', '.join(ALGORITHM_CLASSES)})"
+        )
     normalizer = None
     if (path.parent / NORMALIZER_FILE).is_file():
         from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize

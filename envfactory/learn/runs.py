@@ -49,8 +49,10 @@ def claim(folder: Path) -> bool:
         return True
     except FileExistsError:
         if _taken(folder):
-            raise RunFolderError(f"{folder}: holds an earlier run, which is never overwritten; choose another "
-                                 f"--out, or continue it with --resume {folder}") from None
+            raise RunFolderError(
+                f"{folder}: holds an earlier run, which is never overwritten; choose another "
+                f"--out, or continue it with --resume {folder}"
+            ) from None
         return False
 
 
@@ -117,8 +119,15 @@ class RunRecord:
         return self.data["parts"]
 
     def begin_part(self, from_timesteps: int, target: int) -> None:
-        self.parts.append({"started": now(), "from_timesteps": from_timesteps, "target_timesteps": target,
-                           "status": "running", "versions": versions()})
+        self.parts.append(
+            {
+                "started": now(),
+                "from_timesteps": from_timesteps,
+                "target_timesteps": target,
+                "status": "running",
+                "versions": versions(),
+            }
+        )
         self.save()
 
     def progress(self, timesteps: int, trained_s: float) -> None:

@@ -20,14 +20,25 @@ from envfactory.learn.curve import CurveWriter, Evaluation
 from envfactory.learn.demo_replay import check_matches, cloning_buffer, fill, open_demonstrations
 from envfactory.learn.hyperparams import load
 from envfactory.learn.loop import BUFFER_FILE, CSV_FILE, PNG_FILE, WALL_PNG_FILE, Part, TrainResult, learn
-from envfactory.learn.models import (MODEL_FILE, NORMALIZER_FILE, algorithm_class, load_policy, make_model,
-                                     read_meta)
+from envfactory.learn.models import MODEL_FILE, NORMALIZER_FILE, algorithm_class, load_policy, make_model, read_meta
 from envfactory.learn.runs import RECORD_FILE, RunFolderError, RunRecord, claim
 
 META_FILE = RECORD_FILE
 # what the CLI and `run --policy` take from here
-__all__ = ["train", "resume", "load_policy", "read_meta", "TrainResult", "MODEL_FILE", "META_FILE", "CSV_FILE",
-           "PNG_FILE", "WALL_PNG_FILE", "BUFFER_FILE", "NORMALIZER_FILE"]
+__all__ = [
+    "train",
+    "resume",
+    "load_policy",
+    "read_meta",
+    "TrainResult",
+    "MODEL_FILE",
+    "META_FILE",
+    "CSV_FILE",
+    "PNG_FILE",
+    "WALL_PNG_FILE",
+    "BUFFER_FILE",
+    "NORMALIZER_FILE",
+]
 # SB3 warns when a loaded HER buffer ends inside an episode. A saved run always does (it stops at a step count,
 # not at an episode's end), and a resumed run starts a new episode, so closing that one as truncated is right.
 TRUNCATED_EPISODE_WARNING = r"The last trajectory in the replay buffer will be truncated"
@@ -38,21 +49,53 @@ def _recorded_kwargs(kwargs: dict) -> dict:
     return {k: (v.__name__ if isinstance(v, type) else v) for k, v in kwargs.items()}
 
 
-def _command(env_id: str, algo: str, seed: int, steps: int, overrides, cli_kwargs: dict, eval_every: int,
-             eval_episodes: int, demos: str | None) -> str:
+def _command(
+    env_id: str,
+    algo: str,
+    seed: int,
+    steps: int,
+    overrides,
+    cli_kwargs: dict,
+    eval_every: int,
+    eval_episodes: int,
+    demos: str | None,
+) -> str:
     """The `envfactory train` command that repeats the run (the settings it resolves to are recorded too)."""
-    words = ["envfactory", "train", env_id, "--algo", algo, "--seed", str(seed), "--steps", str(steps),
-             "--eval-every", str(eval_every), "--eval-episodes", str(eval_episodes)]
+    words = [
+        "envfactory",
+        "train",
+        env_id,
+        "--algo",
+        algo,
+        "--seed",
+        str(seed),
+        "--steps",
+        str(steps),
+        "--eval-every",
+        str(eval_every),
+        "--eval-episodes",
+        str(eval_episodes),
+    ]
     words += [w for item in overrides for w in ("-p", item)]
     words += [w for k, v in cli_kwargs.items() for w in ("-k", f"{k}={v}")]
     words += ["--demos", demos] if demos else []
     return shlex.join(words)
 
 
-def train(env_id: str, folder: Path, algo: str = "sac", seed: int = 0, steps: int | None = None,
-          overrides: tuple[str, ...] = (), env_kwargs: dict | None = None, eval_every: int | None = None,
-          eval_episodes: int | None = None, demos: str | None = None, progress_bar: bool = True,
-          on_evaluation: Callable[[Evaluation], None] | None = None) -> TrainResult:
+def train(
+    env_id: str,
+    folder: Path,
+    algo: str = "sac",
+    seed: int = 0,
+    steps: int | None = None,
+    overrides: tuple[str, ...] = (),
+    env_kwargs: dict | None = None,
+    eval_every: int | None = None,
+    eval_episodes: int | None = None,
+    demos: str | None = None,
+    progress_bar: bool = True,
+    on_evaluation: Callable[[Evaluation], None] | None = None,
+) -> TrainResult:
     """A new run in `folder`, which must be free (runs.fresh_folder picks one)."""
     extra.require(extra.TRAIN_MODULES, "envfactory train")
     extra.require(extra.PLOT_MODULES, "the learning-curve plot")
@@ -86,25 +129,57 @@ def train(env_id: str, folder: Path, algo: str = "sac", seed: int = 0, steps: in
             _attach_demonstrations(model, demonstrations, seed_replay=True)
             demo_summary = {**demonstrations.summary(), "cloning": cloning.as_dict()}
         created = claim(folder)  # last, after everything that can refuse the settings
-        record = RunRecord(folder, {
-            "env_id": env_id, "algo": hyper.algo, "seed": seed, "steps": steps, "eval_every": eval_every,
-            "eval_episodes": eval_episodes, "env_kwargs": kwargs, "kwargs": dict(env_kwargs or {}),
-            "overrides": list(overrides), "hyperparameters": hyper.values, "sources": hyper.sources,
-            "algorithm_kwargs": _recorded_kwargs(constructor_kwargs), "normalize": normalizer is not None,
-            "demos": demo_summary,
-            "command": _command(env_id, hyper.algo, seed, steps, overrides, dict(env_kwargs or {}), eval_every,
-                                eval_episodes, demos),
-            "timesteps": 0, "trained_s": 0.0, "tensorboard": None, "parts": []})
-        run = Part(folder, record, model, normalizer, eval_env, steps, eval_every, eval_episodes,
-                   CurveWriter(folder / CSV_FILE), resumed=False, created=created)
+        record = RunRecord(
+            folder,
+            {
+                "env_id": env_id,
+                "algo": hyper.algo,
+                "seed": seed,
+                "steps": steps,
+                "eval_every": eval_every,
+                "eval_episodes": eval_episodes,
+                "env_kwargs": kwargs,
+                "kwargs": dict(env_kwargs or {}),
+                "overrides": list(overrides),
+                "hyperparameters": hyper.values,
+                "sources": hyper.sources,
+                "algorithm_kwargs": _recorded_kwargs(constructor_kwargs),
+                "normalize": normalizer is not None,
+                "demos": demo_summary,
+                "command": _command(
+                    env_id, hyper.algo, seed, steps, overrides, dict(env_kwargs or {}), eval_every, eval_episodes, demos
+                ),
+                "timesteps": 0,
+                "trained_s": 0.0,
+                "tensorboard": None,
+                "parts": [],
+            },
+        )
+        run = Part(
+            folder,
+            record,
+            model,
+            normalizer,
+            eval_env,
+            steps,
+            eval_every,
+            eval_episodes,
+            CurveWriter(folder / CSV_FILE),
+            resumed=False,
+            created=created,
+        )
         return learn(run, progress_bar, on_evaluation)
     finally:
         env.close()
         eval_env.close()
 
 
-def resume(folder: Path, steps: int | None = None, progress_bar: bool = True,
-           on_evaluation: Callable[[Evaluation], None] | None = None) -> TrainResult:
+def resume(
+    folder: Path,
+    steps: int | None = None,
+    progress_bar: bool = True,
+    on_evaluation: Callable[[Evaluation], None] | None = None,
+) -> TrainResult:
     """Continue the run in `folder` up to `steps` in all (default: the run's own target), with its model,
     replay buffer, observation statistics, demonstrations and curve; its settings stay as recorded."""
     extra.require(extra.TRAIN_MODULES, "envfactory train --resume")
@@ -116,15 +191,23 @@ def resume(folder: Path, steps: int | None = None, progress_bar: bool = True,
     data = record.data
     for name in (MODEL_FILE, BUFFER_FILE) + ((NORMALIZER_FILE,) if data.get("normalize") else ()):
         if not (folder / name).is_file():
-            why = (" (a run saves it when it ends, is stopped with Ctrl-C or SIGTERM, or fails after its first "
-                   "evaluation; this one was killed before it could)") if name == BUFFER_FILE else ""
+            why = (
+                (
+                    " (a run saves it when it ends, is stopped with Ctrl-C or SIGTERM, or fails after its first "
+                    "evaluation; this one was killed before it could)"
+                )
+                if name == BUFFER_FILE
+                else ""
+            )
             raise RunFolderError(f"{folder}: no {name}, so the run cannot continue{why}")
     target = int(steps or data.get("steps") or 0)
     done = int(data.get("timesteps") or 0)
     if data.get("replay_buffer_timesteps") != done:
-        raise RunFolderError(f"{folder}: its {BUFFER_FILE} was saved at {data.get('replay_buffer_timesteps')} steps "
-                             f"but its model at {done} (the run was killed before it could save the buffer), so "
-                             f"the run cannot continue as it was")
+        raise RunFolderError(
+            f"{folder}: its {BUFFER_FILE} was saved at {data.get('replay_buffer_timesteps')} steps "
+            f"but its model at {done} (the run was killed before it could save the buffer), so "
+            f"the run cannot continue as it was"
+        )
     if target <= done:
         raise RunFolderError(f"{folder}: the run is at {done} steps already; pass --steps above {done} to go on")
     torch.set_num_threads(1)
@@ -149,8 +232,18 @@ def resume(folder: Path, steps: int | None = None, progress_bar: bool = True,
         # a stream of its own per part, reproducible from the seed and the step it resumes at
         model.set_random_seed(int(data["seed"]) + model.num_timesteps)
         data["steps"] = target
-        run = Part(folder, record, model, normalizer, eval_env, target, int(data["eval_every"]),
-                   int(data["eval_episodes"]), CurveWriter(folder / CSV_FILE, resume=True), resumed=True)
+        run = Part(
+            folder,
+            record,
+            model,
+            normalizer,
+            eval_env,
+            target,
+            int(data["eval_every"]),
+            int(data["eval_episodes"]),
+            CurveWriter(folder / CSV_FILE, resume=True),
+            resumed=True,
+        )
         return learn(run, progress_bar, on_evaluation)
     finally:
         env.close()
@@ -162,14 +255,19 @@ def _attach_demonstrations(model, demonstrations, seed_replay: bool) -> None:
     if seed_replay:
         fill(model.replay_buffer, demonstrations, model.policy.scale_action)
     if model.bc_weight > 0:
-        model.attach_demonstrations(cloning_buffer(demonstrations, model.observation_space, model.action_space,
-                                                   model.policy.scale_action, model.device))
+        model.attach_demonstrations(
+            cloning_buffer(
+                demonstrations, model.observation_space, model.action_space, model.policy.scale_action, model.device
+            )
+        )
 
 
 def _same_dataset(demonstrations, recorded: dict, folder: Path) -> None:
     found = demonstrations.summary()
     changed = [k for k in ("dataset_id", "episodes", "transitions") if found[k] != recorded.get(k)]
     if changed:
-        raise RunFolderError(f"{folder}: the run learned from {recorded.get('path')} ({recorded.get('episodes')} "
-                             f"episodes, {recorded.get('transitions')} transitions), which now differs in "
-                             f"{', '.join(changed)}")
+        raise RunFolderError(
+            f"{folder}: the run learned from {recorded.get('path')} ({recorded.get('episodes')} "
+            f"episodes, {recorded.get('transitions')} transitions), which now differs in "
+            f"{', '.join(changed)}"
+        )

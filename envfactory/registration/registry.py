@@ -83,21 +83,34 @@ def scan_family(path: Path, search_roots: tuple[Path, ...], source: str = CALL_S
     except OSError as exc:
         raise SpecError([Problem("", f"cannot read: {exc.strerror}", str(path))], path.stem) from None
     if size > MAX_SPEC_BYTES:
-        raise SpecError([Problem("", f"the file is {size / 1024:.0f} KiB; a spec file may hold at most "
-                                     f"{MAX_SPEC_BYTES // 1024} KiB (split the family)", str(path), 1)], path.stem)
+        raise SpecError(
+            [
+                Problem(
+                    "",
+                    f"the file is {size / 1024:.0f} KiB; a spec file may hold at most "
+                    f"{MAX_SPEC_BYTES // 1024} KiB (split the family)",
+                    str(path),
+                    1,
+                )
+            ],
+            path.stem,
+        )
     sources = SourceMap()
     sources.record_file(path, "")  # also refuses duplicate keys, which a plain load would merge silently
     data = load_plain(path)
     family = FamilyFile(path, search_roots)
     raw = data.get("registration")
     if raw is None:
-        raise SpecError([Problem("registration", "missing: a family must declare the IDs it registers",
-                                 str(path), 1)], path.stem)
+        raise SpecError(
+            [Problem("registration", "missing: a family must declare the IDs it registers", str(path), 1)], path.stem
+        )
     found = Findings(sources)
     ids = raw.get("ids") if isinstance(raw, dict) else None
     if isinstance(ids, dict) and len(ids) > MAX_IDS_PER_FAMILY:
-        found.add("registration.ids", f"{len(ids)} IDs; a family may declare at most {MAX_IDS_PER_FAMILY} (split "
-                                      f"it into several files)")
+        found.add(
+            "registration.ids",
+            f"{len(ids)} IDs; a family may declare at most {MAX_IDS_PER_FAMILY} (split it into several files)",
+        )
         found.raise_if_any(path.stem)
     try:
         registration = Registration.model_validate(raw)
@@ -107,13 +120,23 @@ def scan_family(path: Path, search_roots: tuple[Path, ...], source: str = CALL_S
         found.raise_if_any(path.stem)
     for env_id in registration.ids:
         if not isinstance(env_id, str) or not ENV_ID_RE.fullmatch(env_id):
-            found.add(f"registration.ids.{env_id}", f"{env_id!r} is not a valid gymnasium ID: use letters, digits, "
-                                                    f"'_', '-', '.', ':' and an optional 'ns/' prefix and '-v<N>' "
-                                                    f"suffix, e.g. 'MyReach-v0'")
+            found.add(
+                f"registration.ids.{env_id}",
+                f"{env_id!r} is not a valid gymnasium ID: use letters, digits, "
+                f"'_', '-', '.', ':' and an optional 'ns/' prefix and '-v<N>' "
+                f"suffix, e.g. 'MyReach-v0'",
+            )
     found.raise_if_any(path.stem)
     return [
-        IdRecord(env_id, family, entry.backend, entry.goal_env, tuple(sorted(entry.kwargs.items())),
-                 registration.max_episode_steps, source)
+        IdRecord(
+            env_id,
+            family,
+            entry.backend,
+            entry.goal_env,
+            tuple(sorted(entry.kwargs.items())),
+            registration.max_episode_steps,
+            source,
+        )
         for env_id, entry in registration.ids.items()
     ]
 
@@ -124,12 +147,16 @@ def clash(record: IdRecord, pending: dict[str, IdRecord]) -> Problem | None:
     if existing is not None and existing.family.path.resolve() != record.family.path.resolve():
         file, line = _location(existing.family.path, record.env_id)
         here = _id_problem(record.family.path, record.env_id, "")
-        return Problem(here.path, f"duplicate env ID {record.env_id!r}: already declared at {file}:{line}",
-                       here.file, here.line)
+        return Problem(
+            here.path, f"duplicate env ID {record.env_id!r}: already declared at {file}:{line}", here.file, here.line
+        )
     if existing is None and record.env_id in gym.registry:
         entry = gym.registry[record.env_id].entry_point
-        return _id_problem(record.family.path, record.env_id,
-                           f"duplicate env ID {record.env_id!r}: gymnasium already has it (entry point {entry})")
+        return _id_problem(
+            record.family.path,
+            record.env_id,
+            f"duplicate env ID {record.env_id!r}: gymnasium already has it (entry point {entry})",
+        )
     return None
 
 
@@ -144,10 +171,14 @@ def _remembered_problem(path: Path, known: dict, stats) -> SpecError | None:
     if remembered is None or remembered[0]:
         return None
     problem = remembered[1]
-    message = (f"{problem.get('message', 'invalid')} (found by an earlier validate or make; it registers again once "
-               f"its folder changes or `envfactory validate {path}` passes)")
-    return SpecError([Problem(str(problem.get("path") or ""), message, problem.get("file") or str(path),
-                              problem.get("line"))], path.stem)
+    message = (
+        f"{problem.get('message', 'invalid')} (found by an earlier validate or make; it registers again once "
+        f"its folder changes or `envfactory validate {path}` passes)"
+    )
+    return SpecError(
+        [Problem(str(problem.get("path") or ""), message, problem.get("file") or str(path), problem.get("line"))],
+        path.stem,
+    )
 
 
 def _register_family(records: list[IdRecord]) -> None:
@@ -155,8 +186,12 @@ def _register_family(records: list[IdRecord]) -> None:
     done = []
     try:
         for record in records:
-            gym.register(id=record.env_id, entry_point=ENTRY_POINT, kwargs={"env_id": record.env_id},
-                         max_episode_steps=record.max_episode_steps)
+            gym.register(
+                id=record.env_id,
+                entry_point=ENTRY_POINT,
+                kwargs={"env_id": record.env_id},
+                max_episode_steps=record.max_episode_steps,
+            )
             done.append(record)
             _records[record.env_id] = record
     except Exception as exc:  # gymnasium's own checks: undo the family
@@ -164,12 +199,14 @@ def _register_family(records: list[IdRecord]) -> None:
             gym.registry.pop(record.env_id, None)
             _records.pop(record.env_id, None)
         path = records[0].family.path
-        raise SpecError([Problem("registration.ids", f"gymnasium refused the IDs: {exc}", str(path))],
-                        path.stem) from None
+        raise SpecError(
+            [Problem("registration.ids", f"gymnasium refused the IDs: {exc}", str(path))], path.stem
+        ) from None
 
 
-def register_folder(folder: str | Path, check: FamilyCheck | None = None, source: str = CALL_SOURCE
-                    ) -> tuple[list[str], list[SpecError]]:
+def register_folder(
+    folder: str | Path, check: FamilyCheck | None = None, source: str = CALL_SOURCE
+) -> tuple[list[str], list[SpecError]]:
     """Register every valid family in `folder`; return the new IDs and the problems of the rest.
 
     A family is registered whole or not at all. With a `check` (the factory's: compose and compile
@@ -188,8 +225,15 @@ def register_folder(folder: str | Path, check: FamilyCheck | None = None, source
     if not paths:
         return [], problems
     if len(paths) > MAX_FAMILY_FILES:
-        return [], [SpecError([Problem("", f"{len(paths)} family files; a spec folder may hold at most "
-                                           f"{MAX_FAMILY_FILES}", str(folder))])]
+        return [], [
+            SpecError(
+                [
+                    Problem(
+                        "", f"{len(paths)} family files; a spec folder may hold at most {MAX_FAMILY_FILES}", str(folder)
+                    )
+                ]
+            )
+        ]
     # a user family that an earlier check found broken stays out whole (import composes nothing)
     remembered = validation_cache.read() if check is None and source != BUILTIN_SOURCE else None
     stats = validation_cache.folder_stats(folder_of(paths[0])) if remembered and paths else None
@@ -219,8 +263,10 @@ def not_a_folder(path: Path) -> str:
     """Why a path given as a spec folder is none: a family file (name its folder), or nothing there."""
     if path.is_file():
         folder = folder_of(path)
-        return (f"is a file, not a spec folder: spec folders are registered whole; give the folder that holds it, "
-                f"{folder}" + (" (its family files are in specs/)" if path.parent.name == "specs" else ""))
+        return (
+            f"is a file, not a spec folder: spec folders are registered whole; give the folder that holds it, "
+            f"{folder}" + (" (its family files are in specs/)" if path.parent.name == "specs" else "")
+        )
     return f"no such spec folder{nearest_entry(path)}"
 
 
@@ -295,5 +341,3 @@ def record(env_id: str) -> IdRecord:
         return _records[env_id]
     except KeyError:
         raise KeyError(f"unknown env ID {env_id!r}{suggest(env_id, _records)}") from None
-
-

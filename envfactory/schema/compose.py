@@ -70,9 +70,14 @@ def _defaults_sources(family: FamilyFile, node: yaml.Node | None, sources: Sourc
         found = _find(relative.lstrip("/"), family)
         if found is None:
             what = group.strip("/").split("/")[-1]
-            choices = _options(group.strip("/"), family) if option is not None else \
-                [f"{group.rsplit('/', 1)[0]}/{name}" for name in _options(group.strip("/").rpartition("/")[0], family,
-                                                                          shared=True)]
+            choices = (
+                _options(group.strip("/"), family)
+                if option is not None
+                else [
+                    f"{group.rsplit('/', 1)[0]}/{name}"
+                    for name in _options(group.strip("/").rpartition("/")[0], family, shared=True)
+                ]
+            )
             label = f"{what} {option!r}" if option is not None else f"config {group!r}"
             problems.append(
                 Problem("defaults", f"no {label} found{suggest(option or group, choices)}", str(family.path), line)
@@ -81,15 +86,28 @@ def _defaults_sources(family: FamilyFile, node: yaml.Node | None, sources: Sourc
         top = (package or "").split(".", 1)[0]
         if top and not top.startswith("_") and top not in EnvSpec.model_fields:
             # Hydra would merge the file under a key no spec has: every value of it lost, reported as missing
-            problems.append(Problem("defaults", f"package {package!r} of {group}{f': {option}' if option else ''} "
-                                                f"names no part of a spec{suggest(top, EnvSpec.model_fields)}; "
-                                                f"valid: {', '.join(EnvSpec.model_fields)} or {' or '.join(HYDRA_PACKAGES)}",
-                                    str(family.path), line))
+            problems.append(
+                Problem(
+                    "defaults",
+                    f"package {package!r} of {group}{f': {option}' if option else ''} "
+                    f"names no part of a spec{suggest(top, EnvSpec.model_fields)}; "
+                    f"valid: {', '.join(EnvSpec.model_fields)} or {' or '.join(HYDRA_PACKAGES)}",
+                    str(family.path),
+                    line,
+                )
+            )
             continue
         if package is not None and package.startswith("_") and package not in HYDRA_PACKAGES:
-            problems.append(Problem("defaults", f"package {package!r} of {group}: unknown{suggest(package, HYDRA_PACKAGES)}"
-                                                f"; valid: a part of a spec ({', '.join(EnvSpec.model_fields)}) or "
-                                                f"{' or '.join(HYDRA_PACKAGES)}", str(family.path), line))
+            problems.append(
+                Problem(
+                    "defaults",
+                    f"package {package!r} of {group}: unknown{suggest(package, HYDRA_PACKAGES)}"
+                    f"; valid: a part of a spec ({', '.join(EnvSpec.model_fields)}) or "
+                    f"{' or '.join(HYDRA_PACKAGES)}",
+                    str(family.path),
+                    line,
+                )
+            )
             continue
         if package is None or package in HYDRA_PACKAGES:
             sources.record_file(found, "")
@@ -210,9 +228,15 @@ def _unknown_override_keys(family: FamilyFile, overrides: tuple[str, ...]) -> li
             if not walked:
                 keys += list(aliases)  # a bare name may be a misspelled kwarg
             wrong = f"{where}.{part}" if where else part
-            problems.append(Problem(key, f"no key {part!r} {f'under {where!r}' if where else 'at the top'} of the "
-                                         f"spec{suggest(wrong, keys)}: an override sets a key the spec has (a '+' before "
-                                         f"the key adds a new one)", f"override {override!r}"))
+            problems.append(
+                Problem(
+                    key,
+                    f"no key {part!r} {f'under {where!r}' if where else 'at the top'} of the "
+                    f"spec{suggest(wrong, keys)}: an override sets a key the spec has (a '+' before "
+                    f"the key adds a new one)",
+                    f"override {override!r}",
+                )
+            )
             break
     return problems
 
@@ -225,8 +249,9 @@ def kwarg_aliases(config: dict) -> dict[str, str]:
     return {**config.get("kwargs", {}), **config.get("task", {}).get("kwargs", {})}
 
 
-def apply_kwargs(config: dict, sources: SourceMap, kwargs: dict[str, Any], origin: str,
-                 written_at: str | None = None) -> None:
+def apply_kwargs(
+    config: dict, sources: SourceMap, kwargs: dict[str, Any], origin: str, written_at: str | None = None
+) -> None:
     """Set each kwarg at the spec path its alias names. `written_at` is the dotted path of the
     mapping the kwargs were written in (a registration entry), so errors name its file and line."""
     aliases = kwarg_aliases(config)
@@ -236,8 +261,12 @@ def apply_kwargs(config: dict, sources: SourceMap, kwargs: dict[str, Any], origi
         file, line = (where.file, where.line) if where.line is not None else (origin, None)
         if name not in aliases:
             problems.append(
-                Problem(f"{written_at}.{name}" if written_at else "", f"unknown kwarg {name!r}{suggest(name, aliases)}; "
-                        f"valid kwargs: {', '.join(sorted(aliases))}", file, line)
+                Problem(
+                    f"{written_at}.{name}" if written_at else "",
+                    f"unknown kwarg {name!r}{suggest(name, aliases)}; valid kwargs: {', '.join(sorted(aliases))}",
+                    file,
+                    line,
+                )
             )
             continue
         _set_path(config, aliases[name], value)
@@ -332,8 +361,9 @@ def load_env_spec(
         if override_kwargs:
             apply_kwargs(config, sources, override_kwargs, "override")
         if id_kwargs:
-            apply_kwargs(config, sources, id_kwargs, "registered kwarg",
-                         f"registration.ids.{env_id}.kwargs" if env_id else None)
+            apply_kwargs(
+                config, sources, id_kwargs, "registered kwarg", f"registration.ids.{env_id}.kwargs" if env_id else None
+            )
         if kwargs:
             apply_kwargs(config, sources, kwargs, "gym.make kwarg")
     except SpecError as exc:
@@ -384,8 +414,11 @@ def _placed(problems: list[Problem], family: FamilyFile) -> list[Problem]:
     if all(problem.file for problem in problems):
         return problems
     node = parse_yaml(family.path)
-    line = next((key.start_mark.line + 1 for key, _ in getattr(node, "value", ()) if key.value == "defaults"), 1) \
-        if isinstance(node, yaml.MappingNode) else 1
+    line = (
+        next((key.start_mark.line + 1 for key, _ in getattr(node, "value", ()) if key.value == "defaults"), 1)
+        if isinstance(node, yaml.MappingNode)
+        else 1
+    )
     includes_shared = any(group.strip("/") == SHARED_DEFAULTS for group, _, _, _ in _defaults_entries(node))
     shared = load_plain(builtin_root() / f"{SHARED_DEFAULTS}.yaml")
     placed = []
@@ -395,8 +428,10 @@ def _placed(problems: list[Problem], family: FamilyFile) -> list[Problem]:
             continue
         top = problem.path.split(".", 1)[0]
         if top in shared and not includes_shared:
-            why = (f"; no file of this defaults list sets {top!r}: the shared defaults do, and the list lacks "
-                   f"them: add '- /{SHARED_DEFAULTS}@_here_' to it")
+            why = (
+                f"; no file of this defaults list sets {top!r}: the shared defaults do, and the list lacks "
+                f"them: add '- /{SHARED_DEFAULTS}@_here_' to it"
+            )
         else:
             why = f"; no file of this defaults list writes {problem.path!r}"
         placed.append(Problem(problem.path, problem.message + why, str(family.path), line))

@@ -38,9 +38,12 @@ class DriverCall(Model):
     def _placeholders_known(self) -> "DriverCall":
         for name, path in placeholder_paths(self.request).items():
             if name not in SETUP_PLACEHOLDERS:
-                raise located(f"request.{path}", f"unknown placeholder {name!r}"
-                                                 f"{suggest(name, SETUP_PLACEHOLDERS)} (valid: "
-                                                 f"{', '.join(sorted(SETUP_PLACEHOLDERS))})")
+                raise located(
+                    f"request.{path}",
+                    f"unknown placeholder {name!r}"
+                    f"{suggest(name, SETUP_PLACEHOLDERS)} (valid: "
+                    f"{', '.join(sorted(SETUP_PLACEHOLDERS))})",
+                )
         return self
 
     @property

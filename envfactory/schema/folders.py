@@ -50,10 +50,16 @@ def list_folder(folder: Path) -> FolderListing:
             # a leading underscore is the way to keep a file out; a .yml extension never is
             (lost if path.suffix == ".yml" and _declares_ids(path) else skipped).append((path, reason))
     if home == specs:
-        for path in sorted(p for p in folder.iterdir() if p.suffix in (".yaml", ".yml") and p.is_file()
-                           and _declares_ids(p)):
-            lost.append((path, f"a family file at the folder's root is not read: {folder} has a specs/ folder, "
-                               f"and only the family files in it are read; move it into {specs}"))
+        for path in sorted(
+            p for p in folder.iterdir() if p.suffix in (".yaml", ".yml") and p.is_file() and _declares_ids(p)
+        ):
+            lost.append(
+                (
+                    path,
+                    f"a family file at the folder's root is not read: {folder} has a specs/ folder, "
+                    f"and only the family files in it are read; move it into {specs}",
+                )
+            )
     return FolderListing(folder, families, skipped, lost)
 
 
@@ -68,16 +74,23 @@ def unread_files(listing: FolderListing) -> list[tuple[Path, str]]:
         listed = "; ".join(f"{path.relative_to(listing.folder)}: {why}" for path, why in skipped)
         return [(listing.folder, f"no family files (*{FAMILY_SUFFIX}) to read in {home}; skipped {listed}")]
     if not any(listing.folder.iterdir()):
-        return [(listing.folder, f"the folder is empty: a spec folder holds family files (*{FAMILY_SUFFIX}, each "
-                                 f"declaring registration.ids) in a specs/ folder or at its root, and the robots/ and "
-                                 f"tasks/ they name")]
+        return [
+            (
+                listing.folder,
+                f"the folder is empty: a spec folder holds family files (*{FAMILY_SUFFIX}, each "
+                f"declaring registration.ids) in a specs/ folder or at its root, and the robots/ and "
+                f"tasks/ they name",
+            )
+        ]
     return [(listing.folder, f"no family files (*{FAMILY_SUFFIX}) in {home}: it holds no YAML file")]
 
 
 def _why_skipped(path: Path) -> str:
     if path.name.startswith("_"):
-        return ("a leading underscore marks a shared file that families include through their defaults list "
-                "(as specs/_defaults.yaml), never a family of its own")
+        return (
+            "a leading underscore marks a shared file that families include through their defaults list "
+            "(as specs/_defaults.yaml), never a family of its own"
+        )
     return f"family files end in {FAMILY_SUFFIX}: rename it to {path.with_suffix(FAMILY_SUFFIX).name}"
 
 

@@ -20,7 +20,6 @@ from envfactory.schema.folders import builtin_root
 from envfactory.schema.sources import SourceMap, load_plain
 from envfactory.schema.validation import validation_problems
 
-
 # The placeholders each kind of message may hold, and those it must hold.
 PLACEHOLDERS: dict[str, set[str]] = {
     "arm": {"$joint_names", "$positions", "$zeros", "$duration", "$group"},
@@ -47,8 +46,9 @@ def is_placeholder(value: Any) -> bool:
 def placeholder_paths(template: Any, prefix: str = "") -> dict[str, str]:
     """placeholder -> dotted path where the template holds it."""
     found: dict[str, str] = {}
-    items = template.items() if isinstance(template, dict) else enumerate(template) \
-        if isinstance(template, list) else ()
+    items = (
+        template.items() if isinstance(template, dict) else enumerate(template) if isinstance(template, list) else ()
+    )
     for key, value in items:
         path = f"{prefix}.{key}" if prefix else str(key)
         if is_placeholder(value):
@@ -61,8 +61,9 @@ def placeholder_paths(template: Any, prefix: str = "") -> dict[str, str]:
 def _repeats(template: Any, prefix: str = "", seen: set | None = None) -> list[tuple[str, str]]:
     seen = set() if seen is None else seen
     repeats = []
-    items = template.items() if isinstance(template, dict) else enumerate(template) \
-        if isinstance(template, list) else ()
+    items = (
+        template.items() if isinstance(template, dict) else enumerate(template) if isinstance(template, list) else ()
+    )
     for key, value in items:
         path = f"{prefix}.{key}" if prefix else str(key)
         if is_placeholder(value):
@@ -102,15 +103,20 @@ class MessageTemplate(Model):
             wrong = sorted(self.placeholders(part) - PLACEHOLDERS[role])
             if wrong:
                 path = placeholder_paths(getattr(self, part))[wrong[0]]
-                return (f"{part}.{path}", f"placeholder {wrong[0]} has no meaning in {_kind(role)} "
-                                          f"message (valid: {', '.join(sorted(PLACEHOLDERS[role]))})")
+                return (
+                    f"{part}.{path}",
+                    f"placeholder {wrong[0]} has no meaning in {_kind(role)} "
+                    f"message (valid: {', '.join(sorted(PLACEHOLDERS[role]))})",
+                )
         missing = sorted(REQUIRED[role] - self.placeholders())
         if missing:
             return ("message", f"{_kind(role)} message needs the placeholder(s) {', '.join(missing)}")
         alternatives = ONE_OF.get(role, set())
         if alternatives and len(alternatives & self.placeholders()) != 1:
-            return ("message", f"{_kind(role)} message needs exactly one of the placeholders "
-                               f"{' or '.join(sorted(alternatives))}")
+            return (
+                "message",
+                f"{_kind(role)} message needs exactly one of the placeholders {' or '.join(sorted(alternatives))}",
+            )
         if self.stop is not None and role != "arm":
             return ("stop", "only an arm command has a stop message")
         return None
@@ -132,10 +138,17 @@ def library() -> dict[str, MessageTemplate]:
         try:
             templates[str(name)] = MessageTemplate.model_validate(body)
         except ValidationError as exc:
-            shifted = SourceMap(locations={key.removeprefix(f"{name}."): where
-                                           for key, where in sources.locations.items() if key.startswith(f"{name}.")})
-            problems += [Problem(f"{name}.{p.path}", p.message, p.file, p.line)
-                         for p in validation_problems(exc, shifted, MessageTemplate)]
+            shifted = SourceMap(
+                locations={
+                    key.removeprefix(f"{name}."): where
+                    for key, where in sources.locations.items()
+                    if key.startswith(f"{name}.")
+                }
+            )
+            problems += [
+                Problem(f"{name}.{p.path}", p.message, p.file, p.line)
+                for p in validation_problems(exc, shifted, MessageTemplate)
+            ]
     if problems:
         raise SpecError(problems, LIBRARY_FILE)
     return templates
@@ -162,11 +175,13 @@ def checked(encoding: "str | dict", role: str) -> MessageTemplate:
     try:
         template = resolve(encoding)
     except KeyError as exc:
-        raise located("encoding", str(exc.args[0]) + " (or write the template in place: "
-                                                     "{type: ..., message: {...}})") from None
+        raise located(
+            "encoding", str(exc.args[0]) + " (or write the template in place: {type: ..., message: {...}})"
+        ) from None
     except SpecError as exc:
-        raise located("encoding", "the shipped templates are broken: "
-                                  + "; ".join(str(problem) for problem in exc.problems)) from None
+        raise located(
+            "encoding", "the shipped templates are broken: " + "; ".join(str(problem) for problem in exc.problems)
+        ) from None
     except ValidationError as exc:
         error = sorted(exc.errors(), key=lambda e: e["type"] != "extra_forbidden")[0]  # a typo explains a missing key
         below, message = split_located(error["msg"].removeprefix("Value error, "))

@@ -71,13 +71,19 @@ class EnvSpec(Model):
         if uses_gripper and self.robot.gripper is None:
             # placed at the robot: the robot was chosen without one, the task is as it should be
             use = "in its action" if self.task.gripper.in_action else f"at reset ({self.task.gripper.at_reset})"
-            raise located("robot.gripper", f"task {self.task.name!r} drives a gripper ({use}, task.gripper) but robot "
-                                           f"{self.robot.name!r} declares none: choose a robot with a gripper, add a "
-                                           f"'gripper:' block to the robot's YAML, or use a task without one")
+            raise located(
+                "robot.gripper",
+                f"task {self.task.name!r} drives a gripper ({use}, task.gripper) but robot "
+                f"{self.robot.name!r} declares none: choose a robot with a gripper, add a "
+                f"'gripper:' block to the robot's YAML, or use a task without one",
+            )
         at_reset = self.task.gripper.at_reset
         if isinstance(at_reset, float) and not self.robot.gripper.low <= at_reset <= self.robot.gripper.high:
-            raise located("task.gripper.at_reset", f"task.gripper.at_reset {at_reset} lies outside the gripper's range "
-                             f"[{self.robot.gripper.low}, {self.robot.gripper.high}]")
+            raise located(
+                "task.gripper.at_reset",
+                f"task.gripper.at_reset {at_reset} lies outside the gripper's range "
+                f"[{self.robot.gripper.low}, {self.robot.gripper.high}]",
+            )
         return self
 
     @property
@@ -98,10 +104,51 @@ class EnvSpec(Model):
 
 
 __all__ = [
-    "DEFAULT_JOINT_DELTA", "ActionSettings", "ArmCommand", "ArmJoint", "CameraSpec", "ContactSpec", "EnvSettings",
-    "EnvSpec", "ExpertRef", "FrameSpec", "GoalSpec", "GripperCommand", "GripperSpec", "GripperUse", "IdEntry",
-    "JointStateEntry", "LiftStage", "Model", "ModelSpec", "Position", "Rpy", "NonNegative", "ObjectSpec", "ObstacleSpec", "PedestalSpec", "Positive",
-    "Real", "RealSettings", "Registration", "RewardSets", "RobotSpec", "RosSpec", "RosTopic", "RobotSafety",
-    "SafetySettings", "SceneSpec", "SimSettings", "SpawnSpec", "StaticTransform", "TableSpec", "TaskSpec",
-    "TermRef", "TerminationRef", "TimingSettings", "UrdfPart", "Vec3", "Workspace",
+    "DEFAULT_JOINT_DELTA",
+    "ActionSettings",
+    "ArmCommand",
+    "ArmJoint",
+    "CameraSpec",
+    "ContactSpec",
+    "EnvSettings",
+    "EnvSpec",
+    "ExpertRef",
+    "FrameSpec",
+    "GoalSpec",
+    "GripperCommand",
+    "GripperSpec",
+    "GripperUse",
+    "IdEntry",
+    "JointStateEntry",
+    "LiftStage",
+    "Model",
+    "ModelSpec",
+    "Position",
+    "Rpy",
+    "NonNegative",
+    "ObjectSpec",
+    "ObstacleSpec",
+    "PedestalSpec",
+    "Positive",
+    "Real",
+    "RealSettings",
+    "Registration",
+    "RewardSets",
+    "RobotSpec",
+    "RosSpec",
+    "RosTopic",
+    "RobotSafety",
+    "SafetySettings",
+    "SceneSpec",
+    "SimSettings",
+    "SpawnSpec",
+    "StaticTransform",
+    "TableSpec",
+    "TaskSpec",
+    "TermRef",
+    "TerminationRef",
+    "TimingSettings",
+    "UrdfPart",
+    "Vec3",
+    "Workspace",
 ]

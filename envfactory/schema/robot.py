@@ -58,8 +58,11 @@ class ModelSpec(Model):
     def _attached_parts_name_parent(self) -> "ModelSpec":
         base = self.parts[0]
         if base.parent is not None or any(base.xyz) or any(base.rpy):
-            raise located("parts.0", "parts[0] is the base: it takes no parent, xyz or rpy (place the robot with "
-                                     "'mount' and turn it with 'mount_rpy')")
+            raise located(
+                "parts.0",
+                "parts[0] is the base: it takes no parent, xyz or rpy (place the robot with "
+                "'mount' and turn it with 'mount_rpy')",
+            )
         for index, part in enumerate(self.parts[1:], start=1):
             if part.parent is None:
                 raise ValueError(f"parts[{index}] needs 'parent': the link it is mounted on")
@@ -92,11 +95,17 @@ class ArmJoint(Model):
             written = f"±{self.delta:g}" if isinstance(self.delta, float) else str(list(self.delta))
             if "delta" not in self.model_fields_set:
                 written = f"{written} (the default: this joint declares none)"
-            example = f"[{self.lower:g}, {self.upper:g}] (the range itself, the seeds' convention)" \
-                if self.lower < 0 < self.upper else f"{span:.3g}"
-            raise located("delta", f"delta {written} rad allows a step of {widest:g} rad, larger than the joint's "
-                                   f"whole range [{self.lower:g}, {self.upper:g}] ({span:.3g} rad); valid: steps "
-                                   f"within ±{span:.3g}, e.g. delta {example}")
+            example = (
+                f"[{self.lower:g}, {self.upper:g}] (the range itself, the seeds' convention)"
+                if self.lower < 0 < self.upper
+                else f"{span:.3g}"
+            )
+            raise located(
+                "delta",
+                f"delta {written} rad allows a step of {widest:g} rad, larger than the joint's "
+                f"whole range [{self.lower:g}, {self.upper:g}] ({span:.3g} rad); valid: steps "
+                f"within ±{span:.3g}, e.g. delta {example}",
+            )
         return self
 
     @property
@@ -173,8 +182,9 @@ class GripperSpec(Model):
         if self.open == self.closed:
             raise located("closed", "open and closed must differ")
         if self.grasp_threshold is not None and not self.low <= self.grasp_threshold <= self.high:
-            raise located("grasp_threshold", f"grasp_threshold {self.grasp_threshold} lies outside "
-                                             f"[{self.low}, {self.high}]")
+            raise located(
+                "grasp_threshold", f"grasp_threshold {self.grasp_threshold} lies outside [{self.low}, {self.high}]"
+            )
         for name, gain in self.mimic.items():
             if gain == 0:
                 raise located(f"mimic.{name}", "a mimic multiplier of 0 would never move its joint")
@@ -218,6 +228,7 @@ class PedestalSpec(Model):
 class RobotSpec(Model):
     """A robot YAML: its model parts and mount, arm joints and home, the /joint_states layout, the gripper,
     safety additions, the ROS topic map of its real path and its measured sensing."""
+
     name: str
     label: str
     model: ModelSpec
@@ -269,8 +280,7 @@ class RobotSpec(Model):
         """/joint_states index -> multiplier of the gripper value, for the joints the real driver does not
         publish (the driven gripper joint itself, 1.0, and its mimic followers)."""
         gains = {self.gripper.joint: 1.0, **self.gripper.mimic} if self.gripper is not None else {}
-        return {index: gains[entry.urdf_joint] for index, entry in enumerate(self.joint_states)
-                if not entry.published}
+        return {index: gains[entry.urdf_joint] for index, entry in enumerate(self.joint_states) if not entry.published}
 
     @property
     def arm_state_names(self) -> list[str]:
@@ -288,16 +298,24 @@ class RobotSpec(Model):
     @model_validator(mode="after")
     def _consistent(self) -> "RobotSpec":
         if self.ee_mode_orientation == "top_down" and self.top_down_rpy is None:
-            raise located("ee_mode_orientation", "'top_down' needs top_down_rpy: the orientation that points "
-                                                 "the gripper straight down")
+            raise located(
+                "ee_mode_orientation",
+                "'top_down' needs top_down_rpy: the orientation that points the gripper straight down",
+            )
         tilted = bool(self.mount_rpy[0] or self.mount_rpy[1])
         if tilted and self.task_frame == "base":
-            raise located("mount_rpy", f"a base tilted by roll/pitch {list(self.mount_rpy[:2])} needs 'task_frame: "
-                                       f"world': a base task frame may only turn about z (yaw), so that its z stays "
-                                       f"up and goals, spawns and the table stay level in it")
+            raise located(
+                "mount_rpy",
+                f"a base tilted by roll/pitch {list(self.mount_rpy[:2])} needs 'task_frame: "
+                f"world': a base task frame may only turn about z (yaw), so that its z stays "
+                f"up and goals, spawns and the table stay level in it",
+            )
         if tilted and self.pedestal is not None:
-            raise located("mount_rpy", f"a base tilted by roll/pitch {list(self.mount_rpy[:2])} cannot stand on a "
-                                       f"pedestal (its top is level): drop 'pedestal' or the tilt")
+            raise located(
+                "mount_rpy",
+                f"a base tilted by roll/pitch {list(self.mount_rpy[:2])} cannot stand on a "
+                f"pedestal (its top is level): drop 'pedestal' or the tilt",
+            )
         try:
             ordered(self.ee_bounds[0], self.ee_bounds[1], "ee_bounds")
         except ValueError as exc:
@@ -306,9 +324,12 @@ class RobotSpec(Model):
             raise located("home", f"home has {len(self.home)} values for {len(self.arm_joints)} arm_joints")
         for index, (joint, value) in enumerate(zip(self.arm_joints, self.home)):
             if not joint.lower <= value <= joint.upper:
-                raise located(f"home.{index}", f"home value {value} of {joint.name} is outside "
-                                               f"[{joint.lower}, {joint.upper}]"
-                                               f"{out_of_range_hint('home', value, joint.lower, joint.upper)}")
+                raise located(
+                    f"home.{index}",
+                    f"home value {value} of {joint.name} is outside "
+                    f"[{joint.lower}, {joint.upper}]"
+                    f"{out_of_range_hint('home', value, joint.lower, joint.upper)}",
+                )
         names = [joint.name for joint in self.arm_joints]
         if len(set(names)) != len(names):
             raise located("arm_joints", f"arm_joints repeat a joint: {names}")
@@ -317,20 +338,30 @@ class RobotSpec(Model):
             raise located("joint_states", f"joint_states repeat a URDF joint: {urdf_names}")
         for index, joint in enumerate(self.arm_joints):
             if joint.name not in urdf_names:
-                raise located(f"arm_joints.{index}.name", f"arm joint {joint.name!r} is missing from joint_states"
-                                                          f"{suggest(joint.name, urdf_names)}")
+                raise located(
+                    f"arm_joints.{index}.name",
+                    f"arm joint {joint.name!r} is missing from joint_states{suggest(joint.name, urdf_names)}",
+                )
         if self.gripper is not None and self.gripper.joint not in urdf_names:
-            raise located("gripper.joint", f"gripper joint {self.gripper.joint!r} is missing from joint_states"
-                                           f"{suggest(self.gripper.joint, urdf_names)}")
+            raise located(
+                "gripper.joint",
+                f"gripper joint {self.gripper.joint!r} is missing from joint_states"
+                f"{suggest(self.gripper.joint, urdf_names)}",
+            )
         for index, entry in enumerate(self.joint_states):
             if entry.horn is not None and entry.horn.finger not in urdf_names:
-                raise located(f"joint_states.{index}.horn.finger", f"finger {entry.horn.finger!r} is missing from "
-                                                                   f"joint_states{suggest(entry.horn.finger, urdf_names)}")
+                raise located(
+                    f"joint_states.{index}.horn.finger",
+                    f"finger {entry.horn.finger!r} is missing from "
+                    f"joint_states{suggest(entry.horn.finger, urdf_names)}",
+                )
         gripper_joints = {self.gripper.joint, *self.gripper.mimic} if self.gripper is not None else set()
         for index, entry in enumerate(self.joint_states):
             if not entry.published and entry.urdf_joint not in gripper_joints:
-                raise located(f"joint_states.{index}.published",
-                              f"{entry.name!r} is not published by the driver, but only the gripper's joints "
-                              f"({', '.join(sorted(gripper_joints)) or 'none: no gripper'}) can be read from "
-                              f"its commands; every other joint must be measured")
+                raise located(
+                    f"joint_states.{index}.published",
+                    f"{entry.name!r} is not published by the driver, but only the gripper's joints "
+                    f"({', '.join(sorted(gripper_joints)) or 'none: no gripper'}) can be read from "
+                    f"its commands; every other joint must be measured",
+                )
         return self

@@ -12,8 +12,8 @@ from typing import Annotated, Any, ClassVar, Literal
 from pydantic import Field, PrivateAttr, model_validator
 
 from envfactory.schema.base import Model, Position, Rpy, located
-from envfactory.schema.errors import suggest
 from envfactory.schema.driver import DriverCall, ServiceType, Settle
+from envfactory.schema.errors import suggest
 from envfactory.schema.messages import MessageTemplate, checked
 from envfactory.schema.numbers import Positive
 
@@ -107,8 +107,11 @@ class GripperCommand(_Templated):
     def _states_declared(self) -> "GripperCommand":
         holds_state = "$state" in self.template.placeholders()
         if holds_state and self.states is None:
-            raise located("states", "the template holds $state: declare states: {open: ..., closed: ...}, "
-                                    "what the driver takes to open and to close")
+            raise located(
+                "states",
+                "the template holds $state: declare states: {open: ..., closed: ...}, "
+                "what the driver takes to open and to close",
+            )
         if self.states is not None and not holds_state:
             raise located("states", "states are declared but the template has no $state placeholder")
         return self
@@ -151,39 +154,50 @@ class RosSpec(Model):
                 raise located(f"message_types.{type_name}", "a message type is spelled package/Type")
             for field, field_type in fields.items():
                 if not _FIELD_TYPE.fullmatch(field_type):
-                    raise located(f"message_types.{type_name}.{field}",
-                                  f"{field_type!r} is not a field type (a primitive such as float64 or uint8, "
-                                  "a message type package/Type, either with [] for a list)")
+                    raise located(
+                        f"message_types.{type_name}.{field}",
+                        f"{field_type!r} is not a field type (a primitive such as float64 or uint8, "
+                        "a message type package/Type, either with [] for a list)",
+                    )
         return self
 
     @model_validator(mode="after")
     def _setup_types_declared(self) -> "RosSpec":
         for index, call in enumerate(self.setup):
             if call.type not in self.service_types:
-                raise located(f"setup.{index}.type", f"service type {call.type!r} is not declared in "
-                                                     f"ros.service_types (its request and response fields)")
+                raise located(
+                    f"setup.{index}.type",
+                    f"service type {call.type!r} is not declared in "
+                    f"ros.service_types (its request and response fields)",
+                )
             fields = self.service_types[call.type].request
             for key in call.request:
                 if key not in fields:
-                    raise located(f"setup.{index}.request.{key}", f"{call.type} has no request field {key!r}"
-                                                                  f"{suggest(key, fields)}")
+                    raise located(
+                        f"setup.{index}.request.{key}",
+                        f"{call.type} has no request field {key!r}{suggest(key, fields)}",
+                    )
         for type_name, service in self.service_types.items():
             if not _MESSAGE_TYPE.fullmatch(type_name):
                 raise located(f"service_types.{type_name}", "a service type is spelled package/Type")
             for part in ("request", "response"):
                 for field, field_type in getattr(service, part).items():
                     if not _FIELD_TYPE.fullmatch(field_type):
-                        raise located(f"service_types.{type_name}.{part}.{field}",
-                                      f"{field_type!r} is not a field type")
+                        raise located(
+                            f"service_types.{type_name}.{part}.{field}", f"{field_type!r} is not a field type"
+                        )
         return self
 
     @model_validator(mode="after")
     def _arm_timing_known(self) -> "RosSpec":
         carries = "$duration" in self.arm_command.template.placeholders()
         if not carries and self.arm_command.profile_time_s is None:
-            raise located("arm_command.profile_time_s", "the arm command carries no $duration, so its driver decides "
-                                                        "how long a command takes: declare that time (its stock "
-                                                        "profile), as profile_time_s")
+            raise located(
+                "arm_command.profile_time_s",
+                "the arm command carries no $duration, so its driver decides "
+                "how long a command takes: declare that time (its stock "
+                "profile), as profile_time_s",
+            )
         return self
 
     @property
@@ -193,9 +207,12 @@ class RosSpec(Model):
 
     @model_validator(mode="after")
     def _types_match_templates(self) -> "RosSpec":
-        topics = {"joint_states": self.joint_states, "arm_command": self.arm_command,
-                  "gripper_command": self.gripper_command,
-                  **{f"object_poses.{name}": topic for name, topic in self.object_poses.items()}}
+        topics = {
+            "joint_states": self.joint_states,
+            "arm_command": self.arm_command,
+            "gripper_command": self.gripper_command,
+            **{f"object_poses.{name}": topic for name, topic in self.object_poses.items()},
+        }
         for path, topic in topics.items():
             problem = topic.type_problem() if topic is not None else None
             if problem:

@@ -40,7 +40,8 @@ class TimingSettings(Model):
     def _cycle_covers_loop(self) -> "TimingSettings":
         if self.action_cycle_time < 1.0 / self.loop_rate - 1e-9:
             raise located(
-                "action_cycle_time", f"action_cycle_time ({self.action_cycle_time}) must be >= 1 / loop_rate ({1.0 / self.loop_rate:g})"
+                "action_cycle_time",
+                f"action_cycle_time ({self.action_cycle_time}) must be >= 1 / loop_rate ({1.0 / self.loop_rate:g})",
             )
         return self
 

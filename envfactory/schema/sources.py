@@ -46,9 +46,18 @@ class SourceMap:
             # A block reused by alias is walked (and later merged) once per use: nested aliases
             # grow exponentially from a few lines, so spec files may not reuse blocks that way.
             if id(node) in visited:
-                raise SpecError([Problem(prefix, "YAML alias of a block (*name or <<: *name) is not supported in "
-                                                 "spec files: use the defaults list or ${...} interpolation",
-                                         file, used_at)], Path(file).stem)
+                raise SpecError(
+                    [
+                        Problem(
+                            prefix,
+                            "YAML alias of a block (*name or <<: *name) is not supported in "
+                            "spec files: use the defaults list or ${...} interpolation",
+                            file,
+                            used_at,
+                        )
+                    ],
+                    Path(file).stem,
+                )
             visited.add(id(node))
         if isinstance(node, yaml.MappingNode):
             seen: dict[str, int] = {}
@@ -57,8 +66,10 @@ class SourceMap:
                 line = key_node.start_mark.line + 1
                 if key in seen:  # YAML would keep the last silently
                     path = f"{prefix}.{key}" if prefix else key
-                    raise SpecError([Problem(path, f"duplicate key {key!r} (first written at line {seen[key]})",
-                                             file, line)], Path(file).stem)
+                    raise SpecError(
+                        [Problem(path, f"duplicate key {key!r} (first written at line {seen[key]})", file, line)],
+                        Path(file).stem,
+                    )
                 seen[key] = line
                 if not prefix and key == "defaults":
                     continue
@@ -143,8 +154,9 @@ def read_text(path: Path) -> str:
     try:
         return path.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:
-        raise SpecError([Problem("", f"not a text (UTF-8) file: byte {exc.start} cannot be decoded", str(path), 1)],
-                        path.stem) from None
+        raise SpecError(
+            [Problem("", f"not a text (UTF-8) file: byte {exc.start} cannot be decoded", str(path), 1)], path.stem
+        ) from None
     except OSError as exc:
         raise SpecError([Problem("", f"cannot read: {exc.strerror or exc}", file=str(path))], path.stem) from None
 

@@ -22,7 +22,10 @@ class TermRef(Model):
 class SpawnSpec(Model):
     position: Position  # the object's centre at rest, task frame
     random: bool = True  # random_cube_spawn
-    offset: tuple[Annotated[NonNegative, Field(le=1.0)], Annotated[NonNegative, Field(le=1.0)]] = (0.05, 0.05)  # random_offset: ± metres in x and y
+    offset: tuple[Annotated[NonNegative, Field(le=1.0)], Annotated[NonNegative, Field(le=1.0)]] = (
+        0.05,
+        0.05,
+    )  # random_offset: ± metres in x and y
 
 
 class ObjectSpec(Model):
@@ -138,8 +141,12 @@ class TaskSpec(Model):
         for index, entry in enumerate(entries):
             if isinstance(entry, str):
                 normalised.append({entry: {}})
-            elif isinstance(entry, dict) and len(entry) == 1 and isinstance(next(iter(entry.values())), (dict, type(None))):
-                (name, params), = entry.items()
+            elif (
+                isinstance(entry, dict)
+                and len(entry) == 1
+                and isinstance(next(iter(entry.values())), (dict, type(None)))
+            ):
+                ((name, params),) = entry.items()
                 normalised.append({name: dict(params or {})})
             else:
                 raise ValueError(f"entry {index} must be a term name or a one-key mapping of name to params")

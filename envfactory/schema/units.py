@@ -12,11 +12,38 @@ import math
 DEGREES_PER_RADIAN = 180.0 / math.pi
 # The last key of a dotted path (list indices skipped) says what a value measures.
 ANGLE_KEYS = frozenset({"rpy", "mount_rpy", "top_down_rpy", "home", "lower", "upper", "delta", "max_joint_delta"})
-LENGTH_KEYS = frozenset({
-    "mount", "xyz", "position", "box", "static", "size", "center", "top_z", "thickness", "offset", "eye", "target",
-    "floor_z", "surface_margin", "table_footprint_margin", "tolerance", "min", "max", "ee_bounds", "padding",
-    "grasp_height", "height", "clearance", "lift", "step", "paddle", "distance", "lateral_tolerance",
-})
+LENGTH_KEYS = frozenset(
+    {
+        "mount",
+        "xyz",
+        "position",
+        "box",
+        "static",
+        "size",
+        "center",
+        "top_z",
+        "thickness",
+        "offset",
+        "eye",
+        "target",
+        "floor_z",
+        "surface_margin",
+        "table_footprint_margin",
+        "tolerance",
+        "min",
+        "max",
+        "ee_bounds",
+        "padding",
+        "grasp_height",
+        "height",
+        "clearance",
+        "lift",
+        "step",
+        "paddle",
+        "distance",
+        "lateral_tolerance",
+    }
+)
 # An angle is taken for degrees only beyond a full turn: no radian value of a spec goes there.
 FULL_TURN = 2 * math.pi
 # A length is taken for centimetres (millimetres) only when it is at least this many times its bound:
@@ -45,14 +72,16 @@ def unit_hint(value: float, bound: float, kind: str | None) -> str:
     limit = abs(bound)
     if kind == "angle":
         if abs(value) > FULL_TURN and abs(value / DEGREES_PER_RADIAN) <= max(limit, FULL_TURN):
-            return (f"; looks like degrees: angles are in radians ({value:g}° = "
-                    f"{math.radians(value):.4g} rad)")
+            return f"; looks like degrees: angles are in radians ({value:g}° = {math.radians(value):.4g} rad)"
         return ""
     if limit == 0:
         return ""
     ratio = abs(value) / limit
-    fits = [(name, symbol, factor) for name, symbol, factor, least in SMALL_UNITS
-            if ratio >= least and abs(value) / factor <= limit]
+    fits = [
+        (name, symbol, factor)
+        for name, symbol, factor, least in SMALL_UNITS
+        if ratio >= least and abs(value) / factor <= limit
+    ]
     if not fits:
         return ""
     readings = " or ".join(f"{value:g} {symbol} = {value / factor:g} m" for _, symbol, factor in fits)

@@ -60,7 +60,11 @@ def _range_hint(error: dict, path: str) -> str:
     """A range error's unit hint (degrees for radians, centimetres for metres), or ''."""
     bound_key = RANGE_ERRORS.get(error["type"])
     value, bound = error.get("input"), (error.get("ctx") or {}).get(bound_key)
-    if bound_key is None or isinstance(value, bool) or not isinstance(value, (int, float)) \
-            or not isinstance(bound, (int, float)):
+    if (
+        bound_key is None
+        or isinstance(value, bool)
+        or not isinstance(value, (int, float))
+        or not isinstance(bound, (int, float))
+    ):
         return ""
     return unit_hint(float(value), float(bound), kind_of(path))

@@ -11,8 +11,8 @@ from typing import Literal
 import numpy as np
 from pydantic import model_validator
 
-from envfactory.step_state import PhysicsChange
 from envfactory.schema.numbers import Real
+from envfactory.step_state import PhysicsChange
 from envfactory.terms.library import Layout, TermParams, UnknownReference, event_term
 
 
@@ -60,8 +60,9 @@ class SampledQuantity:
         return PhysicsChange(self.quantity, self.target, float(value))
 
 
-def _resolve(params: Sampled, quantity: str, target: str, declared: float | None, unit: str,
-             plausible: tuple[float, float]) -> SampledQuantity:
+def _resolve(
+    params: Sampled, quantity: str, target: str, declared: float | None, unit: str, plausible: tuple[float, float]
+) -> SampledQuantity:
     """The absolute interval, checked against what such a quantity can plausibly be (ValueError says why not)."""
     if params.scale is not None:
         if declared is None:
@@ -71,7 +72,9 @@ def _resolve(params: Sampled, quantity: str, target: str, declared: float | None
         low, high = params.range
     least, most = plausible
     if low < least or high > most:
-        raise ValueError(f"{quantity} from {low:g} to {high:g} {unit} leaves the plausible [{least:g}, {most:g}] {unit}")
+        raise ValueError(
+            f"{quantity} from {low:g} to {high:g} {unit} leaves the plausible [{least:g}, {most:g}] {unit}"
+        )
     if params.distribution == "log_uniform" and low <= 0:
         raise ValueError(f"a log-uniform {quantity} needs a positive low end, not {low:g} {unit}")
     return SampledQuantity(quantity, target, float(low), float(high), params.distribution)
@@ -120,9 +123,19 @@ def _register(name: str, params: type[Sampled], bind, unit: str, doc: str) -> No
 
 
 _register("object_mass", ObjectSampled, _bind_object_mass, "kg", "The object's mass (its inertia scales with it).")
-_register("object_friction", ObjectSampled, _bind_object_friction, "",
-          "The object's lateral friction coefficient (a contact rubs with the product of both surfaces').")
-_register("table_friction", Sampled, _bind_table_friction, "",
-          "The table's lateral friction coefficient (a range only: the specs give the table none to scale).")
+_register(
+    "object_friction",
+    ObjectSampled,
+    _bind_object_friction,
+    "",
+    "The object's lateral friction coefficient (a contact rubs with the product of both surfaces').",
+)
+_register(
+    "table_friction",
+    Sampled,
+    _bind_table_friction,
+    "",
+    "The table's lateral friction coefficient (a range only: the specs give the table none to scale).",
+)
 _register("arm_damping", Sampled, _bind_arm_damping, "N m s/rad", "Viscous damping of every arm joint (a range only).")
 _register("gripper_force", Sampled, _bind_gripper_force, "N", "The gripper drive's force limit.")

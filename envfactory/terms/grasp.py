@@ -53,19 +53,33 @@ def grasped(state, test: GraspTest) -> float:
 
 def _describe(layout, params) -> Description:
     test = bind_grasp(layout, params)
-    return Description("is_grasped (derived binary)",
-                       f"‖{test.object} − ee‖ < {test.distance:g} and gripper closed past {test.threshold:g}",
-                       "0.0 or 1.0")
+    return Description(
+        "is_grasped (derived binary)",
+        f"‖{test.object} − ee‖ < {test.distance:g} and gripper closed past {test.threshold:g}",
+        "0.0 or 1.0",
+    )
 
 
-@observation_term(size=fixed(1), bounds=constant_bounds(0.0, 1.0), describe=_describe, params=GraspParams,
-                  bind=bind_grasp, unit="0 or 1")
+@observation_term(
+    size=fixed(1),
+    bounds=constant_bounds(0.0, 1.0),
+    describe=_describe,
+    params=GraspParams,
+    bind=bind_grasp,
+    unit="0 or 1",
+)
 def is_grasped(state, test):
     """1 when the object is within `distance` of the EE and the gripper is closed past its threshold."""
     return grasped(state, test)
 
 
-@reward_term(name="is_grasped", description="1 while the object is grasped (recorded at step time)",
-             params=GraspParams, info_keys=("is_grasped",), bind=bind_grasp, measure=grasped)
+@reward_term(
+    name="is_grasped",
+    description="1 while the object is grasped (recorded at step time)",
+    params=GraspParams,
+    info_keys=("is_grasped",),
+    bind=bind_grasp,
+    measure=grasped,
+)
 def is_grasped_reward(achieved, desired, info, params, tolerance):
     return info["is_grasped"]

@@ -7,13 +7,21 @@ import numpy as np
 from envfactory.terms.library import image_term
 
 
-@image_term(shape=lambda camera: (camera.height, camera.width, 3), dtype=np.uint8,
-            bounds=lambda camera: (0, 255), description="RGB image, uint8")
+@image_term(
+    shape=lambda camera: (camera.height, camera.width, 3),
+    dtype=np.uint8,
+    bounds=lambda camera: (0, 255),
+    description="RGB image, uint8",
+)
 def rgb(frame):
     return frame.rgb
 
 
-@image_term(shape=lambda camera: (camera.height, camera.width), dtype=np.float32,
-            bounds=lambda camera: (0.0, camera.far), description="depth along the view axis, m")
+@image_term(
+    shape=lambda camera: (camera.height, camera.width),
+    dtype=np.float32,
+    bounds=lambda camera: (0.0, camera.far),
+    description="depth along the view axis, m",
+)
 def depth(frame):
     return frame.depth

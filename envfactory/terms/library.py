@@ -181,8 +181,14 @@ REWARDS: dict[str, RewardTerm] = {}
 TERMINATIONS: dict[str, TerminationTerm] = {}
 EVENTS: dict[str, EventTerm] = {}
 SENSING: dict[str, SensingTerm] = {}
-_TABLES = {"observation": OBSERVATIONS, "image": IMAGES, "reward": REWARDS, "termination": TERMINATIONS,
-           "event": EVENTS, "sensing": SENSING}
+_TABLES = {
+    "observation": OBSERVATIONS,
+    "image": IMAGES,
+    "reward": REWARDS,
+    "termination": TERMINATIONS,
+    "event": EVENTS,
+    "sensing": SENSING,
+}
 
 
 def term_decorator(term_class: type[RegisteredTerm], **spec) -> Callable:
@@ -251,4 +257,3 @@ def constant_bounds(low, high) -> Callable:
         ).copy()
 
     return bounds
-

@@ -28,7 +28,8 @@ def _object_term(component: str, source: str, unit: str, bounds):
         size=fixed(3),
         bounds=bounds,
         describe=lambda layout, params: Description(
-            component.format(Name=params.object.capitalize()), source.format(name=params.object), unit),
+            component.format(Name=params.object.capitalize()), source.format(name=params.object), unit
+        ),
         params=ObjectParams,
         bind=bind_object,
         unit=unit,

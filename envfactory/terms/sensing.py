@@ -44,8 +44,10 @@ def _columns(layout: Layout, params: Columns) -> np.ndarray:
     unknown = [name for name in params.observations if name not in known]
     goal_dependent = [name for name in unknown if name in OBSERVATIONS and OBSERVATIONS[name].goal_dependent]
     if goal_dependent:
-        raise UnknownReference(f"observations {goal_dependent} depend on the goal: a goal env leaves them out of its "
-                               f"'observation' (the goal is in desired_goal), so no sensor can read them there")
+        raise UnknownReference(
+            f"observations {goal_dependent} depend on the goal: a goal env leaves them out of its "
+            f"'observation' (the goal is in desired_goal), so no sensor can read them there"
+        )
     if unknown:
         raise UnknownReference(f"observations {unknown} are not in this task's observation (it has {known})")
     return np.concatenate([np.arange(slot.start, slot.stop) for slot in slots if slot.name in params.observations])
@@ -63,8 +65,11 @@ class NoiseSensor(Sensor):
 
     def reset(self, rng, observation, hold_action):
         super().reset(rng, observation, hold_action)
-        self.bias = rng.normal(0.0, self.params.bias_std, self.columns.size) if self.params.bias_std else \
-            np.zeros(self.columns.size)
+        self.bias = (
+            rng.normal(0.0, self.params.bias_std, self.columns.size)
+            if self.params.bias_std
+            else np.zeros(self.columns.size)
+        )
 
     def observe(self, observation):
         params, out = self.params, observation.copy()

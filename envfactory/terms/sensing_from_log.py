@@ -39,14 +39,25 @@ def sensing_terms(records: list[dict[str, float]], cycle_time: float) -> tuple[d
     """The sensing terms the measurements call for, and the measurements themselves, line by line."""
     ages = np.array([r["joint_reading_age_s"] for r in records], float)
     repeated = float(np.mean([r.get("joint_reading_repeated", 0.0) for r in records]))
-    latencies = np.array([r["command_latency_s"] for r in records
-                          if r.get("command_latency_s") is not None and math.isfinite(r["command_latency_s"])])
-    facts = [f"{len(records)} steps, cycle {cycle_time:g} s",
-             f"joint reading age: median {np.median(ages):.3f} s, 90th percentile {np.percentile(ages, 90):.3f} s",
-             f"joint reading repeated the step before's: {repeated:.1%} of steps"]
+    latencies = np.array(
+        [
+            r["command_latency_s"]
+            for r in records
+            if r.get("command_latency_s") is not None and math.isfinite(r["command_latency_s"])
+        ]
+    )
+    facts = [
+        f"{len(records)} steps, cycle {cycle_time:g} s",
+        f"joint reading age: median {np.median(ages):.3f} s, 90th percentile {np.percentile(ages, 90):.3f} s",
+        f"joint reading repeated the step before's: {repeated:.1%} of steps",
+    ]
     # both delays are stated even when they round to zero steps: a robot YAML declares what was measured
-    terms: dict[str, dict] = {"late_observation": {"term": "observation_delay", "params": {
-        "steps": min(round(float(np.median(ages)) / cycle_time), 10)}}}
+    terms: dict[str, dict] = {
+        "late_observation": {
+            "term": "observation_delay",
+            "params": {"steps": min(round(float(np.median(ages)) / cycle_time), 10)},
+        }
+    }
     if latencies.size:
         median = float(np.median(latencies))
         facts.append(f"command latency: median {median:.3f} s over {latencies.size} commands")
@@ -54,9 +65,10 @@ def sensing_terms(records: list[dict[str, float]], cycle_time: float) -> tuple[d
     else:
         facts.append("command latency: no command that asked for motion was seen to start")
     if repeated > 0:
-        terms["dropped_readings"] = {"term": "repeated_readings",
-                                     "params": {"observations": JOINT_OBSERVATIONS,
-                                                "probability": round(min(repeated, 0.99), 3)}}
+        terms["dropped_readings"] = {
+            "term": "repeated_readings",
+            "params": {"observations": JOINT_OBSERVATIONS, "probability": round(min(repeated, 0.99), 3)},
+        }
     return terms, facts
 
 

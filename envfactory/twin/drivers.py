@@ -66,8 +66,9 @@ class DeclaredDriver:
         self.sim.command_joints(target, max(duration, MIN_MOVE_S))
 
     def on_gripper(self, msg: dict) -> None:
-        self.sim.command_gripper(messages.decode_gripper(self.ros.gripper_command, msg, self.gripper.open,
-                                                         self.gripper.closed))
+        self.sim.command_gripper(
+            messages.decode_gripper(self.ros.gripper_command, msg, self.gripper.open, self.gripper.closed)
+        )
 
     def close(self) -> None:
         pass
@@ -91,11 +92,23 @@ class XsSdk(DeclaredDriver):
 
     joint_state_hz = 100.0  # joint_state_publisher.update_rate in the xsarm configs
     STOCK_PROFILE_S = 2.0
-    service_types = {"interbotix_xs_msgs/OperatingModes": (
-        {"cmd_type": "string", "name": "string", "mode": "string", "profile_type": "string",
-         "profile_velocity": "int32", "profile_acceleration": "int32"}, {})}
-    message_types = {"interbotix_xs_msgs/JointGroupCommand": {"name": "string", "cmd": "float32[]"},
-                     "interbotix_xs_msgs/JointSingleCommand": {"name": "string", "cmd": "float32"}}
+    service_types = {
+        "interbotix_xs_msgs/OperatingModes": (
+            {
+                "cmd_type": "string",
+                "name": "string",
+                "mode": "string",
+                "profile_type": "string",
+                "profile_velocity": "int32",
+                "profile_acceleration": "int32",
+            },
+            {},
+        )
+    }
+    message_types = {
+        "interbotix_xs_msgs/JointGroupCommand": {"name": "string", "cmd": "float32[]"},
+        "interbotix_xs_msgs/JointSingleCommand": {"name": "string", "cmd": "float32"},
+    }
 
     def __init__(self, twin, stock_move_s: float | None):
         super().__init__(twin, self.STOCK_PROFILE_S if stock_move_s is None else stock_move_s)
@@ -111,10 +124,16 @@ class XsSdk(DeclaredDriver):
     def _set_modes(self, request: dict) -> ServiceReply:
         cmd_type, name = request.get("cmd_type", ""), request.get("name", "")
         joints = [*self.twin.arm_names, "gripper"]
-        if cmd_type == "group" and name not in XS_GROUPS or cmd_type == "single" and name not in joints \
-                or cmd_type not in ("group", "single"):
-            return ServiceReply(False, f"Invalid service call. {cmd_type.capitalize() or 'Type'} '{name}' does "
-                                       f"not exist.")
+        if (
+            cmd_type == "group"
+            and name not in XS_GROUPS
+            or cmd_type == "single"
+            and name not in joints
+            or cmd_type not in ("group", "single")
+        ):
+            return ServiceReply(
+                False, f"Invalid service call. {cmd_type.capitalize() or 'Type'} '{name}' does not exist."
+            )
         mode = request.get("mode", "")
         if mode not in XS_MODES:
             return ServiceReply(True, {})  # xs_sdk logs the bad mode per motor, skips it, and answers true
@@ -163,7 +182,7 @@ class XsSdk(DeclaredDriver):
 
     def finger(self, angle: float) -> float:
         """One finger's position from the centre for a horn angle, as xs_sdk publishes it."""
-        return self.horn * math.sin(angle) + math.sqrt(self.arm_length**2 - (self.horn * math.cos(angle))**2)
+        return self.horn * math.sin(angle) + math.sqrt(self.arm_length**2 - (self.horn * math.cos(angle)) ** 2)
 
     def joint_state(self, position, velocity):
         """The horn's angle and speed (the motor's own readings) as `gripper`; each finger's position from it, and
@@ -182,6 +201,7 @@ class XsSdk(DeclaredDriver):
 
 
 # ---------------------------------------------------------------------------------------------------- UR
+
 
 class UrRobotDriver(DeclaredDriver):
     """ur_robot_driver's scaled joint trajectory controller: a trajectory's time runs at the speed scaling
@@ -226,16 +246,26 @@ class NedRos(DeclaredDriver):
     extras_hz = 5.0  # actionlib's status_frequency
     message_types = {
         "niryo_robot_tools_commander/ToolCommand": {
-            "cmd_type": "uint8", "tool_id": "int8", "speed": "uint16", "max_torque_percentage": "uint8",
-            "hold_torque_percentage": "uint8", "activate": "bool", "gpio": "string"},
+            "cmd_type": "uint8",
+            "tool_id": "int8",
+            "speed": "uint16",
+            "max_torque_percentage": "uint8",
+            "hold_torque_percentage": "uint8",
+            "activate": "bool",
+            "gpio": "string",
+        },
         "niryo_robot_tools_commander/ToolGoal": {"cmd": "niryo_robot_tools_commander/ToolCommand"},
-        "niryo_robot_tools_commander/ToolActionGoal": {"header": "std_msgs/Header",
-                                                        "goal_id": "actionlib_msgs/GoalID",
-                                                        "goal": "niryo_robot_tools_commander/ToolGoal"},
+        "niryo_robot_tools_commander/ToolActionGoal": {
+            "header": "std_msgs/Header",
+            "goal_id": "actionlib_msgs/GoalID",
+            "goal": "niryo_robot_tools_commander/ToolGoal",
+        },
         "niryo_robot_tools_commander/ToolResult": {"status": "int32", "message": "string"},
-        "niryo_robot_tools_commander/ToolActionResult": {"header": "std_msgs/Header",
-                                                          "status": "actionlib_msgs/GoalStatus",
-                                                          "result": "niryo_robot_tools_commander/ToolResult"},
+        "niryo_robot_tools_commander/ToolActionResult": {
+            "header": "std_msgs/Header",
+            "status": "actionlib_msgs/GoalStatus",
+            "result": "niryo_robot_tools_commander/ToolResult",
+        },
     }
     ARM_JOINTS = [f"joint_{i}" for i in range(1, 7)]
 
@@ -254,8 +284,10 @@ class NedRos(DeclaredDriver):
         return self.ARM_JOINTS, position[index], velocity[index]
 
     def publishes(self) -> dict[str, str]:
-        return {f"{NIRYO_ACTION}/result": "niryo_robot_tools_commander/ToolActionResult",
-                f"{NIRYO_ACTION}/status": "actionlib_msgs/GoalStatusArray"}
+        return {
+            f"{NIRYO_ACTION}/result": "niryo_robot_tools_commander/ToolActionResult",
+            f"{NIRYO_ACTION}/status": "actionlib_msgs/GoalStatusArray",
+        }
 
     def on_gripper(self, msg: dict) -> None:
         goal_id = msg["goal_id"]["id"]
@@ -277,8 +309,12 @@ class NedRos(DeclaredDriver):
                     return
                 goal_id, command = self._goals[0]
             status, result = self._carry_out(command)
-            self.twin.publish_soon(f"{NIRYO_ACTION}/result", messages.encode_action_result(
-                goal_id, status, "", {"status": result[0], "message": result[1]}, time.time()))
+            self.twin.publish_soon(
+                f"{NIRYO_ACTION}/result",
+                messages.encode_action_result(
+                    goal_id, status, "", {"status": result[0], "message": result[1]}, time.time()
+                ),
+            )
             with self._wake:
                 self._goals.pop(0)
                 self.finished.append((goal_id, status))
@@ -286,8 +322,10 @@ class NedRos(DeclaredDriver):
     def _carry_out(self, command: dict) -> tuple[int, tuple[int, str]]:
         tool = command.get("tool_id", 0)
         if tool != self.mounted_tool:
-            return GOAL_ABORTED, (TOOL_FAILURE, f"Tools ID do not match -> Given : {tool} Expected : "
-                                                f"{self.mounted_tool}")
+            return GOAL_ABORTED, (
+                TOOL_FAILURE,
+                f"Tools ID do not match -> Given : {tool} Expected : {self.mounted_tool}",
+            )
         cmd_type = command.get("cmd_type")
         if cmd_type not in NIRYO_JAWS:
             return GOAL_ABORTED, (TOOL_FAILURE, f"Command '{cmd_type}' is not available for this tool")
@@ -304,10 +342,14 @@ class NedRos(DeclaredDriver):
     async def publish_extras(self, server) -> None:
         with self._wake:
             active = [goal_id for goal_id, _ in self._goals[:1]]
-        status = [{"goal_id": {"stamp": {"secs": 0, "nsecs": 0}, "id": goal_id}, "status": GOAL_ACTIVE, "text": ""}
-                  for goal_id in active]
-        await server.publish(f"{NIRYO_ACTION}/status", {"header": {"seq": 0, "stamp": {"secs": 0, "nsecs": 0},
-                                                                   "frame_id": ""}, "status_list": status})
+        status = [
+            {"goal_id": {"stamp": {"secs": 0, "nsecs": 0}, "id": goal_id}, "status": GOAL_ACTIVE, "text": ""}
+            for goal_id in active
+        ]
+        await server.publish(
+            f"{NIRYO_ACTION}/status",
+            {"header": {"seq": 0, "stamp": {"secs": 0, "nsecs": 0}, "frame_id": ""}, "status_list": status},
+        )
 
     def close(self) -> None:
         with self._wake:

@@ -20,21 +20,36 @@ MESSAGES: dict[str, dict[str, str]] = {
     "std_msgs/Float64MultiArray": {"layout": "std_msgs/MultiArrayLayout", "data": "float64[]"},
     "std_msgs/Float64": {"data": "float64"},
     "std_msgs/String": {"data": "string"},
-    "sensor_msgs/JointState": {"header": "std_msgs/Header", "name": "string[]", "position": "float64[]",
-                               "velocity": "float64[]", "effort": "float64[]"},
-    "trajectory_msgs/JointTrajectoryPoint": {"positions": "float64[]", "velocities": "float64[]",
-                                             "accelerations": "float64[]", "effort": "float64[]",
-                                             "time_from_start": "duration"},
-    "trajectory_msgs/JointTrajectory": {"header": "std_msgs/Header", "joint_names": "string[]",
-                                        "points": "trajectory_msgs/JointTrajectoryPoint[]"},
+    "sensor_msgs/JointState": {
+        "header": "std_msgs/Header",
+        "name": "string[]",
+        "position": "float64[]",
+        "velocity": "float64[]",
+        "effort": "float64[]",
+    },
+    "trajectory_msgs/JointTrajectoryPoint": {
+        "positions": "float64[]",
+        "velocities": "float64[]",
+        "accelerations": "float64[]",
+        "effort": "float64[]",
+        "time_from_start": "duration",
+    },
+    "trajectory_msgs/JointTrajectory": {
+        "header": "std_msgs/Header",
+        "joint_names": "string[]",
+        "points": "trajectory_msgs/JointTrajectoryPoint[]",
+    },
     "geometry_msgs/Point": {"x": "float64", "y": "float64", "z": "float64"},
     "geometry_msgs/Vector3": {"x": "float64", "y": "float64", "z": "float64"},
     "geometry_msgs/Quaternion": {"x": "float64", "y": "float64", "z": "float64", "w": "float64"},
     "geometry_msgs/Pose": {"position": "geometry_msgs/Point", "orientation": "geometry_msgs/Quaternion"},
     "geometry_msgs/PoseStamped": {"header": "std_msgs/Header", "pose": "geometry_msgs/Pose"},
     "geometry_msgs/Transform": {"translation": "geometry_msgs/Vector3", "rotation": "geometry_msgs/Quaternion"},
-    "geometry_msgs/TransformStamped": {"header": "std_msgs/Header", "child_frame_id": "string",
-                                       "transform": "geometry_msgs/Transform"},
+    "geometry_msgs/TransformStamped": {
+        "header": "std_msgs/Header",
+        "child_frame_id": "string",
+        "transform": "geometry_msgs/Transform",
+    },
     "tf2_msgs/TFMessage": {"transforms": "geometry_msgs/TransformStamped[]"},
     "actionlib_msgs/GoalID": {"stamp": "time", "id": "string"},
     "actionlib_msgs/GoalStatus": {"goal_id": "actionlib_msgs/GoalID", "status": "uint8", "text": "string"},
@@ -85,7 +100,7 @@ def check(type_name: str, value, path: str = "", types: dict[str, dict[str, str]
         if not isinstance(value, list):
             raise FieldError(f"{where} must be a list ({type_name}), got {_kind(value)}")
         for i, item in enumerate(value):
-            check(type_name[:type_name.index("[")], item, f"{path}[{i}]", types)
+            check(type_name[: type_name.index("[")], item, f"{path}[{i}]", types)
         return
     if type_name in _FLOATS:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -109,8 +124,9 @@ def check(type_name: str, value, path: str = "", types: dict[str, dict[str, str]
     check_fields(type_name, fields, value, path, types)
 
 
-def check_fields(type_name: str, fields: dict[str, str], value, path: str = "",
-                 types: dict[str, dict[str, str]] = MESSAGES) -> None:
+def check_fields(
+    type_name: str, fields: dict[str, str], value, path: str = "", types: dict[str, dict[str, str]] = MESSAGES
+) -> None:
     """Every key of the object `value` is one of `fields` and fills it."""
     if not isinstance(value, dict):
         raise FieldError(f"{path or 'the message'} must be an object ({type_name}), got {_kind(value)}")
@@ -134,5 +150,11 @@ def nulls_for_non_finite(value):
 def _kind(value) -> str:
     if value is None:
         return "null"
-    return {bool: "a boolean", int: "an integer", float: "a number", str: "a string", list: "a list",
-            dict: "an object"}.get(type(value), type(value).__name__)
+    return {
+        bool: "a boolean",
+        int: "an integer",
+        float: "a number",
+        str: "a string",
+        list: "a list",
+        dict: "an object",
+    }.get(type(value), type(value).__name__)

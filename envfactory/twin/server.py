@@ -111,8 +111,10 @@ class RosbridgeServer:
     """A rosbridge v2 server over websockets with the graph of nodes behind it: it keeps each topic's type,
     checks what is published against it, forwards to subscribers and nodes, answers rosapi's and the nodes'
     services, records what the nodes received, and injects the faults in `faults`."""
-    def __init__(self, host: str = "127.0.0.1", port: int = 0,
-                 message_types: dict[str, dict[str, str]] = msgtypes.MESSAGES):
+
+    def __init__(
+        self, host: str = "127.0.0.1", port: int = 0, message_types: dict[str, dict[str, str]] = msgtypes.MESSAGES
+    ):
         self.host, self.port = host, port
         self.message_types = message_types  # what its ROS installation defines
         self.faults = Faults()
@@ -126,15 +128,22 @@ class RosbridgeServer:
         self._server = None
         self._services = {
             "/rosapi/topic_type": ("rosapi/TopicType", lambda a: {"type": self._types.get(a.get("topic", ""), "")}),
-            "/rosapi/subscribers": ("rosapi/Subscribers",
-                                    lambda a: {"subscribers": self._subscriber_nodes(a.get("topic", ""))}),
-            "/rosapi/publishers": ("rosapi/Publishers",
-                                   lambda a: {"publishers": self._publisher_nodes(a.get("topic", ""))}),
-            "/rosapi/topics": ("rosapi/Topics", lambda a: {"topics": sorted(self._types),
-                                                            "types": [self._types[t] for t in sorted(self._types)]}),
-            "/rosapi/topics_for_type": ("rosapi/TopicsForType",
-                                        lambda a: {"topics": sorted(t for t, ty in self._types.items()
-                                                                    if ty == a.get("type"))}),
+            "/rosapi/subscribers": (
+                "rosapi/Subscribers",
+                lambda a: {"subscribers": self._subscriber_nodes(a.get("topic", ""))},
+            ),
+            "/rosapi/publishers": (
+                "rosapi/Publishers",
+                lambda a: {"publishers": self._publisher_nodes(a.get("topic", ""))},
+            ),
+            "/rosapi/topics": (
+                "rosapi/Topics",
+                lambda a: {"topics": sorted(self._types), "types": [self._types[t] for t in sorted(self._types)]},
+            ),
+            "/rosapi/topics_for_type": (
+                "rosapi/TopicsForType",
+                lambda a: {"topics": sorted(t for t, ty in self._types.items() if ty == a.get("type"))},
+            ),
         }
 
     # ------------------------------------------------------------------ the graph
@@ -249,9 +258,15 @@ class RosbridgeServer:
         except (ValueError, KeyError, TypeError):
             self._refuse(connection, {}, f"unparsable message: {str(raw)[:200]}")
             return
-        handler = {"advertise": self._advertise, "unadvertise": self._unadvertise, "publish": self._publish,
-                   "subscribe": self._subscribe, "unsubscribe": self._unsubscribe, "set_level": self._set_level,
-                   "call_service": self._call_service}.get(op)
+        handler = {
+            "advertise": self._advertise,
+            "unadvertise": self._unadvertise,
+            "publish": self._publish,
+            "subscribe": self._subscribe,
+            "unsubscribe": self._unsubscribe,
+            "set_level": self._set_level,
+            "call_service": self._call_service,
+        }.get(op)
         client = self._clients.get(connection)
         if client is None:
             return
@@ -317,8 +332,12 @@ class RosbridgeServer:
                 log.warning("twin: %s rejected a message on %s: %s", node.name, topic, exc)
         for connection, other in self._clients.items():
             if other is not client and topic in other.subscribed:
-                asyncio.ensure_future(self._send(connection, json.dumps(
-                    {"op": "publish", "topic": topic, "msg": msgtypes.nulls_for_non_finite(msg)})))
+                asyncio.ensure_future(
+                    self._send(
+                        connection,
+                        json.dumps({"op": "publish", "topic": topic, "msg": msgtypes.nulls_for_non_finite(msg)}),
+                    )
+                )
 
     def _call_service(self, client: _Client, message: dict) -> dict:
         name = message.get("service", "")

@@ -25,14 +25,13 @@ from envfactory.twin import msgtypes
 from envfactory.twin.drivers import DRIVERS, DeclaredDriver, UrRobotDriver
 from envfactory.twin.server import Faults, Node, Received, RosbridgeServer
 
-
-
 POSE_HZ = 30.0
 
 
 def _sim_id(robot: str, task: str) -> str:
-    candidates = [env_id for env_id, record in sorted(records().items())
-                  if record.backend == "pybullet" and not record.goal_env]
+    candidates = [
+        env_id for env_id, record in sorted(records().items()) if record.backend == "pybullet" and not record.goal_env
+    ]
     for env_id in candidates:
         spec = blueprint(env_id).spec
         if spec.robot.name == robot and spec.task.name == task:
@@ -47,19 +46,30 @@ class Twin:
     commands that carry no duration (xs_sdk's 2 s profile), `speed_scaling` is the UR controller's (1.0: the
     slider at 100%)."""
 
-    def __init__(self, robot: str, task: str = "push", host: str = "127.0.0.1", port: int = 0,
-                 overrides: tuple[str, ...] = (), topic_types: dict[str, str] | None = None,
-                 group_move_s: float | None = None, speed_scaling: float = 1.0):
+    def __init__(
+        self,
+        robot: str,
+        task: str = "push",
+        host: str = "127.0.0.1",
+        port: int = 0,
+        overrides: tuple[str, ...] = (),
+        topic_types: dict[str, str] | None = None,
+        group_move_s: float | None = None,
+        speed_scaling: float = 1.0,
+    ):
         compiled = blueprint(_sim_id(robot, task), ["env.timing.realtime=true", *overrides])
         spec = compiled.spec
         self.spec = spec
         self.ros = spec.robot.ros
         if self.ros is None:
             raise ValueError(f"robot {robot!r} declares no 'ros:' topic map")
-        self.sim = PyBulletBackend(spec, assemble(spec.robot.model, compiled.asset_root, spec.robot.name),
-                                   TaskFrame.of(spec.robot))
-        spawn = {name: (np.asarray(obj.spawn.position, float), np.array([0.0, 0.0, 0.0, 1.0]))
-                 for name, obj in spec.task.objects.items()}
+        self.sim = PyBulletBackend(
+            spec, assemble(spec.robot.model, compiled.asset_root, spec.robot.name), TaskFrame.of(spec.robot)
+        )
+        spawn = {
+            name: (np.asarray(obj.spawn.position, float), np.array([0.0, 0.0, 0.0, 1.0]))
+            for name, obj in spec.task.objects.items()
+        }
         self.sim.reset(np.asarray(spec.robot.home, float), spec.gripper_at_reset, spawn)
         self.state_names = spec.robot.state_names
         self.arm_names = spec.robot.arm_state_names
@@ -75,8 +85,10 @@ class Twin:
     def _driver(self, group_move_s: float | None, speed_scaling: float):
         kind = DRIVERS.get(self.ros.driver or "", DeclaredDriver)
         if speed_scaling != 1.0 and kind is not UrRobotDriver:
-            raise ValueError(f"speed scaling is the UR trajectory controller's; {self.spec.robot.name} runs "
-                             f"{self.ros.driver or 'a driver the twin plays from its topic map'}")
+            raise ValueError(
+                f"speed scaling is the UR trajectory controller's; {self.spec.robot.name} runs "
+                f"{self.ros.driver or 'a driver the twin plays from its topic map'}"
+            )
         if kind is UrRobotDriver:
             return kind(self, group_move_s, speed_scaling)
         return kind(self, group_move_s)
@@ -92,11 +104,13 @@ class Twin:
         self._thread.start()
         asyncio.run_coroutine_threadsafe(self.server.start(), self._loop).result(timeout=10)
         self._publishers = [
-            asyncio.run_coroutine_threadsafe(self._every(1.0 / self.driver.joint_state_hz, self._publish_joint_state),
-                                             self._loop),
+            asyncio.run_coroutine_threadsafe(
+                self._every(1.0 / self.driver.joint_state_hz, self._publish_joint_state), self._loop
+            ),
             asyncio.run_coroutine_threadsafe(self._every(1.0 / POSE_HZ, self._publish_poses), self._loop),
-            asyncio.run_coroutine_threadsafe(self._every(1.0 / self.driver.extras_hz,
-                                                         lambda: self.driver.publish_extras(self.server)), self._loop),
+            asyncio.run_coroutine_threadsafe(
+                self._every(1.0 / self.driver.extras_hz, lambda: self.driver.publish_extras(self.server)), self._loop
+            ),
         ]
         return self
 
@@ -149,14 +163,21 @@ class Twin:
         typed = lambda topic, type_name: topic_types.get(topic, type_name)  # noqa: E731
         commands = {ros.arm_command.topic: (typed(ros.arm_command.topic, ros.arm_command.type), self._on_command)}
         if ros.gripper_command is not None:
-            commands[ros.gripper_command.topic] = (typed(ros.gripper_command.topic, ros.gripper_command.type),
-                                                   self._on_command)
-        publishes = {ros.joint_states.topic: typed(ros.joint_states.topic, ros.joint_states.type),
-                     **{topic: typed(topic, type_name) for topic, type_name in self.driver.publishes().items()}}
-        self.server.add_node(Node(f"/{robot}_driver", publishes=publishes, subscribes=commands,
-                                  services=self.driver.services()), self.driver.service_types)
-        self.server.add_node(Node("/cube_tracker", publishes={
-            t.topic: typed(t.topic, t.type) for t in ros.object_poses.values()}))
+            commands[ros.gripper_command.topic] = (
+                typed(ros.gripper_command.topic, ros.gripper_command.type),
+                self._on_command,
+            )
+        publishes = {
+            ros.joint_states.topic: typed(ros.joint_states.topic, ros.joint_states.type),
+            **{topic: typed(topic, type_name) for topic, type_name in self.driver.publishes().items()},
+        }
+        self.server.add_node(
+            Node(f"/{robot}_driver", publishes=publishes, subscribes=commands, services=self.driver.services()),
+            self.driver.service_types,
+        )
+        self.server.add_node(
+            Node("/cube_tracker", publishes={t.topic: typed(t.topic, t.type) for t in ros.object_poses.values()})
+        )
 
     # ------------------------------------------------------------------ what it publishes
 
@@ -174,8 +195,9 @@ class Twin:
         if self.faults.take_malformed(topic):
             position = position.copy()
             position[-1] = float("nan")  # a driver glitch; the server sends it as null
-        await self.server.publish(topic, messages.encode_joint_state(names, position, velocity, time.time(),
-                                                                     self.ros.joint_states.template))
+        await self.server.publish(
+            topic, messages.encode_joint_state(names, position, velocity, time.time(), self.ros.joint_states.template)
+        )
 
     async def _publish_poses(self) -> None:
         for name, topic_spec in self.ros.object_poses.items():
@@ -185,9 +207,12 @@ class Twin:
                 continue
             reading = self.sim.read_object(name)
             quaternion = reading.quaternion * (3.0 if self.faults.take_malformed(topic_spec.topic) else 1.0)
-            await self.server.publish(topic_spec.topic, messages.encode_pose(self.ros.task_frame_id, reading.position,
-                                                                             quaternion, time.time(),
-                                                                             topic_spec.template))
+            await self.server.publish(
+                topic_spec.topic,
+                messages.encode_pose(
+                    self.ros.task_frame_id, reading.position, quaternion, time.time(), topic_spec.template
+                ),
+            )
 
     # ------------------------------------------------------------------ what it executes
 

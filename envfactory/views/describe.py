@@ -26,8 +26,12 @@ def _table(title: str, *columns: str) -> Table:
 def observation_table(compiled: Blueprint) -> Table:
     manager = ObservationManager(compiled.policy_observation)
     name = "observation (Box)" if compiled.goal_env else "Observation"
-    scaled = " normalised (normalize_observations): each column's declared bounds → [-1, 1]" \
-        + (", both goals by the goal box" if compiled.goal_env else "") if compiled.spec.env.observation.normalize else ""
+    scaled = (
+        " normalised (normalize_observations): each column's declared bounds → [-1, 1]"
+        + (", both goals by the goal box" if compiled.goal_env else "")
+        if compiled.spec.env.observation.normalize
+        else ""
+    )
     table = _table(f"{name}: Box({manager.size},){scaled}", "Idx", "Dim", "Component", "Source", "Unit")
     for row in manager.table():
         table.add_row(*row)
@@ -48,15 +52,25 @@ def action_table(compiled: Blueprint) -> Table:
     detail = f"delta × {layout.delta_coeff:g}" if layout.delta else "absolute"
     if layout.normalize:
         # the declared rows stay the Min/Max; the policy's [-1, 1] maps onto them row by row
-        table = _table(f"Action: Box(-1, 1, ({layout.size},)) normalised (normalize_actions) — {mode} mode, "
-                       f"{detail}", "Num", "Action", "Min", "Max", "Policy [-1, 1] →", "Joint", "Unit")
+        table = _table(
+            f"Action: Box(-1, 1, ({layout.size},)) normalised (normalize_actions) — {mode} mode, {detail}",
+            "Num",
+            "Action",
+            "Min",
+            "Max",
+            "Policy [-1, 1] →",
+            "Joint",
+            "Unit",
+        )
         scale = layout.scale
         for index, row in enumerate(layout.rows):
-            table.add_row(str(index), row.label, f"{row.low:+.2f}", f"{row.high:+.2f}", scale.mapping(index),
-                          row.joint, row.unit)
+            table.add_row(
+                str(index), row.label, f"{row.low:+.2f}", f"{row.high:+.2f}", scale.mapping(index), row.joint, row.unit
+            )
         return table
-    table = _table(f"Action: Box({layout.size},) — {mode} mode, {detail}", "Num", "Action", "Min", "Max", "Joint",
-                   "Unit")
+    table = _table(
+        f"Action: Box({layout.size},) — {mode} mode, {detail}", "Num", "Action", "Min", "Max", "Joint", "Unit"
+    )
     for index, row in enumerate(layout.rows):
         table.add_row(str(index), row.label, f"{row.low:+.2f}", f"{row.high:+.2f}", row.joint, row.unit)
     return table
@@ -64,8 +78,14 @@ def action_table(compiled: Blueprint) -> Table:
 
 def reward_table(compiled: Blueprint) -> Table:
     spec = compiled.spec
-    table = _table(f"Reward ({spec.env.reward_type}), tolerance {spec.task.goal.tolerance:g} m", "Name", "Term",
-                   "Params", "Weight", "Meaning")
+    table = _table(
+        f"Reward ({spec.env.reward_type}), tolerance {spec.task.goal.tolerance:g} m",
+        "Name",
+        "Term",
+        "Params",
+        "Weight",
+        "Meaning",
+    )
     manager = RewardManager(compiled.rewards, compiled.terminations, spec.task.goal.tolerance, compiled.info_keys)
     for row in manager.table():
         table.add_row(*row)
@@ -74,19 +94,33 @@ def reward_table(compiled: Blueprint) -> Table:
 
 def image_table(compiled: Blueprint) -> Table:
     camera = compiled.spec.scene.camera
-    table = _table(f"Camera images (use_kinect): eye {list(camera.eye)} → target {list(camera.target)}, "
-                   f"fov {camera.fov:g}°", "Key", "Shape", "Dtype", "Low", "High", "Meaning")
+    table = _table(
+        f"Camera images (use_kinect): eye {list(camera.eye)} → target {list(camera.target)}, fov {camera.fov:g}°",
+        "Key",
+        "Shape",
+        "Dtype",
+        "Low",
+        "High",
+        "Meaning",
+    )
     for image in compiled.images:
-        table.add_row(image.name, str(image.shape), image.term.dtype.__name__, f"{image.low:g}", f"{image.high:g}",
-                      image.term.description)
+        table.add_row(
+            image.name,
+            str(image.shape),
+            image.term.dtype.__name__,
+            f"{image.low:g}",
+            f"{image.high:g}",
+            image.term.description,
+        )
     return table
 
 
 def ros_table(compiled: Blueprint) -> Table:
     """A Real ID's wiring: where it reads and what it publishes."""
     ros, real = compiled.spec.robot.ros, compiled.spec.env.real
-    table = _table(f"rosbridge ws://{real.host}:{real.port}, task frame {ros.task_frame_id}", "Direction", "Topic",
-                   "Type")
+    table = _table(
+        f"rosbridge ws://{real.host}:{real.port}, task frame {ros.task_frame_id}", "Direction", "Topic", "Type"
+    )
     table.add_row("in", ros.joint_states.topic, ros.joint_states.type)
     for name in compiled.spec.task.objects:
         table.add_row(f"in ({name})", ros.object_poses[name].topic, ros.object_poses[name].type)
@@ -94,9 +128,14 @@ def ros_table(compiled: Blueprint) -> Table:
     uses_gripper = compiled.action.gripper_in_action or compiled.spec.gripper_at_reset is not None
     if ros.gripper_command is not None and uses_gripper:
         command, ends = ros.gripper_command, compiled.spec.robot.gripper
-        direction = "out (gripper)" if command.states is None else \
-            (f"out (gripper: open/close only; nearer {ends.closed:g} sends {command.states.closed!r}, "
-             f"else {command.states.open!r})")
+        direction = (
+            "out (gripper)"
+            if command.states is None
+            else (
+                f"out (gripper: open/close only; nearer {ends.closed:g} sends {command.states.closed!r}, "
+                f"else {command.states.open!r})"
+            )
+        )
         table.add_row(direction, command.topic, command.type)
     return table
 
@@ -123,8 +162,11 @@ def randomization_table(compiled: Blueprint) -> Table:
     for slot in compiled.sensing:
         fields = type(slot.params).model_fields
         # a value left at its default (no bias, every observation) says nothing; a required one always shows
-        params = ", ".join(f"{key}={value}" for key, value in slot.params.model_dump().items()
-                           if fields[key].is_required() or value not in ([], 0.0))
+        params = ", ".join(
+            f"{key}={value}"
+            for key, value in slot.params.model_dump().items()
+            if fields[key].is_required() or value not in ([], 0.0)
+        )
         table.add_row(slot.name, slot.term.name, params, "every step")
     return table
 
@@ -136,15 +178,18 @@ def task_lines(compiled: Blueprint) -> list[str]:
     for name, obj in task.objects.items():
         spawn = obj.spawn
         where = f"± {list(spawn.offset)} in x, y" if spawn.random else "fixed"
-        lines.append(f"Object {name}: {obj.shape} {obj.size:g} m, {obj.mass:g} kg, spawns at {list(spawn.position)} "
-                     f"({where})")
+        lines.append(
+            f"Object {name}: {obj.shape} {obj.size:g} m, {obj.mass:g} kg, spawns at {list(spawn.position)} ({where})"
+        )
     if spec.gripper_at_reset is not None or task.gripper.in_action:
         use = "action[-1], absolute" if task.gripper.in_action else "not in the action"
         lines.append(f"Gripper: {spec.gripper_at_reset} at reset, {use}")
     lift = task.goal.lift
     if lift is not None and lift.enabled:
-        lines.append(f"Lift stage (multi_goal): current goal = spawn + [0, 0, {lift.height:g}] until reached "
-                     f"within tolerance, then the goal")
+        lines.append(
+            f"Lift stage (multi_goal): current goal = spawn + [0, 0, {lift.height:g}] until reached "
+            f"within tolerance, then the goal"
+        )
     return lines
 
 
@@ -182,29 +227,44 @@ def safety_table(compiled: Blueprint) -> Table:
     collision = robot_geometry(compiled.spec, compiled.asset_root).collision
     settings = compiled.spec.env.safety
     margin = settings.surface_margin
-    table = _table(f"Safety: every shape ≥ {margin:g} m (+{SafetyCheck.SHAPE_TOLERANCE * 1000:g} mm per robot shape in a "
-                   f"pair, for engine differences) from {', '.join(o.name for o in collision.obstacles)} "
-                   f"(table footprint +{settings.table_footprint_margin:g} m) and from the arm's other links; "
-                   f"joint change ≤ {settings.max_joint_delta:g} rad", "Link", "Shape", "Size (m)", "Margin (m)",
-                   "Self pairs checked")
+    table = _table(
+        f"Safety: every shape ≥ {margin:g} m (+{SafetyCheck.SHAPE_TOLERANCE * 1000:g} mm per robot shape in a "
+        f"pair, for engine differences) from {', '.join(o.name for o in collision.obstacles)} "
+        f"(table footprint +{settings.table_footprint_margin:g} m) and from the arm's other links; "
+        f"joint change ≤ {settings.max_joint_delta:g} rad",
+        "Link",
+        "Shape",
+        "Size (m)",
+        "Margin (m)",
+        "Self pairs checked",
+    )
     checked: dict[int, int] = {}
     for a, b in zip(collision.self_a, collision.self_b):
         checked[a] = checked.get(a, 0) + 1
         checked[b] = checked.get(b, 0) + 1
     for index, (shape, geometry_object) in enumerate(zip(collision.shapes, collision.geometry.geometryObjects)):
         moving = "" if shape.joint else " (fixed base)"
-        table.add_row(shape.link + moving, _shape_kind(geometry_object.geometry), _shape_size(geometry_object.geometry),
-                      f"{margin + shape.padding:g}", str(checked.get(index, 0)))
+        table.add_row(
+            shape.link + moving,
+            _shape_kind(geometry_object.geometry),
+            _shape_size(geometry_object.geometry),
+            f"{margin + shape.padding:g}",
+            str(checked.get(index, 0)),
+        )
     skipped = len(collision.ignored)
-    table.caption = (f"{collision.pair_count} pairs measured ({len(collision.scene_shape)} link–obstacle, "
-                     f"{len(collision.self_a)} link–link); {skipped} link pairs skipped as rigid, adjacent, "
-                     f"gripper mechanism or proven apart")
+    table.caption = (
+        f"{collision.pair_count} pairs measured ({len(collision.scene_shape)} link–obstacle, "
+        f"{len(collision.self_a)} link–link); {skipped} link pairs skipped as rigid, adjacent, "
+        f"gripper mechanism or proven apart"
+    )
     objects = compiled.spec.task.objects
     if objects:
         guard = ObjectPressGuard(collision, objects, TaskFrame.of(compiled.spec.robot))
         links = list(dict.fromkeys(collision.shapes[i].link for i in guard.guarded))
-        table.caption += (f". No motion may end with {', '.join(links)} inside the {', '.join(objects)} while it rests "
-                          f"on the table (the fingers may touch it)")
+        table.caption += (
+            f". No motion may end with {', '.join(links)} inside the {', '.join(objects)} while it rests "
+            f"on the table (the fingers may touch it)"
+        )
     return table
 
 
@@ -249,16 +309,22 @@ def env_kind(compiled: Blueprint) -> str:
 def description_parts(compiled: Blueprint) -> list[Part]:
     """The description of a blueprint: what the console prints and what the docs' Markdown renders."""
     spec = compiled.spec
-    parts = [Part("summary", f"[bold]{compiled.env_id}[/] — {spec.robot.label}, {spec.task.label}, "
-                             f"{env_kind(compiled)}, backend {compiled.backend}, frame {spec.robot.task_frame}, "
-                             f"base at {list(spec.robot.mount)}{_turn(spec.robot.mount_rpy)}, "
-                             f"max_episode_steps {compiled.max_episode_steps}"),
-             Part("observation", observation_table(compiled))]
+    parts = [
+        Part(
+            "summary",
+            f"[bold]{compiled.env_id}[/] — {spec.robot.label}, {spec.task.label}, "
+            f"{env_kind(compiled)}, backend {compiled.backend}, frame {spec.robot.task_frame}, "
+            f"base at {list(spec.robot.mount)}{_turn(spec.robot.mount_rpy)}, "
+            f"max_episode_steps {compiled.max_episode_steps}",
+        ),
+        Part("observation", observation_table(compiled)),
+    ]
     if compiled.goal_env:
         parts.append(Part("goal", goal_table(compiled)))
         source = "EE" if compiled.achieved_from == "ee" else compiled.achieved_from
-        parts.append(Part("achieved goal", f"achieved_goal: Box(3,) — current {source} XYZ, same frame as "
-                                           f"desired_goal\n"))
+        parts.append(
+            Part("achieved goal", f"achieved_goal: Box(3,) — current {source} XYZ, same frame as desired_goal\n")
+        )
     else:
         goal = spec.task.goal
         parts.append(Part("goal", f"Goal box: min {list(goal.box[0])}, max {list(goal.box[1])}\n"))
@@ -268,17 +334,30 @@ def description_parts(compiled: Blueprint) -> list[Part]:
     if compiled.backend == "rosbridge" and compiled.spec.robot.ros is not None:
         parts.append(Part("ros", ros_table(compiled)))
         real = compiled.spec.env.real
-        parts.append(Part("gates", f"Gates: motion {'allowed' if real.allow_motion else 'closed'} "
-                                   f"(allow_real_robot_motion), joint states ≤ {real.joint_state_timeout_s:g} s old, "
-                                   f"object poses ≤ {real.cube_pose_timeout_s:g} s old, "
-                                   f"deadman {real.deadman_s:g} s\n"))
+        parts.append(
+            Part(
+                "gates",
+                f"Gates: motion {'allowed' if real.allow_motion else 'closed'} "
+                f"(allow_real_robot_motion), joint states ≤ {real.joint_state_timeout_s:g} s old, "
+                f"object poses ≤ {real.cube_pose_timeout_s:g} s old, "
+                f"deadman {real.deadman_s:g} s\n",
+            )
+        )
     if compiled.events or compiled.sensing:
         parts.append(Part("randomization", randomization_table(compiled)))
-    parts += [Part("action", action_table(compiled)), Part("safety", safety_table(compiled)),
-              Part("reward", reward_table(compiled))]
+    parts += [
+        Part("action", action_table(compiled)),
+        Part("safety", safety_table(compiled)),
+        Part("reward", reward_table(compiled)),
+    ]
     active = [f"{t.name} ({t.term.name})" for t in compiled.terminations if t.active]
-    parts.append(Part("termination", f"Termination: {', '.join(active) or 'none on this reward type'}; "
-                                     f"truncation at {compiled.max_episode_steps} steps"))
+    parts.append(
+        Part(
+            "termination",
+            f"Termination: {', '.join(active) or 'none on this reward type'}; "
+            f"truncation at {compiled.max_episode_steps} steps",
+        )
+    )
     parts += [Part("kwargs", line, plain=True) for line in kwarg_lines(compiled)]
     return parts
 

@@ -44,8 +44,10 @@ def render_clearance(compiled, out: Path, q_arm=None, width: int = 800, height: 
     try:
         backend.reset(q_arm, gripper, {})
         client, body = backend.client, backend.body
-        names = {p.getJointInfo(body, j, physicsClientId=client)[12].decode(): j
-                 for j in range(p.getNumJoints(body, physicsClientId=client))}
+        names = {
+            p.getJointInfo(body, j, physicsClientId=client)[12].decode(): j
+            for j in range(p.getNumJoints(body, physicsClientId=client))
+        }
         names[p.getBodyInfo(body, physicsClientId=client)[0].decode()] = -1
         for link, clearance in lowest.items():
             colour = NEAR if clearance < margin else CLOSE if clearance < 3 * margin else CLEAR

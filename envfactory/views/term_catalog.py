@@ -24,8 +24,12 @@ def params_doc(model: type[BaseModel] | None) -> str:
         text = f"{label}: {type_name(field.annotation)}"
         if not field.is_required():
             text += f" = {field.default!r}"
-        limits = [f"{op} {getattr(m, attr)}" for m in field.metadata for attr, op in
-                  (("gt", ">"), ("ge", ">="), ("lt", "<"), ("le", "<=")) if getattr(m, attr, None) is not None]
+        limits = [
+            f"{op} {getattr(m, attr)}"
+            for m in field.metadata
+            for attr, op in (("gt", ">"), ("ge", ">="), ("lt", "<"), ("le", "<="))
+            if getattr(m, attr, None) is not None
+        ]
         if limits:
             text += f" ({', '.join(limits)})"
         parts.append(text)
@@ -56,8 +60,14 @@ def _summary(function) -> str:
 
 def observation_rows() -> Iterator[tuple[str, ...]]:
     for name, term in sorted(OBSERVATIONS.items()):
-        yield (name, term.size_doc, term.unit or "-", params_doc(term.params), "yes" if term.goal_dependent else "",
-               _summary(term.fn))
+        yield (
+            name,
+            term.size_doc,
+            term.unit or "-",
+            params_doc(term.params),
+            "yes" if term.goal_dependent else "",
+            _summary(term.fn),
+        )
 
 
 def reward_rows() -> Iterator[tuple[str, ...]]:
@@ -94,15 +104,27 @@ def sensing_rows() -> Iterator[tuple[str, ...]]:
 
 # What `envfactory terms` prints and the docs' terms page renders: (title, columns, rows)
 TABLES = [
-    ("Observation terms (task.observation)", ("Name", "Size", "Unit", "Params", "Goal-dependent", "Meaning"),
-     observation_rows),
-    ("Reward terms (task.reward.sparse / dense: {term, weight, params})", ("Name", "Params", "Reads info", "Meaning"),
-     reward_rows),
-    ("Termination terms (task.termination: {term, params, when})", ("Name", "Params", "Reads info", "Meaning"),
-     termination_rows),
+    (
+        "Observation terms (task.observation)",
+        ("Name", "Size", "Unit", "Params", "Goal-dependent", "Meaning"),
+        observation_rows,
+    ),
+    (
+        "Reward terms (task.reward.sparse / dense: {term, weight, params})",
+        ("Name", "Params", "Reads info", "Meaning"),
+        reward_rows,
+    ),
+    (
+        "Termination terms (task.termination: {term, params, when})",
+        ("Name", "Params", "Reads info", "Meaning"),
+        termination_rows,
+    ),
     ("Image terms (scene.camera.terms, with use_kinect)", ("Name", "Shape", "Dtype", "Meaning"), image_rows),
-    ("Event terms (task.randomization.events: {term, every, params})", ("Name", "Unit", "Params", "Samples"),
-     event_rows),
+    (
+        "Event terms (task.randomization.events: {term, every, params})",
+        ("Name", "Unit", "Params", "Samples"),
+        event_rows,
+    ),
     ("Sensing terms (task.randomization.sensing: {term, params})", ("Name", "Unit", "Params", "Does"), sensing_rows),
     ("Experts (task.expert: {policy, params})", ("Name", "Params", "What it does"), expert_rows),
 ]

@@ -10,8 +10,14 @@ import mujoco
 import numpy as np
 
 from envfactory.backends.at_rest import CycleCounts
-from envfactory.backends.base import (PHYSICS_QUANTITIES, BackendError, CameraFrame, JointReading, ObjectReading,
-                                      PhysicsChange)
+from envfactory.backends.base import (
+    PHYSICS_QUANTITIES,
+    BackendError,
+    CameraFrame,
+    JointReading,
+    ObjectReading,
+    PhysicsChange,
+)
 from envfactory.backends.driver_readings import DriverReadings
 from envfactory.backends.mujoco.fast_cycles import FastCycles
 from envfactory.backends.mujoco.model import CAMERA, build
@@ -21,8 +27,10 @@ from envfactory.geometry.obstacles import TABLE_TOP
 from envfactory.schema.models import CameraSpec, EnvSpec
 
 _render_failure: str | None = None  # why this process cannot render, once a try has shown it
-RENDER_HELP = ("MuJoCo renders through OpenGL: set MUJOCO_GL=egl (needs libEGL and a GPU driver) or "
-               "MUJOCO_GL=osmesa (needs libOSMesa, e.g. Debian's libosmesa6) before the first import of mujoco")
+RENDER_HELP = (
+    "MuJoCo renders through OpenGL: set MUJOCO_GL=egl (needs libEGL and a GPU driver) or "
+    "MUJOCO_GL=osmesa (needs libOSMesa, e.g. Debian's libosmesa6) before the first import of mujoco"
+)
 
 
 class MujocoBackend:
@@ -30,12 +38,15 @@ class MujocoBackend:
     its cycles played by FastCycles (the arm's joint-synchronous profile tracked by position servos; with the
     fast fidelity, cycles that cannot touch an object played without dynamics). Not thread-safe: one env, one
     thread."""
+
     teleports_on_reset = True  # reset sets the joints directly; no path is driven
 
     def __init__(self, spec: EnvSpec, urdf_path, task_frame: TaskFrame, render_mode: str | None = None):
         if spec.env.gui or render_mode == "human":
-            raise BackendError("the MuJoCo engine runs headless: a GUI (gui=True, render_mode='human') is "
-                               "PyBullet's (engine='pybullet')")
+            raise BackendError(
+                "the MuJoCo engine runs headless: a GUI (gui=True, render_mode='human') is "
+                "PyBullet's (engine='pybullet')"
+            )
         self.spec = spec
         self.robot = spec.robot
         self.task_frame = task_frame
@@ -47,8 +58,10 @@ class MujocoBackend:
         self._realtime = spec.env.timing.realtime
         # what randomized physics scales from and recombines: each object's mass and inertia as built, and the
         # friction of every surface an object can touch
-        self._built_mass = {body: (float(self.model.body_mass[body]), self.model.body_inertia[body].copy())
-                            for body in self.handles.object_body.values()}
+        self._built_mass = {
+            body: (float(self.model.body_mass[body]), self.model.body_inertia[body].copy())
+            for body in self.handles.object_body.values()
+        }
         self._friction = dict(self.handles.surface_friction or {})
         self._scratch = mujoco.MjData(self.model)  # for mj_setConst after a mass changes
         camera = spec.scene.camera
@@ -80,7 +93,7 @@ class MujocoBackend:
                 raise BackendError(f"reset places {name!r}, which the task does not declare")
             x, y, z, w = self.task_frame.quaternion_to_world(quaternion)
             address = handles.object_qpos[name]
-            data.qpos[address:address + 7] = [*self.task_frame.to_world(position), w, x, y, z]
+            data.qpos[address : address + 7] = [*self.task_frame.to_world(position), w, x, y, z]
         mujoco.mj_forward(model, data)
 
     def command_joints(self, q_arm_target, duration: float) -> None:
@@ -145,8 +158,11 @@ class MujocoBackend:
     def read_object(self, name: str) -> ObjectReading:
         body = self.handles.object_body[name]
         w, x, y, z = self.data.xquat[body]
-        return ObjectReading(self.task_frame.to_task(self.data.xpos[body].copy()),
-                             self.task_frame.quaternion_to_task([x, y, z, w]), self.cycles.sim_time)
+        return ObjectReading(
+            self.task_frame.to_task(self.data.xpos[body].copy()),
+            self.task_frame.quaternion_to_task([x, y, z, w]),
+            self.cycles.sim_time,
+        )
 
     def mark_goal(self, position: np.ndarray) -> None:
         self.data.mocap_pos[self.handles.marker_mocap] = self.task_frame.to_world(position)
@@ -171,8 +187,11 @@ class MujocoBackend:
         renderer = self._renderer(width, height)
         camera = mujoco.MjvCamera()
         camera.lookat[:] = RENDER_VIEW.target(self.spec.scene.table)
-        camera.distance, camera.azimuth, camera.elevation = RENDER_VIEW.distance, RENDER_VIEW.yaw + 180.0, \
-            RENDER_VIEW.pitch
+        camera.distance, camera.azimuth, camera.elevation = (
+            RENDER_VIEW.distance,
+            RENDER_VIEW.yaw + 180.0,
+            RENDER_VIEW.pitch,
+        )
         renderer.update_scene(self.data, camera)
         return renderer.render().copy()
 

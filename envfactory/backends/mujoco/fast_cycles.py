@@ -49,9 +49,9 @@ def objects_at_rest(data, object_dofs: dict[str, int]) -> bool:
     """Every object's free joint slower than the rest limits (linear, then angular: its six dofs), squared speeds
     against squared limits on plain floats: a test every cycle makes."""
     for dof in object_dofs.values():
-        vx, vy, vz, wx, wy, wz = data.qvel[dof:dof + 6].tolist()
+        vx, vy, vz, wx, wy, wz = data.qvel[dof : dof + 6].tolist()
         # asked as "below the limits", so that a NaN (a blown-up state) is never taken for rest
-        if not (vx * vx + vy * vy + vz * vz < OBJECT_REST ** 2 and wx * wx + wy * wy + wz * wz < OBJECT_SPIN_REST ** 2):
+        if not (vx * vx + vy * vy + vz * vz < OBJECT_REST**2 and wx * wx + wy * wy + wz * wz < OBJECT_SPIN_REST**2):
             return False
     return True
 
@@ -79,7 +79,7 @@ class Profile:
         else:
             tau = np.clip((np.asarray(time, float) - self.t0) / self.length, 0.0, 1.0)[..., None]
         if self.smooth:
-            fraction = tau ** 3 * (10.0 - 15.0 * tau + 6.0 * tau * tau)
+            fraction = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau * tau)
             rate = 30.0 * tau * tau * (1.0 - tau) ** 2 / self.length
             change = 60.0 * tau * (1.0 - tau) * (1.0 - 2.0 * tau) / (self.length * self.length)
         elif isinstance(tau, float):
@@ -97,6 +97,7 @@ def _as_slice(indices: np.ndarray):
     if indices.size and np.array_equal(indices, np.arange(indices[0], indices[0] + indices.size)):
         return slice(int(indices[0]), int(indices[0]) + indices.size)
     return indices
+
 
 class FastCycles:
     """The cycles of one env's MuJoCo data: the commanded profiles, the clock, and how each cycle is played
@@ -129,8 +130,11 @@ class FastCycles:
         self._arm_q, self._arm_v = _as_slice(handles.arm_qpos), _as_slice(handles.arm_dof)
         self._arm_u = _as_slice(handles.arm_actuators)
         # the gripper joint and its mimic followers: (qpos address, dof address, gain) of each
-        moved = [] if handles.gripper_qpos is None else \
-            [(handles.gripper_qpos, handles.gripper_dof, 1.0), *handles.followers]
+        moved = (
+            []
+            if handles.gripper_qpos is None
+            else [(handles.gripper_qpos, handles.gripper_dof, 1.0), *handles.followers]
+        )
         self._gripper_qpos = np.array([address for address, _, _ in moved], dtype=int)
         self._gripper_dofs = np.array([dof for _, dof, _ in moved], dtype=int)
         self._gripper_gains = np.array([gain for _, _, gain in moved], dtype=float)
@@ -171,8 +175,9 @@ class FastCycles:
             return  # already on its way there: a repeated command does not restart the drive
         # one joint: its profile on plain floats (a kinematic cycle asks it where the gripper ends)
         start, end = float(self.data.qpos[self.handles.gripper_qpos]), float(value)
-        self._gripper = Profile(start, end, self.sim_time, abs(end - start) / self.robot.gripper.max_velocity,
-                                smooth=False)
+        self._gripper = Profile(
+            start, end, self.sim_time, abs(end - start) / self.robot.gripper.max_velocity, smooth=False
+        )
 
     def hold(self) -> None:
         """Hold the arm where it is now."""
@@ -212,16 +217,22 @@ class FastCycles:
             self._settled = True  # every path here either found the scene settled or simulated until it was
             if self._carry is not None:
                 arm = self._arm
-                self._carry.measure(self.data, q_start, q_start if arm is None else arm.end,
-                                    0.0 if arm is None else arm.length)
+                self._carry.measure(
+                    self.data, q_start, q_start if arm is None else arm.end, 0.0 if arm is None else arm.length
+                )
         self.data.time = self.sim_time = end
 
     def _dynamic(self, steps: int, done: int = 0) -> int:
         """The substeps of the commanded motion (after the `done` first ones, already played), then (fast) chunks
         until everything rests twice in a row."""
-        motion_end = max((profile.t0 + profile.length for profile in (self._arm, self._gripper)
-                          if profile is not None and np.max(np.abs(profile.end - profile.start)) > REST_GAP),
-                         default=0.0)  # a hold has nothing to play out: the rest test decides at once
+        motion_end = max(
+            (
+                profile.t0 + profile.length
+                for profile in (self._arm, self._gripper)
+                if profile is not None and np.max(np.abs(profile.end - profile.start)) > REST_GAP
+            ),
+            default=0.0,
+        )  # a hold has nothing to play out: the rest test decides at once
         motion = steps if not self.fast else min(steps, max(1, int(np.ceil((motion_end - self.sim_time) / self.dt))))
         if motion > done:
             self._play_substeps(done, motion - done)
@@ -259,8 +270,8 @@ class FastCycles:
         if controls.shape[0] < steps:
             controls = self._controls = np.zeros((steps, model.nu + model.nv))
         controls = controls[:steps]
-        controls[:, :model.nu] = data.ctrl
-        controls[:, model.nu:] = 0.0
+        controls[:, : model.nu] = data.ctrl
+        controls[:, model.nu :] = 0.0
         if self._arm is not None:
             position, velocity, acceleration = self._arm.at(times)
             controls[:, handles.arm_actuators] = position + self._lead * velocity
@@ -276,11 +287,19 @@ class FastCycles:
         self._scratch.qacc_warmstart[:] = data.qacc_warmstart
         if self._states.shape[1] != steps:
             self._states = np.zeros((1, steps, self._state.size))
-        self._rollout.rollout([model], [self._scratch], self._state[None], np.ascontiguousarray(controls[None]),
-                              control_spec=CONTROL, skip_checks=True, nstep=steps, state=self._states)
+        self._rollout.rollout(
+            [model],
+            [self._scratch],
+            self._state[None],
+            np.ascontiguousarray(controls[None]),
+            control_spec=CONTROL,
+            skip_checks=True,
+            nstep=steps,
+            state=self._states,
+        )
         mujoco.mj_setState(model, data, self._states[0, -1], STATE)
         data.qacc_warmstart[:] = self._scratch.qacc_warmstart
-        data.ctrl[:] = controls[-1, :model.nu]
+        data.ctrl[:] = controls[-1, : model.nu]
 
     def _hold_substeps(self, steps: int) -> None:
         """Substeps after every profile has ended: the servos hold the profiles' ends and nothing is fed forward,
@@ -303,19 +322,24 @@ class FastCycles:
         # the commands first: most cycles have the arm on its way, which settles it without reading velocities
         # (asked as "within", so that a NaN is never taken for a reached target)
         here = self.data.qpos
-        if self._arm is not None and \
-                not all(abs(gap) <= REST_GAP for gap in (self._arm.end - here[self._arm_q]).tolist()):
+        if self._arm is not None and not all(
+            abs(gap) <= REST_GAP for gap in (self._arm.end - here[self._arm_q]).tolist()
+        ):
             return False
         gripper = self._gripper
-        if gripper is not None and self.sim_time < gripper.t0 + gripper.length and \
-                abs(gripper.end - gripper.start) > REST_GAP:
+        if (
+            gripper is not None
+            and self.sim_time < gripper.t0 + gripper.length
+            and abs(gripper.end - gripper.start) > REST_GAP
+        ):
             return False  # still on its way (one stopped short of its target squeezes something: that is rest)
         return self._scene_at_rest()
 
     def _scene_at_rest(self) -> bool:
         handles = self.handles
-        return objects_at_rest(self.data, handles.object_dof) and \
-            robot_at_rest(self.data, self._arm_v, handles.gripper_dof)
+        return objects_at_rest(self.data, handles.object_dof) and robot_at_rest(
+            self.data, self._arm_v, handles.gripper_dof
+        )
 
     def _arm_lands_unsimulated(self, end: float) -> bool:
         """What every unsimulated motion needs: a scene seen settled, and the arm able to land by `end`."""
@@ -325,8 +349,7 @@ class FastCycles:
         """The arm still now, and its profile over SETTLE_TIME before `end` (else the servos would still be on
         their way at the reading)."""
         arm = self._arm
-        return robot_at_rest(self.data, self._arm_v, None) and \
-            (arm is None or arm.t0 + arm.length <= end - SETTLE_TIME)
+        return robot_at_rest(self.data, self._arm_v, None) and (arm is None or arm.t0 + arm.length <= end - SETTLE_TIME)
 
     def _land_arm(self, q_arm: np.ndarray) -> None:
         data = self.data
@@ -342,8 +365,9 @@ class FastCycles:
         if not self._arm_lands_unsimulated(end):
             return False
         name = self._carry.held(data)
-        plan = None if name is None else self._carry.plan(data, name, data.qpos[self._arm_q].copy(), arm.end,
-                                                          arm.length)
+        plan = (
+            None if name is None else self._carry.plan(data, name, data.qpos[self._arm_q].copy(), arm.end, arm.length)
+        )
         if plan is None:
             return False
         position, rotation = plan
@@ -351,16 +375,19 @@ class FastCycles:
         address, dof = handles.object_qpos[name], handles.object_dof[name]
         quaternion = np.zeros(4)
         mujoco.mju_mat2Quat(quaternion, rotation.reshape(-1))
-        data.qpos[address:address + 7] = [*position, *quaternion]
-        data.qvel[dof:dof + 6] = 0.0
+        data.qpos[address : address + 7] = [*position, *quaternion]
+        data.qvel[dof : dof + 6] = 0.0
         mujoco.mj_forward(self.model, data)
         return True
 
     def _kinematic(self, end: float) -> bool:
         """Play the cycle without dynamics if the motion is proven clear of every object (py)."""
         data, handles = self.data, self.handles
-        if self._clearance is None or not objects_at_rest(data, handles.object_dof) or \
-                not self._arm_lands_unsimulated(end):
+        if (
+            self._clearance is None
+            or not objects_at_rest(data, handles.object_dof)
+            or not self._arm_lands_unsimulated(end)
+        ):
             return False
         landing = self._landing(data.qpos[self._arm_q].copy(), self._gripper_value(), end)
         if landing is None:
@@ -400,7 +427,8 @@ class FastCycles:
             # a gripper on its way is no obstacle: its drive's profile says where it will be
             g_to, g_speed, _ = gripper.at(end)
         if self._object_bodies and not self._clearance.motion_is_clear(
-                q_from, g_from, q_to, g_to, self.data.xpos[self._object_bodies], self._object_radii, NEAR_CONTACT):
+            q_from, g_from, q_to, g_to, self.data.xpos[self._object_bodies], self._object_radii, NEAR_CONTACT
+        ):
             return None
         return q_to, g_to, g_speed
 

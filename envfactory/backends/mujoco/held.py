@@ -34,7 +34,7 @@ GRAVITY = np.array([0.0, 0.0, -9.81])
 
 def quintic(tau: np.ndarray) -> np.ndarray:
     """The share of the way covered at each elapsed fraction: the timing law of the arm's profiles."""
-    return tau ** 3 * (10.0 - 15.0 * tau + 6.0 * tau * tau)
+    return tau**3 * (10.0 - 15.0 * tau + 6.0 * tau * tau)
 
 
 def _pose(data, body: int) -> tuple[np.ndarray, np.ndarray]:
@@ -100,7 +100,7 @@ class Carry:
             normals.append(hand_rotation @ pad_normal)
         step = max(length, 1e-6) / (DEMAND_SAMPLES - 1)
         points = np.array(points)
-        acceleration = (points[2:] - 2 * points[1:-1] + points[:-2]) / step ** 2
+        acceleration = (points[2:] - 2 * points[1:-1] + points[:-2]) / step**2
         force = acceleration - GRAVITY
         normals = np.array(normals[1:-1])
         in_plane = force - np.sum(force * normals, axis=1, keepdims=True) * normals
@@ -144,8 +144,9 @@ class Carry:
             return None
         handles = self.handles
         radius = self.radii[name]
-        others = [(data.xpos[body].copy(), self.radii[other]) for other, body in handles.object_body.items()
-                  if other != name]
+        others = [
+            (data.xpos[body].copy(), self.radii[other]) for other, body in handles.object_body.items() if other != name
+        ]
         relative_position, relative_rotation = self._relative[name]
         # lever arms of the held object's centre about each arm joint, valid in every pose (module docstring)
         anchors = data.xanchor[self.arm_joints]

@@ -113,16 +113,23 @@ def build(spec: EnvSpec, urdf_path: Path) -> tuple[mujoco.MjModel, Handles]:
     pair_surfaces: list[tuple[str, str]] = []
     for obstacle in scene_obstacles(spec):
         name = f"obstacle:{obstacle.name}"
-        world.worldbody.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX,
-                                 size=list(obstacle.half_extents), pos=list(obstacle.center),
-                                 rgba=list(obstacle.rgba), contype=WORLD_TYPE, conaffinity=WORLD_AFFINITY)
+        world.worldbody.add_geom(
+            name=name,
+            type=mujoco.mjtGeom.mjGEOM_BOX,
+            size=list(obstacle.half_extents),
+            pos=list(obstacle.center),
+            rgba=list(obstacle.rgba),
+            contype=WORLD_TYPE,
+            conaffinity=WORLD_AFFINITY,
+        )
         surfaces[name] = SURFACE_FRICTION
 
     robot = mujoco.MjSpec.from_file(str(urdf_path))
     for equality in list(robot.equalities):
         robot.delete(equality)
-    mount = world.worldbody.add_body(name="robot_mount", pos=list(robot_spec.mount),
-                                     quat=_wxyz(base_rotation(robot_spec)))
+    mount = world.worldbody.add_body(
+        name="robot_mount", pos=list(robot_spec.mount), quat=_wxyz(base_rotation(robot_spec))
+    )
     world.attach(robot, frame=mount.add_frame(), prefix=ROBOT_PREFIX)
     pads = set(robot_spec.gripper.pads.links) if robot_spec.gripper is not None else set()
     for body in mount.find_all(mujoco.mjtObj.mjOBJ_BODY):
@@ -149,29 +156,44 @@ def build(spec: EnvSpec, urdf_path: Path) -> tuple[mujoco.MjModel, Handles]:
     if gripper is not None:
         _servo(world, gripper.joint, gripper.force)
         for follower, gain in gripper.mimic.items():
-            world.add_equality(type=mujoco.mjtEq.mjEQ_JOINT, name1=ROBOT_PREFIX + follower,
-                               name2=ROBOT_PREFIX + gripper.joint, data=[0.0, gain] + [0.0] * 10,
-                               solref=[max(MIMIC_TIMECONST, 2 * world.option.timestep), 1.0],
-                               solimp=list(MIMIC_IMPEDANCE))
+            world.add_equality(
+                type=mujoco.mjtEq.mjEQ_JOINT,
+                name1=ROBOT_PREFIX + follower,
+                name2=ROBOT_PREFIX + gripper.joint,
+                data=[0.0, gain] + [0.0] * 10,
+                solref=[max(MIMIC_TIMECONST, 2 * world.option.timestep), 1.0],
+                solimp=list(MIMIC_IMPEDANCE),
+            )
 
     for index, (name, obj) in enumerate(spec.task.objects.items()):
         body = world.worldbody.add_body(name=f"object:{name}", pos=[0.0, 0.0, -10.0 - index])
         body.add_freejoint(name=f"object:{name}")
         # no contact of its own: each is an explicit pair below, with the product of the two frictions
-        body.add_geom(name=f"object:{name}", type=mujoco.mjtGeom.mjGEOM_BOX, size=[obj.size / 2] * 3,
-                      mass=obj.mass, rgba=list(obj.rgba), contype=0, conaffinity=0)
+        body.add_geom(
+            name=f"object:{name}",
+            type=mujoco.mjtGeom.mjGEOM_BOX,
+            size=[obj.size / 2] * 3,
+            mass=obj.mass,
+            rgba=list(obj.rgba),
+            contype=0,
+            conaffinity=0,
+        )
         friction = (obj.friction, obj.spinning_friction, obj.rolling_friction)
         for other, other_friction in surfaces.items():
             lateral, spinning, rolling = _pair_friction(friction, other_friction)
             # MuJoCo's five: two tangential, spinning, two rolling
-            world.add_pair(geomname1=f"object:{name}", geomname2=other,
-                           friction=[lateral, lateral, spinning, rolling, rolling],
-                           condim=_friction_condim(lateral, spinning, rolling))
+            world.add_pair(
+                geomname1=f"object:{name}",
+                geomname2=other,
+                friction=[lateral, lateral, spinning, rolling, rolling],
+                condim=_friction_condim(lateral, spinning, rolling),
+            )
             pair_surfaces.append((f"object:{name}", other))
         surfaces[f"object:{name}"] = friction
     marker = world.worldbody.add_body(name="goal_marker", mocap=True, pos=[0.0, 0.0, -10.0])
-    marker.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.025, 0, 0], rgba=list(MARKER_RGBA), contype=0,
-                    conaffinity=0, group=3)
+    marker.add_geom(
+        type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.025, 0, 0], rgba=list(MARKER_RGBA), contype=0, conaffinity=0, group=3
+    )
     camera = spec.scene.camera
     if camera is not None:
         world.worldbody.add_camera(name=CAMERA, pos=list(camera.eye), fovy=camera.fov)
@@ -183,8 +205,7 @@ def build(spec: EnvSpec, urdf_path: Path) -> tuple[mujoco.MjModel, Handles]:
 
 def _servo(world: mujoco.MjSpec, joint: str, effort: float) -> None:
     """A position servo on a joint: full effort at SERVO_STIFFNESS_ERROR, critically damped."""
-    actuator = world.add_actuator(name=f"servo:{joint}", target=ROBOT_PREFIX + joint,
-                                  trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    actuator = world.add_actuator(name=f"servo:{joint}", target=ROBOT_PREFIX + joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
     actuator.set_to_position(kp=effort / SERVO_STIFFNESS_ERROR, dampratio=1.0)
     actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
     actuator.forcerange = [-effort, effort]
@@ -207,8 +228,11 @@ def _handles(model: mujoco.MjModel, spec: EnvSpec) -> Handles:
         gripper_qpos=None if gripper is None else int(joint(gripper.joint).qposadr[0]),
         gripper_dof=None if gripper is None else int(joint(gripper.joint).dofadr[0]),
         gripper_actuator=None if gripper is None else model.actuator(f"servo:{gripper.joint}").id,
-        followers=() if gripper is None else tuple((int(joint(name).qposadr[0]), int(joint(name).dofadr[0]), gain)
-                                                   for name, gain in gripper.mimic.items()),
+        followers=()
+        if gripper is None
+        else tuple(
+            (int(joint(name).qposadr[0]), int(joint(name).dofadr[0]), gain) for name, gain in gripper.mimic.items()
+        ),
         object_qpos={name: int(model.joint(f"object:{name}").qposadr[0]) for name in spec.task.objects},
         object_dof={name: int(model.joint(f"object:{name}").dofadr[0]) for name in spec.task.objects},
         object_body={name: model.body(f"object:{name}").id for name in spec.task.objects},

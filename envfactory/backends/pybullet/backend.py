@@ -10,12 +10,19 @@ import numpy as np
 import pinocchio as pin
 import pybullet as p
 
-from envfactory.backends.base import (PHYSICS_QUANTITIES, BackendError, CameraFrame, JointReading, ObjectReading,
-                                      PhysicsChange, window_impossible)
+from envfactory.backends.base import (
+    PHYSICS_QUANTITIES,
+    BackendError,
+    CameraFrame,
+    JointReading,
+    ObjectReading,
+    PhysicsChange,
+    window_impossible,
+)
 from envfactory.backends.driver_readings import DriverReadings
 from envfactory.backends.pybullet import scene
-from envfactory.backends.view import MARKER_RGBA, RENDER_SIZE, RENDER_VIEW
 from envfactory.backends.pybullet.fast_cycles import FastCycles, GripperResponse, Rig, record_gripper_response
+from envfactory.backends.view import MARKER_RGBA, RENDER_SIZE, RENDER_VIEW
 from envfactory.geometry.frames import TaskFrame, base_rotation
 from envfactory.geometry.object_clearance import ObjectClearance, bounding_radius
 from envfactory.geometry.obstacles import TABLE_TOP, scene_obstacles
@@ -35,9 +42,17 @@ class PyBulletBackend:
     joints together along the commanded line; with the fast fidelity (fast_cycles.FastCycles) cycles that
     cannot change an object are played without substeps. In realtime mode a thread steps physics at wall-clock
     rate, guarded by a lock."""
+
     teleports_on_reset = True  # reset sets the joints directly; no path is driven
-    def __init__(self, spec: EnvSpec, urdf_path: Path, task_frame: TaskFrame, render_mode: str | None = None,
-                 headless: bool = False):
+
+    def __init__(
+        self,
+        spec: EnvSpec,
+        urdf_path: Path,
+        task_frame: TaskFrame,
+        render_mode: str | None = None,
+        headless: bool = False,
+    ):
         self.spec = spec
         self.robot = spec.robot
         self._urdf_path = Path(urdf_path)
@@ -48,9 +63,11 @@ class PyBulletBackend:
         mode = p.GUI if (spec.env.gui or render_mode == "human") and not headless else p.DIRECT
         if mode == p.GUI and window_impossible():
             asked = "render_mode='human'" if render_mode == "human" else "gui=True (env.gui)"
-            raise BackendError(f"{asked} opens PyBullet's window, and this machine has no display (DISPLAY is "
-                               "unset); use render_mode='rgb_array' for frames, or run where there is a display (a "
-                               "desktop session, ssh -X, or xvfb-run)")
+            raise BackendError(
+                f"{asked} opens PyBullet's window, and this machine has no display (DISPLAY is "
+                "unset); use render_mode='rgb_array' for frames, or run where there is a display (a "
+                "desktop session, ssh -X, or xvfb-run)"
+            )
         try:
             self.client = p.connect(mode)
         except p.error as exc:
@@ -82,8 +99,9 @@ class PyBulletBackend:
         p.setTimeStep(self.dt, physicsClientId=c)
         # Contact pairs in a fixed order: without it a cycle replayed from a saved state (the fidelity probe)
         # can end centimetres apart once a cube tumbles, as the order of the last run carries over.
-        p.setPhysicsEngineParameter(numSolverIterations=self.spec.sim.solver_iterations, deterministicOverlappingPairs=1,
-                                    physicsClientId=c)
+        p.setPhysicsEngineParameter(
+            numSolverIterations=self.spec.sim.solver_iterations, deterministicOverlappingPairs=1, physicsClientId=c
+        )
         p.configureDebugVisualizer(p.COV_ENABLE_GUI, 0, physicsClientId=c)
         obstacles = scene_obstacles(self.spec)
         self.obstacle_bodies = scene.add_obstacles(c, obstacles)
@@ -91,10 +109,17 @@ class PyBulletBackend:
         mount = np.asarray(self.robot.mount, float)
         x, y, z, w = pin.Quaternion(base_rotation(self.robot)).coeffs()
         # Self-collision stays off: the gripper's linkage links overlap by design.
-        self.body = p.loadURDF(str(urdf_path), basePosition=mount.tolist(), baseOrientation=[x, y, z, w],
-                               useFixedBase=True, flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=c)
-        infos = [p.getJointInfo(self.body, j, physicsClientId=c)
-                 for j in range(p.getNumJoints(self.body, physicsClientId=c))]
+        self.body = p.loadURDF(
+            str(urdf_path),
+            basePosition=mount.tolist(),
+            baseOrientation=[x, y, z, w],
+            useFixedBase=True,
+            flags=p.URDF_USE_INERTIA_FROM_FILE,
+            physicsClientId=c,
+        )
+        infos = [
+            p.getJointInfo(self.body, j, physicsClientId=c) for j in range(p.getNumJoints(self.body, physicsClientId=c))
+        ]
         index = {info[1].decode(): info[0] for info in infos}
         link_index = {info[12].decode(): info[0] for info in infos}
         self._arm = [index[j.name] for j in self.robot.arm_joints]
@@ -111,17 +136,33 @@ class PyBulletBackend:
             self._gripper = index[gripper.joint]
             self._gripper_followers = [(index[name], gain) for name, gain in gripper.mimic.items()]
             for follower, gain in self._gripper_followers:
-                constraint = p.createConstraint(self.body, self._gripper, self.body, follower, p.JOINT_GEAR,
-                                                [1, 0, 0], [0, 0, 0], [0, 0, 0], physicsClientId=c)
-                p.changeConstraint(constraint, gearRatio=-1.0 / gain, maxForce=GEAR_MAX_FORCE, erp=0.8,
-                                   physicsClientId=c)
+                constraint = p.createConstraint(
+                    self.body,
+                    self._gripper,
+                    self.body,
+                    follower,
+                    p.JOINT_GEAR,
+                    [1, 0, 0],
+                    [0, 0, 0],
+                    [0, 0, 0],
+                    physicsClientId=c,
+                )
+                p.changeConstraint(
+                    constraint, gearRatio=-1.0 / gain, maxForce=GEAR_MAX_FORCE, erp=0.8, physicsClientId=c
+                )
             pads = gripper.pads
             for link in pads.links:
                 if link not in link_index:
                     raise BackendError(f"robot {self.robot.name!r}: gripper.pads names no link {link!r}")
-                p.changeDynamics(self.body, link_index[link], lateralFriction=pads.lateral_friction,
-                                 spinningFriction=pads.spinning_friction, rollingFriction=pads.rolling_friction,
-                                 frictionAnchor=int(pads.friction_anchor), physicsClientId=c)
+                p.changeDynamics(
+                    self.body,
+                    link_index[link],
+                    lateralFriction=pads.lateral_friction,
+                    spinningFriction=pads.spinning_friction,
+                    rollingFriction=pads.rolling_friction,
+                    frictionAnchor=int(pads.friction_anchor),
+                    physicsClientId=c,
+                )
         self.objects: dict[str, int] = {}  # spawned fresh at every reset
         self._goal_marker = scene.add_marker(c, self.task_frame.to_world([0.0, 0.0, -10.0]))
         self._set_joint_state(np.asarray(self.robot.home, float), self._gripper_reset_value(None))
@@ -133,16 +174,35 @@ class PyBulletBackend:
         movable objects, so those cycles are played without dynamics (fast_cycles.py)."""
         if self.spec.sim.fidelity != "fast" or self.realtime:
             return
-        limits = np.array([p.getJointInfo(self.body, joint, physicsClientId=self.client)[8:10] for joint in self._arm]).T
+        limits = np.array(
+            [p.getJointInfo(self.body, joint, physicsClientId=self.client)[8:10] for joint in self._arm]
+        ).T
         unlimited = limits[0] >= limits[1]  # how PyBullet reports a continuous joint
         limits[:, unlimited] = [[-np.inf], [np.inf]]
-        rig = Rig(self.client, self.body, self._arm, np.asarray(self._velocities, float), limits, self._gripper,
-                  self.dt, self._set_joint_state, self.program_pending_arm)
+        rig = Rig(
+            self.client,
+            self.body,
+            self._arm,
+            np.asarray(self._velocities, float),
+            limits,
+            self._gripper,
+            self.dt,
+            self._set_joint_state,
+            self.program_pending_arm,
+        )
         response = None
         if self._gripper is not None:
             gripper = self.robot.gripper
-            key = (self.robot.name, str(self._urdf_path), self.dt, self.spec.sim.solver_iterations, gripper.open,
-                   gripper.closed, gripper.force, gripper.max_velocity)
+            key = (
+                self.robot.name,
+                str(self._urdf_path),
+                self.dt,
+                self.spec.sim.solver_iterations,
+                gripper.open,
+                gripper.closed,
+                gripper.force,
+                gripper.max_velocity,
+            )
             if key not in _GRIPPER_RESPONSES:
                 _GRIPPER_RESPONSES[key] = self._record_gripper_response()
             response = _GRIPPER_RESPONSES[key]
@@ -156,8 +216,15 @@ class PyBulletBackend:
         recorder = PyBulletBackend(self.spec, self._urdf_path, self.task_frame, headless=True)
         try:
             gripper = self.robot.gripper
-            return record_gripper_response(recorder.client, recorder.body, recorder._gripper, gripper.open,
-                                           gripper.closed, self.dt, recorder._drive_gripper)
+            return record_gripper_response(
+                recorder.client,
+                recorder.body,
+                recorder._gripper,
+                gripper.open,
+                gripper.closed,
+                self.dt,
+                recorder._drive_gripper,
+            )
         finally:
             recorder.close()
 
@@ -189,16 +256,28 @@ class PyBulletBackend:
 
     def _hold_arm(self, q_arm) -> None:
         self._pending_arm = None  # superseded
-        p.setJointMotorControlArray(self.body, self._arm, p.POSITION_CONTROL, targetPositions=list(q_arm),
-                                    forces=self._efforts, positionGains=[self._position_gain] * len(self._arm),
-                                    physicsClientId=self.client)
+        p.setJointMotorControlArray(
+            self.body,
+            self._arm,
+            p.POSITION_CONTROL,
+            targetPositions=list(q_arm),
+            forces=self._efforts,
+            positionGains=[self._position_gain] * len(self._arm),
+            physicsClientId=self.client,
+        )
 
     def _drive_gripper(self, value: float) -> None:
         gripper = self.robot.gripper
         self._gripper_target = float(value)
-        p.setJointMotorControl2(self.body, self._gripper, p.POSITION_CONTROL, targetPosition=float(value),
-                                force=self._gripper_force, maxVelocity=gripper.max_velocity,
-                                physicsClientId=self.client)
+        p.setJointMotorControl2(
+            self.body,
+            self._gripper,
+            p.POSITION_CONTROL,
+            targetPosition=float(value),
+            force=self._gripper_force,
+            maxVelocity=gripper.max_velocity,
+            physicsClientId=self.client,
+        )
 
     def apply_physics(self, change: PhysicsChange) -> None:
         c, quantity, value = self.client, change.quantity, change.value
@@ -207,8 +286,9 @@ class PyBulletBackend:
                 body = self.objects[change.target]
                 info = p.getDynamicsInfo(body, -1, physicsClientId=c)
                 mass, inertia = info[0], info[2]
-                p.changeDynamics(body, -1, mass=value, localInertiaDiagonal=[i * value / mass for i in inertia],
-                                 physicsClientId=c)
+                p.changeDynamics(
+                    body, -1, mass=value, localInertiaDiagonal=[i * value / mass for i in inertia], physicsClientId=c
+                )
             elif quantity == "object_friction":
                 p.changeDynamics(self.objects[change.target], -1, lateralFriction=value, physicsClientId=c)
             elif quantity == "table_friction":
@@ -240,12 +320,16 @@ class PyBulletBackend:
             for name, (position, quaternion) in objects.items():
                 if name not in self.spec.task.objects:
                     raise BackendError(f"reset places {name!r}, which the task does not declare")
-                self.objects[name] = scene.add_object(c, self.spec.task.objects[name],
-                                                      self.task_frame.to_world(position),
-                                                      self.task_frame.quaternion_to_world(quaternion))
+                self.objects[name] = scene.add_object(
+                    c,
+                    self.spec.task.objects[name],
+                    self.task_frame.to_world(position),
+                    self.task_frame.quaternion_to_world(quaternion),
+                )
             # the bounding sphere of each (cubic) object, for the fast fidelity's clearance
-            self._object_radii = {body: bounding_radius(self.spec.task.objects[name].size)
-                                  for name, body in self.objects.items()}
+            self._object_radii = {
+                body: bounding_radius(self.spec.task.objects[name].size) for name, body in self.objects.items()
+            }
             if self._fast is not None:
                 self._fast.reset(q_arm, gripper_value, has_objects=bool(self.objects))
             self._sim_time = 0.0
@@ -274,9 +358,16 @@ class PyBulletBackend:
         length = max(duration, float(np.max(travel / np.asarray(self._velocities, float))))
         for joint, target, distance, effort in zip(self._arm, q_arm_target, travel, self._efforts):
             speed = max(distance / length, 1e-3)
-            p.setJointMotorControl2(self.body, joint, p.POSITION_CONTROL, targetPosition=float(target),
-                                    force=effort, maxVelocity=speed, positionGain=self._position_gain,
-                                    physicsClientId=c)
+            p.setJointMotorControl2(
+                self.body,
+                joint,
+                p.POSITION_CONTROL,
+                targetPosition=float(target),
+                force=effort,
+                maxVelocity=speed,
+                positionGain=self._position_gain,
+                physicsClientId=c,
+            )
 
     def program_pending_arm(self) -> None:
         """Program the arm's motors for the last command, if they do not have it yet (before any substep)."""
@@ -349,35 +440,47 @@ class PyBulletBackend:
         with self._lock:
             position, quaternion = p.getBasePositionAndOrientation(self.objects[name], physicsClientId=self.client)
             stamp = self._sim_time
-        return ObjectReading(self.task_frame.to_task(position), self.task_frame.quaternion_to_task(quaternion),
-                             stamp)
+        return ObjectReading(self.task_frame.to_task(position), self.task_frame.quaternion_to_task(quaternion), stamp)
 
     def mark_goal(self, position: np.ndarray) -> None:
         with self._lock:
-            p.resetBasePositionAndOrientation(self._goal_marker, self.task_frame.to_world(position).tolist(), [0, 0, 0, 1],
-                                              physicsClientId=self.client)
+            p.resetBasePositionAndOrientation(
+                self._goal_marker,
+                self.task_frame.to_world(position).tolist(),
+                [0, 0, 0, 1],
+                physicsClientId=self.client,
+            )
 
     def render(self, width: int = RENDER_SIZE[0], height: int = RENDER_SIZE[1]) -> np.ndarray:
         view = p.computeViewMatrixFromYawPitchRoll(
-            cameraTargetPosition=RENDER_VIEW.target(self.spec.scene.table), distance=RENDER_VIEW.distance,
-            yaw=RENDER_VIEW.yaw, pitch=RENDER_VIEW.pitch, roll=0, upAxisIndex=2)
+            cameraTargetPosition=RENDER_VIEW.target(self.spec.scene.table),
+            distance=RENDER_VIEW.distance,
+            yaw=RENDER_VIEW.yaw,
+            pitch=RENDER_VIEW.pitch,
+            roll=0,
+            upAxisIndex=2,
+        )
         projection = p.computeProjectionMatrixFOV(fov=55, aspect=width / height, nearVal=0.05, farVal=6.0)
         with self._lock:
-            _, _, rgba, _, _ = p.getCameraImage(width, height, view, projection, renderer=p.ER_TINY_RENDERER,
-                                               physicsClientId=self.client)
+            _, _, rgba, _, _ = p.getCameraImage(
+                width, height, view, projection, renderer=p.ER_TINY_RENDERER, physicsClientId=self.client
+            )
         return np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
 
     def capture(self, camera: CameraSpec) -> CameraFrame:
         width, height = camera.width, camera.height
-        view = p.computeViewMatrix(cameraEyePosition=list(camera.eye), cameraTargetPosition=list(camera.target),
-                                   cameraUpVector=[0, 0, 1])
-        projection = p.computeProjectionMatrixFOV(fov=camera.fov, aspect=width / height, nearVal=camera.near,
-                                                  farVal=camera.far)
+        view = p.computeViewMatrix(
+            cameraEyePosition=list(camera.eye), cameraTargetPosition=list(camera.target), cameraUpVector=[0, 0, 1]
+        )
+        projection = p.computeProjectionMatrixFOV(
+            fov=camera.fov, aspect=width / height, nearVal=camera.near, farVal=camera.far
+        )
         with self._lock:
             # the goal marker is for people watching; the policy's camera must not see the goal
             p.changeVisualShape(self._goal_marker, -1, rgbaColor=[0, 0, 0, 0], physicsClientId=self.client)
-            _, _, rgba, depth_buffer, _ = p.getCameraImage(width, height, view, projection,
-                                                           renderer=p.ER_TINY_RENDERER, physicsClientId=self.client)
+            _, _, rgba, depth_buffer, _ = p.getCameraImage(
+                width, height, view, projection, renderer=p.ER_TINY_RENDERER, physicsClientId=self.client
+            )
             p.changeVisualShape(self._goal_marker, -1, rgbaColor=MARKER_RGBA, physicsClientId=self.client)
         rgb = np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
         # the buffer holds OpenGL depth in [0, 1]; turn it back into metres

@@ -57,8 +57,10 @@ class GripperResponse:
         # per direction, the error to the target per substep (decreasing), the rate per substep, and the error
         # negated (rising, for bisect), as plain lists: read a substep at a time, numpy's scalar calls would cost
         # more than the reading
-        self._lists = {direction: (curve.tolist(), (-np.diff(curve)).tolist(), (-curve).tolist())
-                       for direction, curve in ((1.0, closing), (-1.0, opening))}
+        self._lists = {
+            direction: (curve.tolist(), (-np.diff(curve)).tolist(), (-curve).tolist())
+            for direction, curve in ((1.0, closing), (-1.0, opening))
+        }
         self.dt = dt
 
     def advance(self, value: float, target: float, substeps: int) -> tuple[float, float] | None:
@@ -102,8 +104,9 @@ def _at_value(rising: list[float], value: float) -> float:
     return after - 1 + ((value - low) / (high - low) if high > low else 1.0)
 
 
-def record_gripper_response(client: int, body: int, joint: int, open_value: float, closed_value: float,
-                            dt: float, drive, limit_s: float = 5.0) -> GripperResponse:
+def record_gripper_response(
+    client: int, body: int, joint: int, open_value: float, closed_value: float, dt: float, drive, limit_s: float = 5.0
+) -> GripperResponse:
     """Drive the gripper across its range both ways from rest and record the error to the target.
     The caller restores the state afterwards."""
     curves = []
@@ -177,8 +180,9 @@ class FastCycles:
         if np.abs(q_speed).max() >= JOINT_REST:  # the arm still moves from the last cycle
             return self._play_dynamic(substeps, objects)
         if self.objects_at_rest:
-            gripper_still = gripper is None or (abs(self.gripper_target - gripper) < SETTLED
-                                                and abs(gripper_speed) < JOINT_REST)
+            gripper_still = gripper is None or (
+                abs(self.gripper_target - gripper) < SETTLED and abs(gripper_speed) < JOINT_REST
+            )
             if gripper_still and np.abs(self.arm_target - q).max() < SETTLED:
                 self.counts.at_rest += 1
                 return 0
@@ -230,9 +234,15 @@ class FastCycles:
             bodies = list(objects)
             centers = np.array([p.getBasePositionAndOrientation(b, physicsClientId=rig.client)[0] for b in bodies])
             radii = np.array([objects[b] for b in bodies])
-            if not self.clearance.motion_is_clear(q, 0.0 if gripper is None else gripper, arm_target,
-                                                  0.0 if gripper is None else gripper_end, centers, radii,
-                                                  NEAR_CONTACT):
+            if not self.clearance.motion_is_clear(
+                q,
+                0.0 if gripper is None else gripper,
+                arm_target,
+                0.0 if gripper is None else gripper_end,
+                centers,
+                radii,
+                NEAR_CONTACT,
+            ):
                 return None
         return arm_target, gripper_end, gripper_speed
 

@@ -9,12 +9,12 @@ from envfactory.geometry.obstacles import Obstacle
 from envfactory.schema.models import ObjectSpec
 
 
-
 def _box(client: int, half_extents, position, rgba, mass: float = 0.0, orientation=(0.0, 0.0, 0.0, 1.0)) -> int:
     collision = p.createCollisionShape(p.GEOM_BOX, halfExtents=half_extents, physicsClientId=client)
     visual = p.createVisualShape(p.GEOM_BOX, halfExtents=half_extents, rgbaColor=rgba, physicsClientId=client)
-    return p.createMultiBody(mass, collision, visual, basePosition=list(position), baseOrientation=list(orientation),
-                             physicsClientId=client)
+    return p.createMultiBody(
+        mass, collision, visual, basePosition=list(position), baseOrientation=list(orientation), physicsClientId=client
+    )
 
 
 def add_obstacles(client: int, obstacles: list[Obstacle]) -> list[int]:
@@ -24,8 +24,14 @@ def add_obstacles(client: int, obstacles: list[Obstacle]) -> list[int]:
 def add_object(client: int, spec: ObjectSpec, position, orientation) -> int:
     half = spec.size / 2
     body = _box(client, [half, half, half], position, spec.rgba, mass=spec.mass, orientation=orientation)
-    p.changeDynamics(body, -1, lateralFriction=spec.friction, spinningFriction=spec.spinning_friction,
-                     rollingFriction=spec.rolling_friction, physicsClientId=client)
+    p.changeDynamics(
+        body,
+        -1,
+        lateralFriction=spec.friction,
+        spinningFriction=spec.spinning_friction,
+        rollingFriction=spec.rolling_friction,
+        physicsClientId=client,
+    )
     return body
 
 

@@ -39,11 +39,11 @@ from envfactory.backends.base import (
 from envfactory.backends.rosbridge import messages
 from envfactory.backends.rosbridge.feeds import Feed, duration
 from envfactory.backends.rosbridge.follow import FollowWatch
+from envfactory.backends.rosbridge.gate import require_motion_gate
 from envfactory.backends.rosbridge.gripper import GripperLink
 from envfactory.backends.rosbridge.link import Link
-from envfactory.backends.rosbridge.templates import fill
-from envfactory.backends.rosbridge.gate import require_motion_gate
 from envfactory.backends.rosbridge.motion import MotionWatch, drive_plan
+from envfactory.backends.rosbridge.templates import fill
 from envfactory.backends.rosbridge.transforms import FrameGraph
 from envfactory.backends.synchronous import synchronous_length
 from envfactory.backends.view import RENDER_SIZE
@@ -61,6 +61,7 @@ class RosbridgeBackend:
     object-pose feeds with their staleness limits, the follow watchdog, a step that waits for its motion
     (MotionWatch) and the gripper's goals (GripperLink), and a deadman thread. Every fault stops the arm once
     and ends the episode with its reason; reset() recovers first."""
+
     teleports_on_reset = False  # the arm drives home
 
     def __init__(self, spec: EnvSpec, urdf_path: Path, task_frame, render_mode: str | None = None):
@@ -69,8 +70,10 @@ class RosbridgeBackend:
         if robot.ros is None:
             raise BackendError(f"robot {robot.name!r} declares no 'ros:' topic map in its YAML")
         if real.auto_launch_cube_tracker:
-            raise BackendError("auto_launch_cube_tracker=True: envfactory does not launch trackers. Start the "
-                               f"{real.cube_tracker_camera} cube tracker yourself, then make the env with it False.")
+            raise BackendError(
+                "auto_launch_cube_tracker=True: envfactory does not launch trackers. Start the "
+                f"{real.cube_tracker_camera} cube tracker yourself, then make the env with it False."
+            )
         if spec.env.observation.camera_images:
             raise BackendError("use_kinect renders a simulated camera; a real robot has none to render")
         if render_mode == "human":
@@ -94,23 +97,31 @@ class RosbridgeBackend:
             try:
                 self.frames.to_task(target, np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]))
             except KeyError as exc:
-                raise BackendError(f"cube_tracker_target_frame {target!r}: {exc.args[0]}; declare it in "
-                                   f"ros.static_transforms or set ros.use_tf") from None
+                raise BackendError(
+                    f"cube_tracker_target_frame {target!r}: {exc.args[0]}; declare it in "
+                    f"ros.static_transforms or set ros.use_tf"
+                ) from None
         # How long the driver takes for an arm command that carries no duration: the motion time its setup
         # gives it (long enough for the largest joint change the safety check lets through, at the joints'
         # speed limits over the profile's cruise), else its stock profile
-        self.motion_s = max(spec.env.timing.action_speed,
-                            spec.env.safety.max_joint_delta / float(self._velocities.min()) / (1.0 - RAMP_SHARE))
+        self.motion_s = max(
+            spec.env.timing.action_speed,
+            spec.env.safety.max_joint_delta / float(self._velocities.min()) / (1.0 - RAMP_SHARE),
+        )
         self._driver_motion_s = self.motion_s if ros.motion_set_by_setup else ros.arm_command.profile_time_s
 
         self._lock = threading.Lock()
         self.joints = Feed(ros.joint_states.topic, real.joint_state_timeout_s, self._lock)
-        self.objects = {name: Feed(ros.object_poses[name].topic, real.cube_pose_timeout_s, self._lock)
-                        for name in spec.task.objects}
+        self.objects = {
+            name: Feed(ros.object_poses[name].topic, real.cube_pose_timeout_s, self._lock) for name in spec.task.objects
+        }
         self.follow = FollowWatch(ros.arm_command.topic, real.follow_timeout_s)
         self.motion = MotionWatch(ros.arm_command.topic, ros.settle)
-        self.gripper = GripperLink(ros.gripper_command, robot.gripper, spec.gripper_assumed_at_reset) \
-            if ros.gripper_command is not None and robot.gripper is not None else None
+        self.gripper = (
+            GripperLink(ros.gripper_command, robot.gripper, spec.gripper_assumed_at_reset)
+            if ros.gripper_command is not None and robot.gripper is not None
+            else None
+        )
         self._reading_age, self._reading_repeated, self._last_stamp = math.nan, False, -math.inf
         self._step_started: float | None = None  # the first command of the step under way
         self._last_step_s = math.nan
@@ -151,7 +162,8 @@ class RosbridgeBackend:
             except DriverRefused as exc:
                 raise DriverRefused(
                     f"the driver refused its setup, so the arm would not move on the env's step: {exc}. Check that "
-                    f"the driver is the one robots/{self.spec.robot.name}.yaml declares (ros.setup)") from None
+                    f"the driver is the one robots/{self.spec.robot.name}.yaml declares (ros.setup)"
+                ) from None
 
     @property
     def url(self) -> str:
@@ -241,8 +253,10 @@ class RosbridgeBackend:
             if time.monotonic() > deadline:
                 break
             time.sleep(POLL_S)
-        raise StaleFeed(f"connected to {self.url}, but nothing {'new ' if since > -math.inf else ''}arrived on "
-                        f"{silent} within {duration(wait)}: is the robot driver (and the cube tracker) running?")
+        raise StaleFeed(
+            f"connected to {self.url}, but nothing {'new ' if since > -math.inf else ''}arrived on "
+            f"{silent} within {duration(wait)}: is the robot driver (and the cube tracker) running?"
+        )
 
     # ------------------------------------------------------------------ commands
 
@@ -309,8 +323,10 @@ class RosbridgeBackend:
             self.link.publish(self.ros_spec.arm_command.topic, msg)
         except ConnectionLost:
             self._stop_owed = True
-            log.warning("cannot send the stop (not connected); the arm halts at the end of its last motion, "
-                        "and the stop goes out on reconnection")
+            log.warning(
+                "cannot send the stop (not connected); the arm halts at the end of its last motion, "
+                "and the stop goes out on reconnection"
+            )
 
     def _hold_position(self) -> np.ndarray | None:
         """Where a driver without a stop of its own holds: the arm's reading if it is fresh,
@@ -358,8 +374,12 @@ class RosbridgeBackend:
         self._deadman_armed = False
         home = np.asarray(q_arm, float)
         (position, _), _ = self._fresh(self.joints)
-        plan = drive_plan(position[self._arm_in_states], home, self.real.reset_speed,
-                          None if messages.carries_duration(self.ros_spec.arm_command) else self._driver_motion_s)
+        plan = drive_plan(
+            position[self._arm_in_states],
+            home,
+            self.real.reset_speed,
+            None if messages.carries_duration(self.ros_spec.arm_command) else self._driver_motion_s,
+        )
         timeout = max(self.real.reset_timeout_s, plan[-1][0] + plan[-1][2] + 2.0)
         started = time.monotonic()
         sent = 0
@@ -420,9 +440,13 @@ class RosbridgeBackend:
         the motion's time from command to target and the step's wall time (NaN: none this step).
         `envfactory sensing-spec` turns a log of these into sensing terms."""
         latencies = self.follow.take_latencies()
-        timing = {"joint_reading_age_s": float(self._reading_age), "joint_reading_repeated": float(self._reading_repeated),
-                  "command_latency_s": float(np.mean(latencies)) if latencies else math.nan,
-                  "motion_s": self.motion.motion_time(), "step_s": self._last_step_s}
+        timing = {
+            "joint_reading_age_s": float(self._reading_age),
+            "joint_reading_repeated": float(self._reading_repeated),
+            "command_latency_s": float(np.mean(latencies)) if latencies else math.nan,
+            "motion_s": self.motion.motion_time(),
+            "step_s": self._last_step_s,
+        }
         self._last_step_s = math.nan
         return timing
 

@@ -66,7 +66,8 @@ class FollowWatch:
                 f"the arm did not follow the command on {self.topic}: no joint moved {MIN_MOTION} rad within "
                 f"{duration(allowed)} (the {duration(allowed - self.timeout)} its driver was given, plus "
                 f"{duration(self.timeout)}). Nothing executes the commands (a controller that is not running, or a "
-                f"topic the server refuses for its type).")
+                f"topic the server refuses for its type)."
+            )
 
     def clear(self) -> None:
         with self._lock:

@@ -8,6 +8,8 @@ import os
 from envfactory.backends.base import MotionRefused
 
 MOTION_ENV_VAR = "ALLOW_REAL_ROBOT_MOTION"
+
+
 def motion_allowed(flag: bool) -> bool:
     return flag or os.environ.get(MOTION_ENV_VAR, "") == "1"
 

@@ -46,8 +46,11 @@ class GripperLink:
             return None
         goal_id = messages.new_goal_id()
         msg = messages.encode_gripper(self.command, value, self.gripper.open, self.gripper.closed, goal_id)
-        end = value if state is None else (self.gripper.closed if state == self.command.states.closed
-                                           else self.gripper.open)
+        end = (
+            value
+            if state is None
+            else (self.gripper.closed if state == self.command.states.closed else self.gripper.open)
+        )
         with self._lock:
             self._sent = asked
             if self.awaits_results:
@@ -74,7 +77,8 @@ class GripperLink:
             else:
                 self._sent = None  # the driver's state is unknown: the next command goes out whatever it is
                 self._failure = self._failure or (
-                    f"the gripper goal on {self.topic} ended {messages.GOAL_STATUS.get(status, status)}: {said}")
+                    f"the gripper goal on {self.topic} ended {messages.GOAL_STATUS.get(status, status)}: {said}"
+                )
 
     def busy(self, now: float) -> bool:
         """Whether a goal still awaits its result; GripperFailed if one failed or is overdue."""
@@ -86,8 +90,10 @@ class GripperLink:
             return False
         if now - pending[2] > self.command.result.within_s:
             self.forget()
-            raise GripperFailed(f"no result for the gripper goal on {self.topic} within "
-                                f"{self.command.result.within_s:.2f} s (on {self.command.result.topic})")
+            raise GripperFailed(
+                f"no result for the gripper goal on {self.topic} within "
+                f"{self.command.result.within_s:.2f} s (on {self.command.result.topic})"
+            )
         return True
 
     def forget(self) -> None:

@@ -45,6 +45,7 @@ class Link:
     """One rosbridge connection, opened and reopened within bounds by this side (never by roslibpy), with the
     command topics checked through rosapi at every connection, every subscription wired again, and a driver's
     services called."""
+
     def __init__(self, real: RealSettings, ros_spec: RosSpec, subscriptions: dict[str, tuple[str, Callable]]):
         """`subscriptions`: topic -> (type, callback(msg))."""
         self.real, self.ros_spec = real, ros_spec
@@ -76,7 +77,8 @@ class Link:
                 raise ConnectionLost(
                     f"cannot reach rosbridge at {self.url}: {tries} connection tries over "
                     f"{time.monotonic() - started:.2f} s failed (is rosbridge_server running?). The arm stops at "
-                    f"the end of its last segment.")
+                    f"the end of its last segment."
+                )
             time.sleep(waits[attempt])
         try:
             self._check_command_topics()
@@ -121,28 +123,36 @@ class Link:
         for command in self._commands():
             try:
                 type_name = self._rosapi("/rosapi/topic_type", "rosapi/TopicType", {"topic": command.topic})["type"]
-                subscribers = self._rosapi("/rosapi/subscribers", "rosapi/Subscribers",
-                                           {"topic": command.topic})["subscribers"]
+                subscribers = self._rosapi("/rosapi/subscribers", "rosapi/Subscribers", {"topic": command.topic})[
+                    "subscribers"
+                ]
             except _NoRosapi as exc:
-                log.warning("cannot check %s before sending to it (%s); the follow watchdog still catches "
-                            "commands nothing executes", command.topic, exc)
+                log.warning(
+                    "cannot check %s before sending to it (%s); the follow watchdog still catches "
+                    "commands nothing executes",
+                    command.topic,
+                    exc,
+                )
                 return
             if type_name and not same_type(type_name, command.type):
                 raise CommandRefused(
                     f"{command.topic} has type {type_name} on the robot, but this env sends {command.type} there: "
                     f"the server would refuse every command. Fix the topic map (robots/*.yaml 'ros:', or the "
-                    f"*_command_topic kwargs) or the driver.")
+                    f"*_command_topic kwargs) or the driver."
+                )
             if not subscribers:
                 raise CommandRefused(
                     f"nothing subscribes to {command.topic} ({command.type}): no driver would execute the commands. "
-                    f"Is the driver running, and is the topic right?")
+                    f"Is the driver running, and is the topic right?"
+                )
 
     def _rosapi(self, service: str, type_name: str, request: dict) -> dict:
         import roslibpy
 
         try:
             reply = roslibpy.Service(self.ros, service, type_name).call(
-                roslibpy.ServiceRequest(request), timeout=min(ROSAPI_TIMEOUT_S, self.real.connect_timeout_s))
+                roslibpy.ServiceRequest(request), timeout=min(ROSAPI_TIMEOUT_S, self.real.connect_timeout_s)
+            )
         except Exception as exc:  # no rosapi node, or it did not answer: the check is skipped, not failed
             raise _NoRosapi(f"{service}: {exc}") from None
         return dict(reply)
@@ -157,7 +167,8 @@ class Link:
             raise ConnectionLost(f"lost the rosbridge connection to {self.url}: {service} not called")
         try:
             reply = roslibpy.Service(self.ros, service, type_name).call(
-                roslibpy.ServiceRequest(request), timeout=self.real.connect_timeout_s)
+                roslibpy.ServiceRequest(request), timeout=self.real.connect_timeout_s
+            )
         except Exception as exc:  # roslibpy raises its own for a failed call and a bare one for a timeout
             raise DriverRefused(f"{service} ({type_name}) refused {request}: {exc or type(exc).__name__}") from None
         return dict(reply)

@@ -65,16 +65,24 @@ def _lookup(message, path: str):
     return message
 
 
-def encode_joint_state(names: list[str], position, velocity, stamp: float,
-                       template: MessageTemplate | None = None) -> dict:
+def encode_joint_state(
+    names: list[str], position, velocity, stamp: float, template: MessageTemplate | None = None
+) -> dict:
     template = template or resolve("joint_state")
-    return fill(template.message, {"$stamp": _stamp(stamp), "$joint_names": list(names),
-                                   "$positions": [float(v) for v in position],
-                                   "$velocities": [float(v) for v in velocity]})
+    return fill(
+        template.message,
+        {
+            "$stamp": _stamp(stamp),
+            "$joint_names": list(names),
+            "$positions": [float(v) for v in position],
+            "$velocities": [float(v) for v in velocity],
+        },
+    )
 
 
-def decode_joint_state(msg: dict, names: list[str], template: MessageTemplate | None = None
-                       ) -> tuple[np.ndarray, np.ndarray]:
+def decode_joint_state(
+    msg: dict, names: list[str], template: MessageTemplate | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Positions and velocities in the order of `names`, matched by name, not by index."""
     paths = placeholder_paths((template or resolve("joint_state")).message)
     received = _lookup(msg, paths["$joint_names"]) if isinstance(msg, dict) else None
@@ -123,8 +131,13 @@ def decode_pose(msg: dict, template: MessageTemplate | None = None) -> tuple[str
 
 
 def _arm_values(command: ArmCommand, joints: list[str], q, duration: float) -> dict:
-    return {"$joint_names": list(joints), "$positions": None if q is None else [float(v) for v in q],
-            "$zeros": [0.0] * len(joints), "$duration": _stamp(duration), "$group": command.group}
+    return {
+        "$joint_names": list(joints),
+        "$positions": None if q is None else [float(v) for v in q],
+        "$zeros": [0.0] * len(joints),
+        "$duration": _stamp(duration),
+        "$group": command.group,
+    }
 
 
 def carries_duration(command: ArmCommand) -> bool:
@@ -147,8 +160,9 @@ def encode_arm_stop(command: ArmCommand, joints: list[str], q_hold) -> dict | No
     return fill(template.stop or template.message, _arm_values(command, joints, q_hold, 0.0))
 
 
-def decode_arm(command: ArmCommand, joints: list[str], msg: dict, default_duration: float
-               ) -> tuple[np.ndarray | None, float]:
+def decode_arm(
+    command: ArmCommand, joints: list[str], msg: dict, default_duration: float
+) -> tuple[np.ndarray | None, float]:
     """(target in `joints` order or None for a stop, duration)."""
     template = command.template
     try:
@@ -169,8 +183,7 @@ def decode_arm(command: ArmCommand, joints: list[str], msg: dict, default_durati
         raise MalformedMessage(f"arm command joint names {names} differ from {joints}")
     positions = _finite_floats(values["$positions"], "arm command positions", len(names))
     by_name = dict(zip(names, positions))
-    duration = _duration_seconds(values["$duration"]) if isinstance(values.get("$duration"), dict) \
-        else default_duration
+    duration = _duration_seconds(values["$duration"]) if isinstance(values.get("$duration"), dict) else default_duration
     return np.array([by_name[j] for j in joints]), duration
 
 
@@ -194,11 +207,16 @@ def gripper_state(command: GripperCommand, value: float, open_value: float, clos
     return command.states.closed if closes else command.states.open
 
 
-def encode_gripper(command: GripperCommand, value: float, open_value: float, closed_value: float,
-                   goal_id: str | None = None) -> dict:
+def encode_gripper(
+    command: GripperCommand, value: float, open_value: float, closed_value: float, goal_id: str | None = None
+) -> dict:
     """The command for a gripper position, in the driver's units (`command.scale` times the joint value)."""
-    values = {"$value": float(value) * command.scale, "$name": command.name, "$goal_id": goal_id or new_goal_id(),
-              "$state": gripper_state(command, value, open_value, closed_value)}
+    values = {
+        "$value": float(value) * command.scale,
+        "$name": command.name,
+        "$goal_id": goal_id or new_goal_id(),
+        "$state": gripper_state(command, value, open_value, closed_value),
+    }
     return fill(command.template.message, values)
 
 
@@ -216,16 +234,28 @@ def decode_gripper(command: GripperCommand, msg: dict, open_value: float, closed
             return float(open_value)
         if state == command.states.closed and type(state) is type(command.states.closed):
             return float(closed_value)
-        raise MalformedMessage(f"gripper command state {state!r} is neither open ({command.states.open!r}) "
-                               f"nor closed ({command.states.closed!r})")
+        raise MalformedMessage(
+            f"gripper command state {state!r} is neither open ({command.states.open!r}) "
+            f"nor closed ({command.states.closed!r})"
+        )
     return float(_finite_floats([values["$value"]], "gripper command", 1)[0]) / command.scale
 
 
 # ------------------------------------------------------------------ action results (actionlib)
 
 # actionlib_msgs/GoalStatus.status, by value
-GOAL_STATUS = {0: "PENDING", 1: "ACTIVE", 2: "PREEMPTED", 3: "SUCCEEDED", 4: "ABORTED", 5: "REJECTED",
-               6: "PREEMPTING", 7: "RECALLING", 8: "RECALLED", 9: "LOST"}
+GOAL_STATUS = {
+    0: "PENDING",
+    1: "ACTIVE",
+    2: "PREEMPTED",
+    3: "SUCCEEDED",
+    4: "ABORTED",
+    5: "REJECTED",
+    6: "PREEMPTING",
+    7: "RECALLING",
+    8: "RECALLED",
+    9: "LOST",
+}
 SUCCEEDED = 3
 
 
@@ -245,6 +275,8 @@ def decode_action_result(msg: dict) -> tuple[str, int, str]:
 
 def encode_action_result(goal_id: str, status: int, text: str, result: dict, stamp: float) -> dict:
     """An actionlib ActionResult (the twin's drivers answer their goals with it)."""
-    return {"header": {"seq": 0, "stamp": _stamp(stamp), "frame_id": ""},
-            "status": {"goal_id": {"stamp": _stamp(stamp), "id": goal_id}, "status": status, "text": text},
-            "result": result}
+    return {
+        "header": {"seq": 0, "stamp": _stamp(stamp), "frame_id": ""},
+        "status": {"goal_id": {"stamp": _stamp(stamp), "id": goal_id}, "status": status, "text": text},
+        "result": result,
+    }

@@ -59,7 +59,8 @@ class MotionWatch:
                 f"the arm did not finish the command on {self.topic} within {allowed:.2f} s (its driver was given "
                 f"{motion.length_s:.2f} s, plus a margin of {self.settle.margin_s:.2f} s): joint {worst} is still "
                 f"{off[worst]:.3f} rad from its target (settle tolerance {self.settle.tolerance:g} rad). The "
-                f"driver's timing is not the one it was given, or the arm is blocked.")
+                f"driver's timing is not the one it was given, or the arm is blocked."
+            )
 
     def motion_time(self) -> float:
         """Seconds from the last command to the reading that found it done; NaN if none was."""
@@ -71,8 +72,9 @@ class MotionWatch:
         self.motion = self.done_at = None
 
 
-def drive_plan(start: np.ndarray, home: np.ndarray, speed: float, segment_s: float | None
-               ) -> list[tuple[float, np.ndarray, float]]:
+def drive_plan(
+    start: np.ndarray, home: np.ndarray, speed: float, segment_s: float | None
+) -> list[tuple[float, np.ndarray, float]]:
     """(send at s, target, duration s) of each command of a drive from `start` home at `speed` rad/s: one
     command when the command carries its duration (`segment_s` None); else, for a driver that moves each command
     over its own profile, segments of that profile, each at most `speed` times its length further than the

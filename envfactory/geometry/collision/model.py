@@ -72,8 +72,18 @@ class CollisionModel:
             link = model.frames[geometry_object.parentFrame].name
             start, end, radius = capsule_of(geometry_object)
             pad = float(padding.get(link, 0.0))
-            self.shapes.append(Shape(geometry_object.name, link, int(geometry_object.parentJoint), start, end,
-                                     radius + pad, pad, box_of(geometry_object)))
+            self.shapes.append(
+                Shape(
+                    geometry_object.name,
+                    link,
+                    int(geometry_object.parentJoint),
+                    start,
+                    end,
+                    radius + pad,
+                    pad,
+                    box_of(geometry_object),
+                )
+            )
         self.links = sorted({shape.link for shape in self.shapes})
 
         # the obstacles, in the robot base frame, join the geometry model on the universe joint
@@ -84,13 +94,17 @@ class CollisionModel:
         first_obstacle = len(self.shapes)
         for obstacle, low, high in zip(obstacles, self.obstacle_low, self.obstacle_high):
             box = coal.Box(*(high - low))
-            self.geometry.addGeometryObject(pin.GeometryObject(f"obstacle:{obstacle.name}", 0, 0,
-                                                               pin.SE3(np.eye(3), (low + high) / 2), box))
+            self.geometry.addGeometryObject(
+                pin.GeometryObject(f"obstacle:{obstacle.name}", 0, 0, pin.SE3(np.eye(3), (low + high) / 2), box)
+            )
 
         self.structure = structure = Structure(kinematics, self.geometry, self.shapes)
         self.coordinates, moved = structure.coordinates, structure.moved
-        self.moved_by_gripper, self.lever, self.gripper_mount = \
-            structure.moved_by_gripper, structure.lever, structure.gripper_mount
+        self.moved_by_gripper, self.lever, self.gripper_mount = (
+            structure.moved_by_gripper,
+            structure.lever,
+            structure.gripper_mount,
+        )
 
         moving = np.flatnonzero(moved)
         self.scene_shape = np.repeat(moving, len(obstacles))
@@ -99,8 +113,9 @@ class CollisionModel:
         for a in range(len(self.shapes)):
             for b in range(a + 1, len(self.shapes)):
                 self.self_pairs.append((a, b, structure.exemption(a, b)))
-        self._pin_pairs_scene = np.array([self._add_pair(s, first_obstacle + o)
-                                          for s, o in zip(self.scene_shape, self.scene_obstacle)], dtype=int)
+        self._pin_pairs_scene = np.array(
+            [self._add_pair(s, first_obstacle + o) for s, o in zip(self.scene_shape, self.scene_obstacle)], dtype=int
+        )
         self.radius = np.array([shape.radius for shape in self.shapes])
         self.padding = np.array([shape.padding for shape in self.shapes])
         self.moving_shapes = moving
@@ -135,7 +150,6 @@ class CollisionModel:
         twin.gripper_sweep.collision = twin
         return twin
 
-
     def mounted_placements(self, shapes, values) -> list[list[pin.SE3]]:
         """Per gripper value, each of these shapes' joint frame in the frame of its gripper mount."""
         return self.structure.mounted_placements(shapes, values)
@@ -163,14 +177,17 @@ class CollisionModel:
         # per measured pair, the margin it keeps instead of the surface margin; NaN: the surface margin
         self.pair_margin = np.concatenate([np.full(len(self.scene_shape), np.nan), np.array(own, float)])
         existing = {(p.first, p.second): k for k, p in enumerate(self.geometry.collisionPairs)}
-        self._pin_pairs_self = np.array([existing.get((a, b)) if (a, b) in existing else self._add_pair(a, b)
-                                         for a, b in checked], dtype=int)
+        self._pin_pairs_self = np.array(
+            [existing.get((a, b)) if (a, b) in existing else self._add_pair(a, b) for a, b in checked], dtype=int
+        )
         self.geometry_data = self.geometry.createData()
         relative = [self.structure.relative_lever(a, b) for a, b in checked]
-        self.pair_lever = np.vstack([self.lever[self.scene_shape], *relative]) if relative \
-            else self.lever[self.scene_shape]
-        self.pair_padding = np.concatenate([self.padding[self.scene_shape],
-                                            self.padding[self.self_a] + self.padding[self.self_b]])
+        self.pair_lever = (
+            np.vstack([self.lever[self.scene_shape], *relative]) if relative else self.lever[self.scene_shape]
+        )
+        self.pair_padding = np.concatenate(
+            [self.padding[self.scene_shape], self.padding[self.self_a] + self.padding[self.self_b]]
+        )
         self._pin_pairs = np.concatenate([self._pin_pairs_scene, self._pin_pairs_self]).astype(int)
         # the same as plain Python numbers: a query's own cost is a microsecond or two, numpy's scalar
         # indexing around it would cost more
@@ -203,8 +220,16 @@ class CollisionModel:
     def _place_frames(self) -> None:
         if not self._frames_current:
             joints = self._joints
-            joint_frames(self._coordinates, joints.parent, joints.placement, joints.kind, joints.axis,
-                                        joints.coordinate, joints.gain, self._frames)
+            joint_frames(
+                self._coordinates,
+                joints.parent,
+                joints.placement,
+                joints.kind,
+                joints.axis,
+                joints.coordinate,
+                joints.gain,
+                self._frames,
+            )
             self._frames_current = True
 
     def sphere_gaps(self, shapes: np.ndarray, center: np.ndarray, radius: float) -> np.ndarray:
@@ -212,22 +237,53 @@ class CollisionModel:
         they overlap: a lower bound on the gap between anything inside them."""
         self._place_frames()
         out = np.empty(len(shapes))
-        shape_sphere_gaps(self._frames, self._shape_joint, self._local_ends, self.radius, shapes,
-                                         np.ascontiguousarray(center, float), float(radius), out)
+        shape_sphere_gaps(
+            self._frames,
+            self._shape_joint,
+            self._local_ends,
+            self.radius,
+            shapes,
+            np.ascontiguousarray(center, float),
+            float(radius),
+            out,
+        )
         return out
 
     def bounds(self) -> np.ndarray:
         """A lower bound on the clearance of every measured pair at the current pose."""
         self._place_frames()
         out = np.empty(self.pair_count)
-        capsule_bounds(self._frames, self._shape_joint, self._local_ends, self.radius,
-                                      self._local_boxes, self._box_half, self.padding, self.moving_shapes,
-                                      self.obstacle_low, self.obstacle_high, self.self_a, self.self_b, out)
+        capsule_bounds(
+            self._frames,
+            self._shape_joint,
+            self._local_ends,
+            self.radius,
+            self._local_boxes,
+            self._box_half,
+            self.padding,
+            self.moving_shapes,
+            self.obstacle_low,
+            self.obstacle_high,
+            self.self_a,
+            self.self_b,
+            out,
+        )
         return out
 
-    def unproven_by_capsules(self, q_from: np.ndarray, way: np.ndarray, gripper: float, pairs: np.ndarray,
-                             start_bound: np.ndarray, end_bound: np.ndarray, travel: np.ndarray,
-                             reserve: np.ndarray, threshold: np.ndarray, levels: int, deeper: int = 0) -> np.ndarray:
+    def unproven_by_capsules(
+        self,
+        q_from: np.ndarray,
+        way: np.ndarray,
+        gripper: float,
+        pairs: np.ndarray,
+        start_bound: np.ndarray,
+        end_bound: np.ndarray,
+        travel: np.ndarray,
+        reserve: np.ndarray,
+        threshold: np.ndarray,
+        levels: int,
+        deeper: int = 0,
+    ) -> np.ndarray:
         """Of these pairs, those the capsule bounds cannot prove clear along the straight arm motion q_from +
         f way (gripper fixed at `gripper`, less each pair's reserve), halving every piece up to `levels` times,
         then a pair's unproven pieces `deeper` times more (capsule_motion_unproven). Leaves the
@@ -237,18 +293,52 @@ class CollisionModel:
             coordinates[len(q_from)] = gripper
         unproven = np.empty(len(pairs), dtype=np.bool_)
         joints = self._joints
-        capsule_motion_unproven(coordinates, q_from, way, pairs, start_bound, end_bound, travel, reserve,
-                                               threshold, levels, deeper, joints.parent, joints.placement, joints.kind,
-                                               joints.axis, joints.coordinate, joints.gain, self._shape_joint,
-                                               self._local_ends, self._local_boxes, self._box_half, self.radius,
-                                               self.padding, self.moving_shapes, self.obstacle_low, self.obstacle_high,
-                                               self.self_a, self.self_b, unproven)
+        capsule_motion_unproven(
+            coordinates,
+            q_from,
+            way,
+            pairs,
+            start_bound,
+            end_bound,
+            travel,
+            reserve,
+            threshold,
+            levels,
+            deeper,
+            joints.parent,
+            joints.placement,
+            joints.kind,
+            joints.axis,
+            joints.coordinate,
+            joints.gain,
+            self._shape_joint,
+            self._local_ends,
+            self._local_boxes,
+            self._box_half,
+            self.radius,
+            self.padding,
+            self.moving_shapes,
+            self.obstacle_low,
+            self.obstacle_high,
+            self.self_a,
+            self.self_b,
+            unproven,
+        )
         self.forget_pose()
         return pairs[unproven]
 
-    def motion_proof(self, q_from: np.ndarray, way: np.ndarray, gripper_from: float, gripper_to: float,
-                     margin: np.ndarray, last: tuple[np.ndarray, np.ndarray, float] | None, reuse_within: float,
-                     levels: int, deeper: int) -> MotionProof:
+    def motion_proof(
+        self,
+        q_from: np.ndarray,
+        way: np.ndarray,
+        gripper_from: float,
+        gripper_to: float,
+        margin: np.ndarray,
+        last: tuple[np.ndarray, np.ndarray, float] | None,
+        reuse_within: float,
+        levels: int,
+        deeper: int,
+    ) -> MotionProof:
         """The capsule bounds' proof that the straight arm motion q_from + f way keeps every pair its margin, with the
         gripper anywhere between its two values, in one compiled call (motion_proof). `last`: the
         arm pose, bounds and gripper widening (how far this motion's gripper range reaches beyond theirs) of the
@@ -259,12 +349,43 @@ class CollisionModel:
         last_q, last_bound, beyond = last if last is not None else (q_from, start, 0.0)
         joints = self._joints
         outcome, moves = motion_proof(
-            self._coordinates, q_from, way, (gripper_from + gripper_to) / 2, abs(gripper_to - gripper_from),
-            self.pair_lever, margin, last is not None, last_q, last_bound, beyond, reuse_within, levels, deeper,
-            joints.parent, joints.placement, joints.kind, joints.axis, joints.coordinate, joints.gain,
-            self._shape_joint, self._local_ends, self._local_boxes, self._box_half, self.radius, self.padding,
-            self.moving_shapes, self.obstacle_low, self.obstacle_high, self.self_a, self.self_b, travel, reserve, start,
-            end, unproven)
+            self._coordinates,
+            q_from,
+            way,
+            (gripper_from + gripper_to) / 2,
+            abs(gripper_to - gripper_from),
+            self.pair_lever,
+            margin,
+            last is not None,
+            last_q,
+            last_bound,
+            beyond,
+            reuse_within,
+            levels,
+            deeper,
+            joints.parent,
+            joints.placement,
+            joints.kind,
+            joints.axis,
+            joints.coordinate,
+            joints.gain,
+            self._shape_joint,
+            self._local_ends,
+            self._local_boxes,
+            self._box_half,
+            self.radius,
+            self.padding,
+            self.moving_shapes,
+            self.obstacle_low,
+            self.obstacle_high,
+            self.self_a,
+            self.self_b,
+            travel,
+            reserve,
+            start,
+            end,
+            unproven,
+        )
         self.forget_pose()
         return MotionProof(int(outcome), bool(moves), travel, reserve, start, end, unproven.nonzero()[0])
 
@@ -276,7 +397,9 @@ class CollisionModel:
     def _place_geometry(self) -> None:
         if not self._pinocchio_current:
             arm = len(self.kinematics.robot.arm_joints)
-            q = self.kinematics.full_q(self._coordinates[:arm], self._coordinates[arm] if self.coordinates > arm else 0.0)
+            q = self.kinematics.full_q(
+                self._coordinates[:arm], self._coordinates[arm] if self.coordinates > arm else 0.0
+            )
             pin.forwardKinematics(self.kinematics.model, self.data, q)
             pin.updateGeometryPlacements(self.kinematics.model, self.data, self.geometry, self.geometry_data)
             self._pinocchio_current = True
@@ -302,7 +425,15 @@ class CollisionModel:
         out = np.empty(len(shapes))
         for row, shape in enumerate(shapes):
             pose = self.geometry_data.oMg[int(shape)]
-            out[row] = coal.distance(self.geometry.geometryObjects[int(shape)].geometry,
-                                     coal.Transform3s(pose.rotation, pose.translation), box, placement,
-                                     self._distance_request, coal.DistanceResult()) - self.padding[shape]
+            out[row] = (
+                coal.distance(
+                    self.geometry.geometryObjects[int(shape)].geometry,
+                    coal.Transform3s(pose.rotation, pose.translation),
+                    box,
+                    placement,
+                    self._distance_request,
+                    coal.DistanceResult(),
+                )
+                - self.padding[shape]
+            )
         return out

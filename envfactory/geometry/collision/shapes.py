@@ -37,8 +37,8 @@ def revolute_axis(joint_model) -> np.ndarray | None:
     """The unit axis of a revolute joint in its own frame, or None if it is not one we can read."""
     kind = joint_model.shortname()
     for prefix in ("JointModelRUB", "JointModelR"):
-        if kind.startswith(prefix) and kind[len(prefix):] in _AXES:
-            return _AXES[kind[len(prefix):]]
+        if kind.startswith(prefix) and kind[len(prefix) :] in _AXES:
+            return _AXES[kind[len(prefix) :]]
     if kind in ("JointModelRevoluteUnaligned", "JointModelRevoluteUnboundedUnaligned"):
         axis = np.asarray(joint_model.extract().axis, float)
         return axis / np.linalg.norm(axis)

@@ -29,12 +29,12 @@ class Structure:
         self.moved = [self._is_moved(shape.joint, drivers) for shape in shapes]
         # the fingers: shapes the gripper moves (the rest of the arm holds still when only the gripper moves)
         gripper = self.coordinates - 1 if kinematics.robot.gripper is not None else None
-        self.moved_by_gripper = np.array([gripper is not None and self._is_moved(shape.joint, drivers, gripper)
-                                          for shape in shapes], dtype=bool)
+        self.moved_by_gripper = np.array(
+            [gripper is not None and self._is_moved(shape.joint, drivers, gripper) for shape in shapes], dtype=bool
+        )
         self.lever = np.array([self._lever(shape, drivers) for shape in shapes])  # (shapes, coordinates)
         # per shape, the nearest joint at or above it that the gripper does not move
-        self.gripper_mount = np.array([self._gripper_mount(shape.joint, drivers) for shape in shapes],
-                                      dtype=np.int64)
+        self.gripper_mount = np.array([self._gripper_mount(shape.joint, drivers) for shape in shapes], dtype=np.int64)
         self._sweep: tuple[np.ndarray, list[list[pin.SE3]]] | None = None
         if kinematics.robot.gripper is not None:
             # a shape the gripper does not move has no gripper lever (the measured sweep leaves rounding noise)
@@ -142,8 +142,10 @@ class Structure:
                 lever[coordinate] += abs(gain) * arm
             child_offset, child_reach = model.jointPlacements[joint].translation, reach
             if prismatic:  # the slide lengthens every lever above it by its travel
-                travel = max(abs(model.lowerPositionLimit[model.idx_qs[joint]]),
-                             abs(model.upperPositionLimit[model.idx_qs[joint]]))
+                travel = max(
+                    abs(model.lowerPositionLimit[model.idx_qs[joint]]),
+                    abs(model.upperPositionLimit[model.idx_qs[joint]]),
+                )
                 reach += travel
                 child_reach += travel
             reach += float(np.linalg.norm(child_offset))

@@ -9,6 +9,7 @@ from numba import njit
 from envfactory.geometry.kernels.joints import placed_point
 from envfactory.geometry.kernels.pose import aabb_gap, toward
 
+
 @njit(cache=True, inline="always")
 def _place_sweep(frame, sweep_corners, row, first, last, placed, low, high):
     """A finger's box corners at gripper samples first..last (tabulated in its mount's frame), placed by the
@@ -18,8 +19,11 @@ def _place_sweep(frame, sweep_corners, row, first, last, placed, low, high):
     for sample in range(first, last + 1):
         for corner in range(8):
             k = 8 * (sample - first) + corner
-            x, y, z = (sweep_corners[row, sample, corner, 0], sweep_corners[row, sample, corner, 1],
-                       sweep_corners[row, sample, corner, 2])
+            x, y, z = (
+                sweep_corners[row, sample, corner, 0],
+                sweep_corners[row, sample, corner, 1],
+                sweep_corners[row, sample, corner, 2],
+            )
             for i in range(3):
                 value = placed_point(frame, x, y, z, i)
                 placed[k, i] = value
@@ -28,8 +32,9 @@ def _place_sweep(frame, sweep_corners, row, first, last, placed, low, high):
 
 
 @njit(cache=True, inline="always")
-def _sweep_gap(frames, placed, low, high, corners, obstacle, obstacle_low, obstacle_high, other, other_joint,
-               local_corners, box):
+def _sweep_gap(
+    frames, placed, low, high, corners, obstacle, obstacle_low, obstacle_high, other, other_joint, local_corners, box
+):
     """The distance of placed swept corners' extent from an obstacle (obstacle >= 0), or their separation from
     another shape's box along the box's axes: it bounds the distance between their convex hull and the obstacle
     or box."""
@@ -39,8 +44,9 @@ def _sweep_gap(frames, placed, low, high, corners, obstacle, obstacle_low, obsta
             return apart
         # a finger tilted beside an edge of the obstacle leaves its extent's corner empty: the direction from the
         # obstacle's nearest point to the extent's middle separates them by about their true distance
-        nx, ny, nz, reach = toward(low[0], low[1], low[2], high[0], high[1], high[2], obstacle, obstacle_low,
-                                    obstacle_high)
+        nx, ny, nz, reach = toward(
+            low[0], low[1], low[2], high[0], high[1], high[2], obstacle, obstacle_low, obstacle_high
+        )
         if reach == np.inf:
             return apart
         lowest = np.inf
@@ -51,8 +57,13 @@ def _sweep_gap(frames, placed, low, high, corners, obstacle, obstacle_low, obsta
     frame = frames[other_joint]
     for corner in range(8):
         for i in range(3):
-            box[corner, i] = placed_point(frame, local_corners[other, corner, 0], local_corners[other, corner, 1],
-                                     local_corners[other, corner, 2], i)
+            box[corner, i] = placed_point(
+                frame,
+                local_corners[other, corner, 0],
+                local_corners[other, corner, 1],
+                local_corners[other, corner, 2],
+                i,
+            )
     # the box's edges from its first corner (fit_box's order: x-, y- and z-steps are 4, 2 and 1)
     for edge in range(3):
         step = 4 >> edge
@@ -74,8 +85,21 @@ def _sweep_gap(frames, placed, low, high, corners, obstacle, obstacle_low, obsta
 
 
 @njit(cache=True)
-def swept_box_gaps(frames, mount_joint, sweep_corners, first, last, rows, obstacles, obstacle_low, obstacle_high,
-                   others, other_joint, local_corners, out):
+def swept_box_gaps(
+    frames,
+    mount_joint,
+    sweep_corners,
+    first,
+    last,
+    rows,
+    obstacles,
+    obstacle_low,
+    obstacle_high,
+    others,
+    other_joint,
+    local_corners,
+    out,
+):
     """For each pair, a finger's box corners at gripper samples first..last (tabulated in the frame of the
     joint they are mounted on) against either an obstacle (obstacles[p] >= 0) or another shape's box
     (others[p]): their separation along the obstacle's or the box's axes, which bounds the distance
@@ -90,19 +114,53 @@ def swept_box_gaps(frames, mount_joint, sweep_corners, first, last, rows, obstac
         if not done[row]:  # a finger measured against several obstacles is placed once
             _place_sweep(frames[mount_joint[row]], sweep_corners, row, first, last, placed[row], low[row], high[row])
             done[row] = True
-        out[p] = _sweep_gap(frames, placed[row], low[row], high[row], corners, obstacles[p], obstacle_low,
-                            obstacle_high, others[p], other_joint[p], local_corners, box)
+        out[p] = _sweep_gap(
+            frames,
+            placed[row],
+            low[row],
+            high[row],
+            corners,
+            obstacles[p],
+            obstacle_low,
+            obstacle_high,
+            others[p],
+            other_joint[p],
+            local_corners,
+            box,
+        )
 
 
 @njit(cache=True)
-def swept_box_gap(frames, mount_joint, sweep_corners, first, last, row, obstacle, obstacle_low, obstacle_high, other,
-                  other_joint, local_corners):
+def swept_box_gap(
+    frames,
+    mount_joint,
+    sweep_corners,
+    first,
+    last,
+    row,
+    obstacle,
+    obstacle_low,
+    obstacle_high,
+    other,
+    other_joint,
+    local_corners,
+):
     """swept_box_gaps for one pair, on scalars: the safety check's deep bisections ask for one pair at a time."""
     corners = 8 * (last - first + 1)
     placed = np.empty((corners, 3))
     low, high, box = np.empty(3), np.empty(3), np.empty((8, 3))
     _place_sweep(frames[mount_joint[row]], sweep_corners, row, first, last, placed, low, high)
-    return _sweep_gap(frames, placed, low, high, corners, obstacle, obstacle_low, obstacle_high, other, other_joint,
-                      local_corners, box)
-
-
+    return _sweep_gap(
+        frames,
+        placed,
+        low,
+        high,
+        corners,
+        obstacle,
+        obstacle_low,
+        obstacle_high,
+        other,
+        other_joint,
+        local_corners,
+        box,
+    )

@@ -40,8 +40,10 @@ def _motion_of(model, joint: int) -> tuple[int, np.ndarray]:
     """The kind and unit axis of a driven joint, read off its motion at a unit value."""
     joint_model = model.joints[joint]
     if joint_model.nq != 1:
-        raise ValueError(f"joint {model.names[joint]!r} ({joint_model.shortname()}) is driven but is not "
-                         f"a one-coordinate revolute or prismatic joint")
+        raise ValueError(
+            f"joint {model.names[joint]!r} ({joint_model.shortname()}) is driven but is not "
+            f"a one-coordinate revolute or prismatic joint"
+        )
     q = pin.neutral(model)
     q[joint_model.idx_q] = 1.0
     data = model.createData()
@@ -52,8 +54,10 @@ def _motion_of(model, joint: int) -> tuple[int, np.ndarray]:
         return REVOLUTE, motion.angular / angular
     if angular < 1e-9 and linear > 1e-9:
         return PRISMATIC, motion.linear / linear
-    raise ValueError(f"joint {model.names[joint]!r} ({joint_model.shortname()}) is neither a plain revolute "
-                     f"nor a plain prismatic joint")
+    raise ValueError(
+        f"joint {model.names[joint]!r} ({joint_model.shortname()}) is neither a plain revolute "
+        f"nor a plain prismatic joint"
+    )
 
 
 @njit(cache=True, inline="always")
@@ -97,5 +101,3 @@ def joint_frames(coordinates, parent, placement, kind, axis, coordinate, gain, f
             motion[0, 3], motion[1, 3], motion[2, 3] = x * value, y * value, z * value
         _compose(placement[joint], motion, local)
         _compose(frames[parent[joint]], local, frames[joint])
-
-

@@ -8,24 +8,86 @@ import numpy as np
 from numba import njit
 
 from envfactory.geometry.kernels.joints import NO_BOUND, joint_frames
-from envfactory.geometry.kernels.pose import PLACED_ROWS, scene_bound, segment_point_distance, self_pair_bound, capsule_bounds, capsule_ends
+from envfactory.geometry.kernels.pose import (
+    PLACED_ROWS,
+    capsule_bounds,
+    capsule_ends,
+    scene_bound,
+    segment_point_distance,
+    self_pair_bound,
+)
+
 
 @njit(cache=True, inline="always")
-def _pair_bound(frames, ends, pair, shape_joint, local_boxes, box_half, radius, padding, moving, obstacle_low,
-                obstacle_high, self_a, self_b, placed, is_placed):
+def _pair_bound(
+    frames,
+    ends,
+    pair,
+    shape_joint,
+    local_boxes,
+    box_half,
+    radius,
+    padding,
+    moving,
+    obstacle_low,
+    obstacle_high,
+    self_a,
+    self_b,
+    placed,
+    is_placed,
+):
     """capsule_bounds' bound for one pair (its numbering: moving shape x obstacle, then the self pairs)."""
     obstacles = obstacle_low.shape[0]
     scene = moving.shape[0] * obstacles
     if pair >= scene:
-        return self_pair_bound(frames, ends, self_a[pair - scene], self_b[pair - scene], shape_joint, local_boxes,
-                                box_half, radius, padding, placed, is_placed)
-    return scene_bound(frames, ends, moving[pair // obstacles], pair % obstacles, shape_joint, local_boxes,
-                        box_half, radius, padding, obstacle_low, obstacle_high, placed, is_placed)
+        return self_pair_bound(
+            frames,
+            ends,
+            self_a[pair - scene],
+            self_b[pair - scene],
+            shape_joint,
+            local_boxes,
+            box_half,
+            radius,
+            padding,
+            placed,
+            is_placed,
+        )
+    return scene_bound(
+        frames,
+        ends,
+        moving[pair // obstacles],
+        pair % obstacles,
+        shape_joint,
+        local_boxes,
+        box_half,
+        radius,
+        padding,
+        obstacle_low,
+        obstacle_high,
+        placed,
+        is_placed,
+    )
 
 
 @njit(cache=True, inline="always")
-def _motion_pose(coordinates, fraction, q_from, way, parent, placement, kind, axis, coordinate, gain, shape_joint,
-                 local_ends, frames, ends, is_placed):
+def _motion_pose(
+    coordinates,
+    fraction,
+    q_from,
+    way,
+    parent,
+    placement,
+    kind,
+    axis,
+    coordinate,
+    gain,
+    shape_joint,
+    local_ends,
+    frames,
+    ends,
+    is_placed,
+):
     """Frames and capsule ends with the arm `fraction` of the way along the motion (boxes placed on demand)."""
     for j in range(q_from.shape[0]):
         coordinates[j] = q_from[j] + fraction * way[j]
@@ -35,17 +97,44 @@ def _motion_pose(coordinates, fraction, q_from, way, parent, placement, kind, ax
 
 
 @njit(cache=True)
-def capsule_motion_unproven(coordinates, q_from, way, pairs, start_bound, end_bound, travel, reserve, threshold,
-                            levels, deeper, parent, placement, kind, axis, coordinate, gain, shape_joint, local_ends,
-                            local_boxes, box_half, radius, padding, moving, obstacle_low, obstacle_high, self_a,
-                            self_b, unproven):
+def capsule_motion_unproven(
+    coordinates,
+    q_from,
+    way,
+    pairs,
+    start_bound,
+    end_bound,
+    travel,
+    reserve,
+    threshold,
+    levels,
+    deeper,
+    parent,
+    placement,
+    kind,
+    axis,
+    coordinate,
+    gain,
+    shape_joint,
+    local_ends,
+    local_boxes,
+    box_half,
+    radius,
+    padding,
+    moving,
+    obstacle_low,
+    obstacle_high,
+    self_a,
+    self_b,
+    unproven,
+):
     """The lever-bound bisection of a straight arm motion on capsule bounds alone (less each pair's reserve), for
     these pairs. Each of the first `levels` halves every piece and poses the arm once at each new point (the gripper
     where `coordinates` holds it), shared by the pairs; the pieces a pair still leaves unproven are then halved
     `deeper` times more, posed for that pair alone. A pair is proven once every piece's two end bounds less the
     piece's travel keep twice its threshold; unproven[i] says pairs[i] was not (or capsules overlap)."""
     count = pairs.shape[0]
-    points = 2 ** levels + 1
+    points = 2**levels + 1
     grid = np.empty((count, points))
     active = np.empty(count, dtype=np.bool_)  # still worth halving: unproven, no overlap met
     frames = np.empty((parent.shape[0], 3, 4))
@@ -63,22 +152,54 @@ def capsule_motion_unproven(coordinates, q_from, way, pairs, start_bound, end_bo
         if alive == 0:
             break
         spacing = 2 ** (levels - level)
-        for k in range(1, 2 ** level, 2):
-            _motion_pose(coordinates, k / 2 ** level, q_from, way, parent, placement, kind, axis, coordinate, gain,
-                         shape_joint, local_ends, frames, ends, is_placed)
+        for k in range(1, 2**level, 2):
+            _motion_pose(
+                coordinates,
+                k / 2**level,
+                q_from,
+                way,
+                parent,
+                placement,
+                kind,
+                axis,
+                coordinate,
+                gain,
+                shape_joint,
+                local_ends,
+                frames,
+                ends,
+                is_placed,
+            )
             for i in range(count):
                 if active[i]:
                     pair = pairs[i]
-                    grid[i, k * spacing] = _pair_bound(frames, ends, pair, shape_joint, local_boxes, box_half,
-                                                       radius, padding, moving, obstacle_low, obstacle_high, self_a,
-                                                       self_b, placed, is_placed) - reserve[pair]
-        length = 1.0 / 2 ** level
+                    grid[i, k * spacing] = (
+                        _pair_bound(
+                            frames,
+                            ends,
+                            pair,
+                            shape_joint,
+                            local_boxes,
+                            box_half,
+                            radius,
+                            padding,
+                            moving,
+                            obstacle_low,
+                            obstacle_high,
+                            self_a,
+                            self_b,
+                            placed,
+                            is_placed,
+                        )
+                        - reserve[pair]
+                    )
+        length = 1.0 / 2**level
         for i in range(count):
             if not active[i]:
                 continue
             pair = pairs[i]
             proven = True
-            for piece in range(2 ** level):
+            for piece in range(2**level):
                 a, b = grid[i, piece * spacing], grid[i, (piece + 1) * spacing]
                 if a == NO_BOUND or b == NO_BOUND:  # overlapping capsules: no halving can prove it
                     active[i] = False
@@ -93,7 +214,7 @@ def capsule_motion_unproven(coordinates, q_from, way, pairs, start_bound, end_bo
                 alive -= 1
     # the pieces a pair leaves, halved on their own: (start, its bound, end, its bound, halvings left)
     stack = np.empty((deeper + 2, 5))
-    last = 2 ** levels
+    last = 2**levels
     for i in range(count):
         if not active[i]:
             continue
@@ -114,11 +235,50 @@ def capsule_motion_unproven(coordinates, q_from, way, pairs, start_bound, end_bo
                     proven = False
                     break
                 middle = (a + b) / 2
-                _motion_pose(coordinates, middle, q_from, way, parent, placement, kind, axis, coordinate, gain,
-                             shape_joint, local_ends, frames, ends, is_placed)
-                bound = _pair_bound(frames, ends, pair, shape_joint, local_boxes, box_half, radius, padding, moving,
-                                    obstacle_low, obstacle_high, self_a, self_b, placed, is_placed) - reserve[pair]
-                stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3], stack[top, 4] = a, bound_a, middle, bound, left - 1
+                _motion_pose(
+                    coordinates,
+                    middle,
+                    q_from,
+                    way,
+                    parent,
+                    placement,
+                    kind,
+                    axis,
+                    coordinate,
+                    gain,
+                    shape_joint,
+                    local_ends,
+                    frames,
+                    ends,
+                    is_placed,
+                )
+                bound = (
+                    _pair_bound(
+                        frames,
+                        ends,
+                        pair,
+                        shape_joint,
+                        local_boxes,
+                        box_half,
+                        radius,
+                        padding,
+                        moving,
+                        obstacle_low,
+                        obstacle_high,
+                        self_a,
+                        self_b,
+                        placed,
+                        is_placed,
+                    )
+                    - reserve[pair]
+                )
+                stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3], stack[top, 4] = (
+                    a,
+                    bound_a,
+                    middle,
+                    bound,
+                    left - 1,
+                )
                 stack[top + 1, 0], stack[top + 1, 1] = middle, bound
                 stack[top + 1, 2], stack[top + 1, 3], stack[top + 1, 4] = b, bound_b, left - 1
                 top += 2
@@ -126,8 +286,28 @@ def capsule_motion_unproven(coordinates, q_from, way, pairs, start_bound, end_bo
 
 
 @njit(cache=True, inline="always")
-def _sphere_gaps_at(fraction, coordinates, q_from, way, parent, placement, kind, axis, coordinate, gain, shape_joint,
-                    local_ends, moving, radius, reserve, centers, radii, frames, ends, out):
+def _sphere_gaps_at(
+    fraction,
+    coordinates,
+    q_from,
+    way,
+    parent,
+    placement,
+    kind,
+    axis,
+    coordinate,
+    gain,
+    shape_joint,
+    local_ends,
+    moving,
+    radius,
+    reserve,
+    centers,
+    radii,
+    frames,
+    ends,
+    out,
+):
     """out[m, s]: the gap of moving shape m's capsule from sphere s, less the shape's reserve, with the arm
     `fraction` of the way along the motion."""
     for j in range(q_from.shape[0]):
@@ -159,9 +339,28 @@ def _travel_and_reserve(lever, way, gripper_change, travel, reserve):
 
 
 @njit(cache=True)
-def motion_clear_of_spheres(coordinates, q_from, way, parent, placement, kind, axis, coordinate, gain, shape_joint,
-                            local_ends, moving, radius, lever, gripper_change, world_centers, base_in_world, radii,
-                            margin, levels):
+def motion_clear_of_spheres(
+    coordinates,
+    q_from,
+    way,
+    parent,
+    placement,
+    kind,
+    axis,
+    coordinate,
+    gain,
+    shape_joint,
+    local_ends,
+    moving,
+    radius,
+    lever,
+    gripper_change,
+    world_centers,
+    base_in_world,
+    radii,
+    margin,
+    levels,
+):
     """Whether every moving shape's capsule stays `margin` from every sphere (centres in the world) along the
     straight arm motion q_from + f way, the gripper anywhere within `gripper_change` of where `coordinates` holds
     it: each shape's travel is its lever arms times the joints' changes, its reserve its gripper lever times half
@@ -173,12 +372,32 @@ def motion_clear_of_spheres(coordinates, q_from, way, parent, placement, kind, a
     for s in range(world_centers.shape[0]):
         for i in range(3):
             centers[s, i] = world_centers[s, i] - base_in_world[i]  # base frame: the mount is a translation
-    points = 2 ** levels + 1
+    points = 2**levels + 1
     grid = np.empty((points, moving.shape[0], centers.shape[0]))
     frames = np.empty((parent.shape[0], 3, 4))
     ends = np.empty((shape_joint.shape[0], 2, 3))
-    _sphere_gaps_at(0.0, coordinates, q_from, way, parent, placement, kind, axis, coordinate, gain, shape_joint,
-                    local_ends, moving, radius, reserve, centers, radii, frames, ends, grid[0])
+    _sphere_gaps_at(
+        0.0,
+        coordinates,
+        q_from,
+        way,
+        parent,
+        placement,
+        kind,
+        axis,
+        coordinate,
+        gain,
+        shape_joint,
+        local_ends,
+        moving,
+        radius,
+        reserve,
+        centers,
+        radii,
+        frames,
+        ends,
+        grid[0],
+    )
     clear = True
     for m in range(moving.shape[0]):
         for s in range(centers.shape[0]):
@@ -187,8 +406,28 @@ def motion_clear_of_spheres(coordinates, q_from, way, parent, placement, kind, a
     if clear:
         return True
     last = points - 1
-    _sphere_gaps_at(1.0, coordinates, q_from, way, parent, placement, kind, axis, coordinate, gain, shape_joint,
-                    local_ends, moving, radius, reserve, centers, radii, frames, ends, grid[last])
+    _sphere_gaps_at(
+        1.0,
+        coordinates,
+        q_from,
+        way,
+        parent,
+        placement,
+        kind,
+        axis,
+        coordinate,
+        gain,
+        shape_joint,
+        local_ends,
+        moving,
+        radius,
+        reserve,
+        centers,
+        radii,
+        frames,
+        ends,
+        grid[last],
+    )
     stack = np.empty((2 * points, 2), dtype=np.int64)
     stack[0, 0], stack[0, 1] = 0, last
     top = 1
@@ -206,8 +445,28 @@ def motion_clear_of_spheres(coordinates, q_from, way, parent, placement, kind, a
         if b - a == 1:
             return False
         middle = (a + b) // 2
-        _sphere_gaps_at(middle / last, coordinates, q_from, way, parent, placement, kind, axis, coordinate, gain,
-                        shape_joint, local_ends, moving, radius, reserve, centers, radii, frames, ends, grid[middle])
+        _sphere_gaps_at(
+            middle / last,
+            coordinates,
+            q_from,
+            way,
+            parent,
+            placement,
+            kind,
+            axis,
+            coordinate,
+            gain,
+            shape_joint,
+            local_ends,
+            moving,
+            radius,
+            reserve,
+            centers,
+            radii,
+            frames,
+            ends,
+            grid[middle],
+        )
         for m in range(moving.shape[0]):
             for s in range(centers.shape[0]):
                 if grid[middle, m, s] < margin:
@@ -224,10 +483,44 @@ PROVEN, DOUBT_AT_ENDS, DOUBT_BETWEEN = 0, 1, 2
 
 
 @njit(cache=True)
-def motion_proof(coordinates, q_from, way, gripper_middle, gripper_change, pair_lever, margin, reuse, last_q,
-                 last_bound, gripper_beyond, reuse_within, levels, deeper, parent, placement, kind, axis, coordinate,
-                 gain, shape_joint, local_ends, local_boxes, box_half, radius, padding, moving, obstacle_low,
-                 obstacle_high, self_a, self_b, travel, reserve, start_bound, end_bound, unproven):
+def motion_proof(
+    coordinates,
+    q_from,
+    way,
+    gripper_middle,
+    gripper_change,
+    pair_lever,
+    margin,
+    reuse,
+    last_q,
+    last_bound,
+    gripper_beyond,
+    reuse_within,
+    levels,
+    deeper,
+    parent,
+    placement,
+    kind,
+    axis,
+    coordinate,
+    gain,
+    shape_joint,
+    local_ends,
+    local_boxes,
+    box_half,
+    radius,
+    padding,
+    moving,
+    obstacle_low,
+    obstacle_high,
+    self_a,
+    self_b,
+    travel,
+    reserve,
+    start_bound,
+    end_bound,
+    unproven,
+):
     """The safety check's proof of a straight arm motion on capsule bounds alone, in one compiled call: per pair its
     travel (lever arm times each joint's change) and reserve (the gripper's lever times half its change); bounds at
     the start (the last accepted end's, less how far the arm and gripper are from it, when `reuse` and within
@@ -256,16 +549,72 @@ def motion_proof(coordinates, q_from, way, gripper_middle, gripper_change, pair_
             farthest = max(farthest, moved)
         reuse = farthest <= reuse_within
     if not reuse:
-        _motion_pose(coordinates, 0.0, q_from, way, parent, placement, kind, axis, coordinate, gain, shape_joint,
-                     local_ends, frames, ends, is_placed)
-        capsule_bounds(frames, shape_joint, local_ends, radius, local_boxes, box_half, padding, moving, obstacle_low,
-                       obstacle_high, self_a, self_b, start_bound)
+        _motion_pose(
+            coordinates,
+            0.0,
+            q_from,
+            way,
+            parent,
+            placement,
+            kind,
+            axis,
+            coordinate,
+            gain,
+            shape_joint,
+            local_ends,
+            frames,
+            ends,
+            is_placed,
+        )
+        capsule_bounds(
+            frames,
+            shape_joint,
+            local_ends,
+            radius,
+            local_boxes,
+            box_half,
+            padding,
+            moving,
+            obstacle_low,
+            obstacle_high,
+            self_a,
+            self_b,
+            start_bound,
+        )
         for p in range(pairs):
             start_bound[p] -= reserve[p]
-    _motion_pose(coordinates, 1.0, q_from, way, parent, placement, kind, axis, coordinate, gain, shape_joint,
-                 local_ends, frames, ends, is_placed)
-    capsule_bounds(frames, shape_joint, local_ends, radius, local_boxes, box_half, padding, moving, obstacle_low,
-                   obstacle_high, self_a, self_b, end_bound)
+    _motion_pose(
+        coordinates,
+        1.0,
+        q_from,
+        way,
+        parent,
+        placement,
+        kind,
+        axis,
+        coordinate,
+        gain,
+        shape_joint,
+        local_ends,
+        frames,
+        ends,
+        is_placed,
+    )
+    capsule_bounds(
+        frames,
+        shape_joint,
+        local_ends,
+        radius,
+        local_boxes,
+        box_half,
+        padding,
+        moving,
+        obstacle_low,
+        obstacle_high,
+        self_a,
+        self_b,
+        end_bound,
+    )
     doubt_at_ends = False
     asked = np.empty(pairs, dtype=np.int64)  # the pairs the two ends leave in doubt between them
     weak = 0
@@ -282,10 +631,37 @@ def motion_proof(coordinates, q_from, way, gripper_middle, gripper_change, pair_
         return PROVEN, moves
     asked = asked[:weak]
     left = np.empty(weak, dtype=np.bool_)
-    capsule_motion_unproven(coordinates, q_from, way, asked, start_bound, end_bound, travel, reserve, margin, levels,
-                            deeper, parent, placement, kind, axis, coordinate, gain, shape_joint, local_ends,
-                            local_boxes, box_half, radius, padding, moving, obstacle_low, obstacle_high, self_a,
-                            self_b, left)
+    capsule_motion_unproven(
+        coordinates,
+        q_from,
+        way,
+        asked,
+        start_bound,
+        end_bound,
+        travel,
+        reserve,
+        margin,
+        levels,
+        deeper,
+        parent,
+        placement,
+        kind,
+        axis,
+        coordinate,
+        gain,
+        shape_joint,
+        local_ends,
+        local_boxes,
+        box_half,
+        radius,
+        padding,
+        moving,
+        obstacle_low,
+        obstacle_high,
+        self_a,
+        self_b,
+        left,
+    )
     outcome = PROVEN
     for i in range(weak):
         if left[i]:

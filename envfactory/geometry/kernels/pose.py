@@ -13,6 +13,7 @@ from numba import njit
 
 from envfactory.geometry.kernels.joints import NO_BOUND, placed_point
 
+
 @njit(cache=True, inline="always")
 def _segment_distance(ends, a, b):
     """Distance between the segments of shapes a and b (ends: shapes x 2 x 3), on scalars: small
@@ -51,13 +52,27 @@ def capsule_ends(frames, shape_joint, local_ends, ends):
         frame = frames[shape_joint[shape]]
         for end in range(2):
             for i in range(3):
-                ends[shape, end, i] = placed_point(frame, local_ends[shape, end, 0], local_ends[shape, end, 1],
-                                              local_ends[shape, end, 2], i)
+                ends[shape, end, i] = placed_point(
+                    frame, local_ends[shape, end, 0], local_ends[shape, end, 1], local_ends[shape, end, 2], i
+                )
 
 
 @njit(cache=True)
-def capsule_bounds(frames, shape_joint, local_ends, radius, local_boxes, box_half, padding, moving, obstacle_low,
-                   obstacle_high, self_a, self_b, out):
+def capsule_bounds(
+    frames,
+    shape_joint,
+    local_ends,
+    radius,
+    local_boxes,
+    box_half,
+    padding,
+    moving,
+    obstacle_low,
+    obstacle_high,
+    self_a,
+    self_b,
+    out,
+):
     """Lower bounds on the clearance of every measured pair, in the order the collision model numbers
     them: each moving shape against each obstacle (the better of its capsule's and its box's), then the
     self pairs (capsule against capsule, and box against box where the capsules come close)."""
@@ -69,18 +84,55 @@ def capsule_bounds(frames, shape_joint, local_ends, radius, local_boxes, box_hal
     for m in range(moving.shape[0]):
         shape = moving[m]
         for o in range(obstacles):
-            out[m * obstacles + o] = scene_bound(frames, ends, shape, o, shape_joint, local_boxes, box_half, radius,
-                                                  padding, obstacle_low, obstacle_high, placed, is_placed)
+            out[m * obstacles + o] = scene_bound(
+                frames,
+                ends,
+                shape,
+                o,
+                shape_joint,
+                local_boxes,
+                box_half,
+                radius,
+                padding,
+                obstacle_low,
+                obstacle_high,
+                placed,
+                is_placed,
+            )
     row = moving.shape[0] * obstacles
     for pair in range(self_a.shape[0]):
-        out[row] = self_pair_bound(frames, ends, self_a[pair], self_b[pair], shape_joint, local_boxes, box_half,
-                                    radius, padding, placed, is_placed)
+        out[row] = self_pair_bound(
+            frames,
+            ends,
+            self_a[pair],
+            self_b[pair],
+            shape_joint,
+            local_boxes,
+            box_half,
+            radius,
+            padding,
+            placed,
+            is_placed,
+        )
         row += 1
 
 
 @njit(cache=True, inline="always")
-def scene_bound(frames, ends, shape, o, shape_joint, local_boxes, box_half, radius, padding, obstacle_low,
-                 obstacle_high, placed, is_placed):
+def scene_bound(
+    frames,
+    ends,
+    shape,
+    o,
+    shape_joint,
+    local_boxes,
+    box_half,
+    radius,
+    padding,
+    obstacle_low,
+    obstacle_high,
+    placed,
+    is_placed,
+):
     """A lower bound on a moving shape's clearance from obstacle o: the separation of the obstacle from the shape's
     capsule, or from its box, along the obstacle box's own axes (which bounds the distance between two convex
     sets), whichever is the larger; where that is small, also the boxes' separation along the shape box's axes and
@@ -94,10 +146,14 @@ def scene_bound(frames, ends, shape, o, shape_joint, local_boxes, box_half, radi
         low = min(ends[shape, 0, k], ends[shape, 1, k])
         high = max(ends[shape, 0, k], ends[shape, 1, k])
         capsule_apart = max(capsule_apart, low - obstacle_high[o, k], obstacle_low[o, k] - high)
-        box_apart = max(box_apart, placed[shape, LOW, k] - obstacle_high[o, k], obstacle_low[o, k] - placed[shape, HIGH, k])
+        box_apart = max(
+            box_apart, placed[shape, LOW, k] - obstacle_high[o, k], obstacle_low[o, k] - placed[shape, HIGH, k]
+        )
     bound = max(capsule_apart - radius[shape], box_apart - padding[shape])
     if bound < BOX_BELOW:
-        bound = max(bound, _box_obstacle_apart(placed, box_half, shape, o, obstacle_low, obstacle_high) - padding[shape])
+        bound = max(
+            bound, _box_obstacle_apart(placed, box_half, shape, o, obstacle_low, obstacle_high) - padding[shape]
+        )
     return bound if bound >= 0.0 else NO_BOUND
 
 
@@ -128,8 +184,14 @@ def _box_obstacle_apart(placed, box_half, shape, o, obstacle_low, obstacle_high)
             if length < 1e-9:  # parallel to an obstacle axis: the extents have it
                 continue
             nx, ny, nz = nx / length, ny / length, nz / length
-            apart = max(apart, abs(dx * nx + dy * ny + dz * nz) - _box_reach(placed, box_half, shape, nx, ny, nz)
-                        - hx * abs(nx) - hy * abs(ny) - hz * abs(nz))
+            apart = max(
+                apart,
+                abs(dx * nx + dy * ny + dz * nz)
+                - _box_reach(placed, box_half, shape, nx, ny, nz)
+                - hx * abs(nx)
+                - hy * abs(ny)
+                - hz * abs(nz),
+            )
     return apart
 
 
@@ -146,8 +208,11 @@ def toward(x0, y0, z0, x1, y1, z1, o, obstacle_low, obstacle_high):
     if length < 1e-12:
         return 0.0, 0.0, 0.0, np.inf
     nx, ny, nz = nx / length, ny / length, nz / length
-    reach = (max(nx * obstacle_low[o, 0], nx * obstacle_high[o, 0]) + max(ny * obstacle_low[o, 1], ny * obstacle_high[o, 1])
-             + max(nz * obstacle_low[o, 2], nz * obstacle_high[o, 2]))
+    reach = (
+        max(nx * obstacle_low[o, 0], nx * obstacle_high[o, 0])
+        + max(ny * obstacle_low[o, 1], ny * obstacle_high[o, 1])
+        + max(nz * obstacle_low[o, 2], nz * obstacle_high[o, 2])
+    )
     return nx, ny, nz, reach
 
 
@@ -183,15 +248,19 @@ def _place_box(frames, shape, shape_joint, local_boxes, box_half, placed, is_pla
     if not is_placed[shape]:
         frame = frames[shape_joint[shape]]
         for i in range(3):
-            placed[shape, CENTER, i] = placed_point(frame, local_boxes[shape, 0, 0], local_boxes[shape, 0, 1],
-                                               local_boxes[shape, 0, 2], i)
+            placed[shape, CENTER, i] = placed_point(
+                frame, local_boxes[shape, 0, 0], local_boxes[shape, 0, 1], local_boxes[shape, 0, 2], i
+            )
             for axis in range(1, 4):
-                placed[shape, axis, i] = (frame[i, 0] * local_boxes[shape, axis, 0]
-                                          + frame[i, 1] * local_boxes[shape, axis, 1]
-                                          + frame[i, 2] * local_boxes[shape, axis, 2])
+                placed[shape, axis, i] = (
+                    frame[i, 0] * local_boxes[shape, axis, 0]
+                    + frame[i, 1] * local_boxes[shape, axis, 1]
+                    + frame[i, 2] * local_boxes[shape, axis, 2]
+                )
         for i in range(3):  # along each of the base frame's axes
-            reach = _box_reach(placed, box_half, shape, 1.0 if i == 0 else 0.0, 1.0 if i == 1 else 0.0,
-                               1.0 if i == 2 else 0.0)
+            reach = _box_reach(
+                placed, box_half, shape, 1.0 if i == 0 else 0.0, 1.0 if i == 1 else 0.0, 1.0 if i == 2 else 0.0
+            )
             placed[shape, LOW, i] = placed[shape, CENTER, i] - reach
             placed[shape, HIGH, i] = placed[shape, CENTER, i] + reach
         is_placed[shape] = True
@@ -203,8 +272,9 @@ def _box_reach(placed, box_half, shape, nx, ny, nz):
     reach = 0.0
     for axis in range(3):
         row = AXES + axis
-        reach += box_half[shape, axis] * abs(placed[shape, row, 0] * nx + placed[shape, row, 1] * ny
-                                             + placed[shape, row, 2] * nz)
+        reach += box_half[shape, axis] * abs(
+            placed[shape, row, 0] * nx + placed[shape, row, 1] * ny + placed[shape, row, 2] * nz
+        )
     return reach
 
 
@@ -230,8 +300,12 @@ def self_pair_bound(frames, ends, a, b, shape_joint, local_boxes, box_half, radi
                 if length < 1e-12:
                     continue
                 nx, ny, nz = dx / length, dy / length, dz / length
-            apart = max(apart, abs(dx * nx + dy * ny + dz * nz) - _box_reach(placed, box_half, a, nx, ny, nz)
-                        - _box_reach(placed, box_half, b, nx, ny, nz))
+            apart = max(
+                apart,
+                abs(dx * nx + dy * ny + dz * nz)
+                - _box_reach(placed, box_half, a, nx, ny, nz)
+                - _box_reach(placed, box_half, b, nx, ny, nz),
+            )
         bound = max(bound, apart - padding[a] - padding[b])
     return bound if bound >= 0.0 else NO_BOUND
 
@@ -246,8 +320,9 @@ def shape_sphere_gaps(frames, shape_joint, local_ends, radius, shapes, center, s
         frame = frames[shape_joint[shape]]
         for end in range(2):
             for k in range(3):
-                ends[0, end, k] = placed_point(frame, local_ends[shape, end, 0], local_ends[shape, end, 1],
-                                          local_ends[shape, end, 2], k)
+                ends[0, end, k] = placed_point(
+                    frame, local_ends[shape, end, 0], local_ends[shape, end, 1], local_ends[shape, end, 2], k
+                )
         out[i] = segment_point_distance(ends, 0, center) - radius[shape] - sphere_radius
 
 
@@ -260,5 +335,3 @@ def segment_point_distance(ends, c, point):
     t = min(max((ox * ax + oy * ay + oz * az) / length2, 0.0), 1.0)
     nx, ny, nz = ox - t * ax, oy - t * ay, oz - t * az
     return np.sqrt(nx * nx + ny * ny + nz * nz)
-
-
