@@ -12,9 +12,9 @@ import numpy as np
 import pinocchio as pin
 import pybullet as p
 import pytest
-from bullet_oracle import BulletJudge, judge_steps
 
 import envfactory
+from devkit.oracles.bullet_judge import BulletJudge, judge_steps
 from envfactory.envs import RobotEnv
 from envfactory.schema.errors import SpecError
 

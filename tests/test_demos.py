@@ -2,7 +2,7 @@
 the HER buffer episode by episode, and the behaviour-cloning term on the actor (bc.py).
 
 They need the [train] extra (with minari) and are skipped (with the reason) without it. Whether Push then
-learns is measured by benchmarks/learning.py, not here.
+learns is measured by devkit/bench/learning.py, not here.
 """
 
 import json

@@ -1,5 +1,5 @@
-"""The generated docs pages (docs/scripts/generate.py) cannot drift from the code and the specs, and the
-benchmark pages say how their figures were made (benchmarks/report.py)."""
+"""The generated docs pages (devkit/docs/generate.py) cannot drift from the code and the specs, and the
+benchmark pages say how their figures were made (devkit/report.py)."""
 
 from __future__ import annotations
 
@@ -12,23 +12,18 @@ from pathlib import Path
 import pytest
 from rich.console import Console
 
+from devkit.docs import generate, mdtext, reference_pages
+from devkit.report import Report, add_markdown_option, changed_settings, read_run_facts
+from envfactory import factory
+from envfactory.views.describe import description_parts, render_description
+
 REPO = Path(__file__).resolve().parents[1]
-SCRIPTS = REPO / "docs" / "scripts"
-sys.path[:0] = [str(SCRIPTS), str(REPO / "benchmarks")]
-
-import generate  # noqa: E402  (docs/scripts/generate.py)
-import mdtext  # noqa: E402
-import reference_pages  # noqa: E402
-from report import Report, add_markdown_option, changed_settings, read_run_facts  # noqa: E402
-
-from envfactory import factory  # noqa: E402
-from envfactory.views.describe import description_parts, render_description  # noqa: E402
 
 
 def test_generated_pages_are_up_to_date():
     """The Markdown pages equal what the generator writes now (pictures are not compared)."""
     done = subprocess.run(
-        [sys.executable, str(SCRIPTS / "generate.py"), "--check"], capture_output=True, text=True, cwd=REPO, timeout=300
+        [sys.executable, "-m", "devkit.docs.generate", "--check"], capture_output=True, text=True, cwd=REPO, timeout=300
     )
     assert done.returncode == 0, done.stderr
 
@@ -95,8 +90,8 @@ def test_benchmark_page_says_how_it_was_made(tmp_path):
     assert changed == ["steps=3 (default 1000)"]
     report = Report(
         str(page),
-        "What a bench measures: steps.\n\n    python benchmarks/bench.py\n\nMore words.",
-        [str(REPO / "benchmarks" / "bench.py"), *argv],
+        "What a bench measures: steps.\n\n    python -m devkit.bench.bench\n\nMore words.",
+        [str(REPO / "devkit" / "bench" / "bench.py"), *argv],
         out=io.StringIO(),
         changed=changed,
     )
@@ -108,9 +103,9 @@ def test_benchmark_page_says_how_it_was_made(tmp_path):
     report.finish()
     text = page.read_text()
     assert "| UR5eReacherSim-v0 | 512 |" in text and "pooled: 512" in text and "More words." in text
-    assert "python benchmarks/bench.py\n" not in text  # the usage block gives way to the exact command
+    assert "python -m devkit.bench.bench\n" not in text  # the usage block gives way to the exact command
     facts = read_run_facts(page)
     assert facts["script"] == "bench.py" and facts["title"] == "bench.py: What a bench measures"
-    assert facts["Command"] == f"`python benchmarks/bench.py --steps 3 --markdown {page}`"
+    assert facts["Command"] == f"`python -m devkit.bench.bench --steps 3 --markdown {page}`"
     assert facts["Settings"] == "changed from the defaults: steps=3 (default 1000)"
     assert "cores" in facts["Machine"] and facts["Git revision"] and facts["Date"].count("UTC") == 1

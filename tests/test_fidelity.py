@@ -3,7 +3,7 @@
 Tolerances (design.md, budgets): EE ≤ 1 mm, object ≤ 2 mm and ≤ 2°, the scripted experts' success unchanged.
 Measured per step from identical states (paired steps), along whole random-action trajectories fed the
 same actions, and as expert success per seed. The default suite runs a few episodes per ID;
-`pytest -m slow tests/test_fidelity.py` runs more, and `python benchmarks/fidelity.py` prints the distributions.
+`pytest -m slow tests/test_fidelity.py` runs more, and `python -m devkit.bench.fidelity` prints the distributions.
 """
 
 from __future__ import annotations
@@ -12,9 +12,9 @@ import gymnasium as gym
 import numpy as np
 import pybullet as p
 import pytest
-from fidelity_probe import assert_within, expert_success, paired_episode, read_scene, trajectory_gaps
 
 import envfactory
+from devkit.oracles.fidelity_probe import assert_within, expert_success, paired_episode, read_scene, trajectory_gaps
 from envfactory.geometry.object_clearance import NEAR_CONTACT
 
 SIM_IDS = sorted(i for i, r in envfactory.records().items() if r.backend == "pybullet" and "Goal" not in i)

@@ -7,6 +7,7 @@ that matches no layer fails the test until it is given one."""
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -174,3 +175,45 @@ def test_the_checks_see_a_cycle_and_an_upward_import():
     graph = {"envfactory.schema.a": {"envfactory.geometry.b"}, "envfactory.geometry.b": {"envfactory.schema.a"}}
     assert _cycles(graph) == [["envfactory.geometry.b", "envfactory.schema.a"]]
     assert _layer("envfactory.schema.a") < _layer("envfactory.geometry.b")
+
+
+REPOSITORY = PACKAGE.parent
+
+
+def _python_files(*folders: str) -> list[Path]:
+    return [path for folder in folders for path in (REPOSITORY / folder).rglob("*.py")]
+
+
+def test_the_library_never_imports_the_repositorys_own_python():
+    """devkit (benchmarks, oracles, docs generators) and the tests sit above the library: it imports neither."""
+    found = []
+    for path in PACKAGE.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = (
+                [alias.name for alias in node.names]
+                if isinstance(node, ast.Import)
+                else [node.module or ""]
+                if isinstance(node, ast.ImportFrom)
+                else []
+            )
+            found += [
+                f"{path.relative_to(REPOSITORY)}:{node.lineno} imports {name}"
+                for name in names
+                if name.split(".")[0] in ("devkit", "tests")
+            ]
+    assert found == []
+
+
+SYS_PATH_EDIT = re.compile(r"sys\.path(\.insert|\.append|\.extend|\[|\s*\+?=)")
+
+
+def test_no_python_file_edits_the_import_path():
+    """Every Python file of the repository imports by real names (devkit is a package, pytest's pythonpath holds
+    the root): none edits the interpreter's import path."""
+    edits = [
+        f"{path.relative_to(REPOSITORY)}:{number}"
+        for path in _python_files("envfactory", "devkit", "tests")
+        for number, line in enumerate(path.read_text().splitlines(), start=1)
+        if SYS_PATH_EDIT.search(line) and path.name != "test_layers.py"
+    ]
+    assert edits == []

@@ -16,7 +16,15 @@ import numpy as np
 import pinocchio as pin
 import pytest
 import yaml
-from maker_models import ROOT, configuration, link_mesh_points, link_primitives, models_folder, outside_distance
+
+from devkit.oracles.maker_models import (
+    ROOT,
+    configuration,
+    link_mesh_points,
+    link_primitives,
+    models_folder,
+    outside_distance,
+)
 
 FK_TOLERANCE = 0.001  # m
 ROTATION_TOLERANCE = 0.001  # rad

@@ -1,7 +1,7 @@
 """MuJoCo's `sim.fidelity: fast` (kinematic motions, scenes at rest, held cubes carried, dynamic cycles ended once
 everything rests) against its full dynamics, the reference: every cycle simulated, substep by substep.
 
-The same tolerances as PyBullet's fast fidelity (tests/fidelity_probe.py): EE 1 mm, cube 2 mm and 2° along
+The same tolerances as PyBullet's fast fidelity (devkit/oracles/fidelity_probe.py): EE 1 mm, cube 2 mm and 2° along
 random trajectories; the experts' success within one episode of the reference. The default suite runs a few
 seeds per ID; `pytest -m slow tests/test_mujoco_fidelity.py` runs 20 seeds, and checks the experts' success
 on MuJoCo (at least 90% Push, 80% pick-and-place, joint mode).
@@ -10,9 +10,9 @@ on MuJoCo (at least 90% Push, 80% pick-and-place, joint mode).
 from __future__ import annotations
 
 import pytest
-from fidelity_probe import Gaps, assert_within, expert_success, paired_episode, trajectory_gaps
 
 import envfactory
+from devkit.oracles.fidelity_probe import Gaps, assert_within, expert_success, paired_episode, trajectory_gaps
 
 MANIPULATION_IDS = sorted(
     i
@@ -50,7 +50,7 @@ def test_the_experts_on_mujoco_over_twenty_seeds(env_id):
 @pytest.mark.parametrize("env_id", ["VX300SPnPSim-v0", "RX200PnPSim-v0"])
 def test_every_fast_cycle_ends_where_the_same_cycle_simulated_does(env_id):
     """Each cycle of the experts' episodes played fast and also simulated in full from the identical MuJoCo
-    state (tests/fidelity_probe.py PairedSteps): EE within 1 mm, cube within 2 mm and 2°, carried cycles
+    state (devkit/oracles/fidelity_probe.py PairedSteps): EE within 1 mm, cube within 2 mm and 2°, carried cycles
     included (full dynamics lets a squeezed cube creep a fraction of a millimetre a cycle, which riding with
     the hand leaves out). The UR5e and Ned2 families simulate every carry: their specs say why."""
     gaps = Gaps()
@@ -65,7 +65,7 @@ def test_the_first_cycle_settles_the_scene_then_places_the_arm(env_id):
     """After a reset the objects are not at rest before their contacts carry their weight (the UR5e's cube sinks
     into the table it spawns on; the RX200's and Ned2's drop the 5 mm their seeds spawn them above it). The first
     cycle of a random action simulates only until they rest, then places the arm where a kinematic cycle does:
-    it ends where the same cycle simulated in full from the identical state ends (tests/fidelity_probe.py)."""
+    it ends where the same cycle simulated in full from the identical state ends (devkit/oracles/fidelity_probe.py)."""
     for seed in range(3):
         gaps, _ = paired_episode(env_id, "random", seed=seed, steps=1, engine="mujoco")
         assert gaps.kinds == ["kinematic"], (seed, gaps.kinds)

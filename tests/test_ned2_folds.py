@@ -19,8 +19,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import yaml
-from maker_models import MakerMeshes, models_folder
 
+from devkit.oracles.maker_models import MakerMeshes, models_folder
 from envfactory.geometry.collision import CollisionModel
 from envfactory.geometry.collision_pairs import (
     StalePairs,

@@ -10,9 +10,9 @@ import numpy as np
 import pinocchio as pin
 import pybullet as p
 import pytest
-from bullet_oracle import judge_steps
 
 import envfactory
+from devkit.oracles.bullet_judge import judge_steps
 from envfactory.envs import RobotEnv
 from envfactory.geometry.object_press import ObjectPressGuard
 

@@ -4,9 +4,9 @@ interrupted by extreme actions (which knocks and flings the cube in Push and PnP
 
 import numpy as np
 import pytest
-from bullet_oracle import POLICIES
 from conftest import SIM_IDS
 
+from devkit.oracles.bullet_judge import POLICIES
 from envfactory.experts import make_policy
 
 

@@ -1,15 +1,15 @@
 """The safety check against an independent judge, and the bounds it rests on.
 
 The judge is PyBullet: its own distance queries on the simulated scene and on
-the commanded motion posed in a second client (tests/bullet_oracle.py), never
+the commanded motion posed in a second client (devkit/oracles/bullet_judge.py), never
 the check's Pinocchio/coal model.
 """
 
 import numpy as np
 import pytest
-from bullet_oracle import ADVERSARIAL, POLICIES, BulletJudge, judge_steps
 
 import envfactory
+from devkit.oracles.bullet_judge import ADVERSARIAL, POLICIES, BulletJudge, judge_steps
 from envfactory.envs import RobotEnv
 from envfactory.geometry.collision_pairs import StalePairs, checksum, fingerprint, read_pairs, write_pairs
 

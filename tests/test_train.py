@@ -2,7 +2,7 @@
 resumed; model.json; TensorBoard; nothing left by a failed start; expert episodes -> Minari dataset, without warnings.
 
 They need the [train] extra and are skipped (with the reason) without it. The
-learning itself is measured by benchmarks/learning.py, not here.
+learning itself is measured by devkit/bench/learning.py, not here.
 """
 
 import csv

@@ -1,6 +1,6 @@
 """Describe a blueprint the way the reference pages lay out an env, index tables first: printed by `envfactory
 describe`, listed part by part for the docs site's env pages
-(docs/scripts/generate.py renders the parts as Markdown)."""
+(devkit/docs/generate.py renders the parts as Markdown)."""
 
 from __future__ import annotations
 

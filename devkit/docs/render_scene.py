@@ -3,8 +3,8 @@
 The UR5e Push scene as `gym.make(ID, render_mode="rgb_array")` draws it, a few steps into an episode of the
 task's scripted expert, so the arm stands over the table next to the cube instead of at its folded home.
 
-    .venv/bin/python docs/scripts/render_scene.py                  # writes docs/img/scene.png
-    .venv/bin/python docs/scripts/render_scene.py --id VX300SPnPSim-v0 --steps 4 --out /tmp/pnp.png
+    .venv/bin/python -m devkit.docs.render_scene                  # writes docs/img/scene.png
+    .venv/bin/python -m devkit.docs.render_scene --id VX300SPnPSim-v0 --steps 4 --out /tmp/pnp.png
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import imageio.v3 as iio
 import envfactory  # noqa: F401  (registers the IDs)
 from envfactory.experts import make_policy
 
-DEFAULT_OUT = Path(__file__).resolve().parents[1] / "img" / "scene.png"
+DEFAULT_OUT = Path(__file__).resolve().parents[2] / "docs" / "img" / "scene.png"
 
 
 def render(env_id: str, steps: int, seed: int):

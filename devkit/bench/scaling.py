@@ -10,7 +10,7 @@ have imported everything and compiled the blueprint. The one-process and warm fi
 cores only share those cores. Every run gives the episodes of the single process (checked here, episode by
 episode).
 
-    python benchmarks/scaling.py [--env-id UR5ePushGoalSim-v0] [--episodes 64] [--workers 1 2 4] [--repeats 3]
+    python -m devkit.bench.scaling [--env-id UR5ePushGoalSim-v0] [--episodes 64] [--workers 1 2 4] [--repeats 3]
                                  [--cluster-cores 64] [--markdown [PATH]]
 """
 
@@ -25,8 +25,8 @@ import time
 from pathlib import Path
 
 import ray
-from report import Report, add_markdown_option
 
+from devkit.report import Report, add_markdown_option
 from envfactory.cluster import pool
 from envfactory.cluster.work import Collection, Evaluation, run_here
 from envfactory.learn.demonstrations import collect

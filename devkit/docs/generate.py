@@ -1,8 +1,8 @@
 """Write the generated part of the docs site from the code and the specs.
 
-    python docs/scripts/generate.py                  # rewrite every generated page and the scene pictures
-    python docs/scripts/generate.py --no-pictures    # the pages only
-    python docs/scripts/generate.py --check          # exit 1 naming each generated page that is out of date
+    python -m devkit.docs.generate                  # rewrite every generated page and the scene pictures
+    python -m devkit.docs.generate --no-pictures    # the pages only
+    python -m devkit.docs.generate --check          # exit 1 naming each generated page that is out of date
 
 The pages: envs/index.md and envs/<family>.md (one per shipped spec file, with its scene picture
 img/envs/<family>.png), reference/cli.md, reference/kwargs.md, reference/terms.md and benchmarks/index.md
@@ -16,17 +16,13 @@ import argparse
 import sys
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-DOCS = HERE.parent
-REPO = DOCS.parent
-sys.path.insert(0, str(REPO / "benchmarks"))  # report.py reads the benchmark pages' run facts
+import imageio.v3 as iio
 
-import benchmark_index  # noqa: E402  (the helpers beside this file)
-import env_pages  # noqa: E402
-import imageio.v3 as iio  # noqa: E402
-import mdtext  # noqa: E402
-import reference_pages  # noqa: E402
-from render_scene import render  # noqa: E402  (the scene as the README's picture draws it)
+from devkit.docs import benchmark_index, env_pages, mdtext, reference_pages
+from devkit.docs.render_scene import render
+
+REPO = Path(__file__).resolve().parents[2]
+DOCS = REPO / "docs"
 
 # folders whose every page this script writes: a page carrying the banner that it no longer writes is stale
 OWNED_FOLDERS = ("envs", "reference")
@@ -40,7 +36,7 @@ def pages() -> dict[str, str]:
     generated["reference/cli.md"] = reference_pages.cli_page()
     generated["reference/kwargs.md"] = reference_pages.kwargs_page(families)
     generated["reference/terms.md"] = reference_pages.terms_page()
-    generated["benchmarks/index.md"] = benchmark_index.index_page(DOCS / "benchmarks", REPO / "benchmarks")
+    generated["benchmarks/index.md"] = benchmark_index.index_page(DOCS / "benchmarks", REPO / "devkit" / "bench")
     return generated
 
 
@@ -103,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
         for problem in problems:
             print(problem, file=sys.stderr)
         if problems:
-            print("run `python docs/scripts/generate.py` to bring the generated pages up to date", file=sys.stderr)
+            print("run `python -m devkit.docs.generate` to bring the generated pages up to date", file=sys.stderr)
             return 1
         print(f"{len(generated)} generated pages up to date")
         return 0

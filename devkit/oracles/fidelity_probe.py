@@ -11,7 +11,7 @@ Two measures, both on ordinary episodes of an env made with the fast fidelity:
 - trajectories: a fast and a full env from the same seed, fed the same actions;
   the gap at the end of every step, accumulated over the episode.
 
-Used by tests/test_fidelity.py and benchmarks/fidelity.py.
+Used by tests/test_fidelity.py and devkit/bench/fidelity.py.
 """
 
 from __future__ import annotations

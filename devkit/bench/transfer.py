@@ -1,12 +1,12 @@
 """Transfer across engines: policies trained on one physics engine, with and without the task's randomization
 (task.randomization: sampled physics and sensing noise), evaluated on both engines without it.
 
-Each run folder's model.zip is loaded by plain Stable-Baselines3 (benchmarks/sb3_replay.py) and run on 50 fixed
+Each run folder's model.zip is loaded by plain Stable-Baselines3 (devkit/bench/sb3_replay.py) and run on 50 fixed
 goals (seeds from --first-seed, none of them an evaluation seed of the training) on PyBullet and on MuJoCo, with
 randomize=False and the run's other kwargs as trained. "trained on" is the run's engine and whether its env was
 randomized; the curve is the run's own evaluations (on its training env) against env steps.
 
-    python benchmarks/transfer.py RUN_FOLDER [RUN_FOLDER ...] [--episodes 50] [--first-seed 20000]
+    python -m devkit.bench.transfer RUN_FOLDER [RUN_FOLDER ...] [--episodes 50] [--first-seed 20000]
                                   [--markdown [PATH]]
 """
 
@@ -15,9 +15,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from report import Report  # beside this script
-from sb3_replay import replay, replay_arguments
-
+from devkit.bench.sb3_replay import replay, replay_arguments
+from devkit.report import Report
 from envfactory.learn.curve import plot, read_csv
 
 ENGINES = ("pybullet", "mujoco")

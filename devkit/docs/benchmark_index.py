@@ -1,15 +1,15 @@
 """benchmarks/index.md: the result pages under docs/benchmarks/, each written by a benchmark script with
-`--markdown PATH` (benchmarks/report.py), and the scripts that have not written one yet."""
+`--markdown PATH` (devkit/report.py), and the scripts that have not written one yet."""
 
 from __future__ import annotations
 
 import ast
 from pathlib import Path
 
-import mdtext as md  # beside this file
-from report import read_run_facts  # benchmarks/report.py: it writes the pages, it reads them
+from devkit.docs import mdtext as md
+from devkit.report import read_run_facts
 
-# benchmarks/learning.py writes its own page (not through report.py): listed under this name
+# devkit/bench/learning.py writes its own page (not through report.py): listed under this name
 LEARNING = ("learning.py", "learning.md")
 
 
@@ -18,11 +18,11 @@ def script_summaries(benchmarks: Path) -> dict[str, tuple[str, bool]]:
     report.py). Read with ast: importing a benchmark would load the physics."""
     scripts = {}
     for path in sorted(benchmarks.glob("*.py")):
-        if path.stem == "report":
+        if path.stem == "__init__":
             continue
         tree = ast.parse(path.read_text())
         doc = " ".join((ast.get_docstring(tree) or "").split("\n\n")[0].split())
-        reports = any(isinstance(node, ast.ImportFrom) and node.module == "report" for node in ast.walk(tree))
+        reports = any(isinstance(node, ast.ImportFrom) and node.module == "devkit.report" for node in ast.walk(tree))
         scripts[path.name] = (doc, reports)
     return scripts
 
@@ -37,29 +37,30 @@ def index_page(pages: Path, benchmarks: Path) -> str:
         rows.append(
             (
                 f"[{md.prose(facts.get('title', page.stem))}]({page.name})",
-                md.code(f"benchmarks/{script}") if script else "—",
+                md.code(f"devkit/bench/{script}") if script else "—",
                 md.escape(facts.get("Settings", "—")),
                 md.escape(facts.get("Date", "—")),
                 md.escape(facts.get("Machine", "—")),
             )
         )
     intro = (
-        "Every page here is written by a script in `benchmarks/`: run with `--markdown docs/benchmarks/NAME.md` "
+        "Every page here is written by a script in `devkit/bench/`: run with `--markdown docs/benchmarks/NAME.md` "
         "it writes its results table together with the exact command line, the date, the machine (cores, CPU "
         "model), the load and the git revision. *Settings* says where a run left the script's defaults (fewer "
         "episodes, steps or rounds keep a run short on a small shared machine): such figures, like those of a "
         "run on a loaded machine, are a sample of the measurement, not its full run. Run a script again to "
-        "refresh its page, then `python docs/scripts/generate.py` to refresh this index."
+        "refresh its page, then `python -m devkit.docs.generate` to refresh this index."
     )
     table = md.grid(["Page", "Written by", "Settings", "Date", "Machine"], rows) if rows else "No page yet."
     blocks = [intro, table]
     missing = [
-        f"- `python benchmarks/{name} --markdown docs/benchmarks/{Path(name).stem}.md`: {md.prose(scripts[name][0])}"
+        f"- `python -m devkit.bench.{Path(name).stem} --markdown docs/benchmarks/{Path(name).stem}.md`: "
+        f"{md.prose(scripts[name][0])}"
         for name, (_, reports) in scripts.items()
         if reports and name not in covered and name != LEARNING[0]
     ]
     if LEARNING[0] in scripts and LEARNING[0] not in covered:
-        missing.append(f"- `benchmarks/{LEARNING[0]}` writes {LEARNING[1]} here: {md.prose(scripts[LEARNING[0]][0])}")
+        missing.append(f"- `devkit/bench/{LEARNING[0]}` writes {LEARNING[1]} here: {md.prose(scripts[LEARNING[0]][0])}")
     if missing:
         blocks += ["## Not run for a page yet", "\n".join(missing)]
     others = [name for name, (_, reports) in scripts.items() if not reports and name != LEARNING[0]]
@@ -67,6 +68,6 @@ def index_page(pages: Path, benchmarks: Path) -> str:
         blocks += [
             "## Scripts without a page",
             "These print a report that is no results table; run them to read it.\n\n"
-            + "\n".join(f"- `benchmarks/{name}`: {md.prose(scripts[name][0])}" for name in others),
+            + "\n".join(f"- `devkit/bench/{name}`: {md.prose(scripts[name][0])}" for name in others),
         ]
     return md.page("Benchmarks", *blocks)

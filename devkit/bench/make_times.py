@@ -1,7 +1,7 @@
 """What gym.make costs: the import, the first make of an ID in a process and the second, each ID in a fresh
 process, `--runs` times.
 
-    python benchmarks/make_times.py [--runs 3] [--ids ID ...] [--markdown [PATH]]
+    python -m devkit.bench.make_times [--runs 3] [--ids ID ...] [--markdown [PATH]]
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import argparse
 import subprocess
 import sys
 
-from report import Report, add_markdown_option
+from devkit.report import Report, add_markdown_option
 
 WORKER = """
 import time

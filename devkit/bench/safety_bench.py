@@ -1,6 +1,6 @@
 """Cost of the safety check per step, on random actions, per ID and action mode.
 
-    python benchmarks/safety_bench.py [--steps N] [--ids ID ...] [--markdown [PATH]]
+    python -m devkit.bench.safety_bench [--steps N] [--ids ID ...] [--markdown [PATH]]
 
 Times `SafetyCheck.check` inside real env steps (full-scale random actions from
 the action space), and reports the median and 90th percentile, the poses it
@@ -19,9 +19,9 @@ import argparse
 import time
 
 import numpy as np
-from report import Report, add_markdown_option
 
 import envfactory  # noqa: F401  (registers the IDs)
+from devkit.report import Report, add_markdown_option
 
 SIM_IDS = [
     "UR5eReacherSim-v0",

@@ -1,7 +1,7 @@
 """Learning benchmark: `envfactory train` (SAC + HER by default) on the Reach goal envs, and on the Push goal
 envs with and without demonstrations.
 
-    nice -n 15 python benchmarks/learning.py [--suite reach|push] [--ids ID ...] [--seeds 0 1 2] [--steps N]
+    nice -n 15 python -m devkit.bench.learning [--suite reach|push] [--ids ID ...] [--seeds 0 1 2] [--steps N]
         [--every N] [--variants plain demos] [--demo-episodes 100] [--algo sac] [--out FOLDER] [--docs FOLDER]
         [-p name=value ...] [-k name=value ...] [--report-only]
 
@@ -37,8 +37,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 import yaml
-from report import RUN_HEADINGS, machine, revision  # beside this script
 
+from devkit.report import RUN_HEADINGS, machine, revision
 from envfactory.learn.curve import Evaluation, plot, read_csv
 from envfactory.learn.demonstrations import collect, default_dataset_id
 from envfactory.learn.hyperparams import load
@@ -221,7 +221,8 @@ def docs_page(results: dict, steps: list[int], args, command: str) -> str:
         revision(),
     ]
     lines = [
-        "<!-- written by benchmarks/learning.py: run the command below again to refresh it -->",
+        "<!-- written by devkit/bench/learning.py (python -m devkit.bench.learning): the Command row is this run's "
+        "own, at its git revision -->",
         "# learning.py: Manipulation from demonstrations",
         "",
         "| Run | |",
@@ -297,7 +298,7 @@ def main() -> None:
     if args.out is None:
         args.out = Path("benchmarks/results/learning") / ("" if args.suite == "reach" else args.suite)
     args.out.mkdir(parents=True, exist_ok=True)
-    command = "python " + shlex.join(["benchmarks/learning.py", *sys.argv[1:]])
+    command = "python " + shlex.join(["-m", "devkit.bench.learning", *sys.argv[1:]])
 
     results = {
         (env_id, variant, seed): run_one(env_id, variant, seed, args)

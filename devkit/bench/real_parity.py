@@ -2,7 +2,7 @@
 the digital twin at the robot's stock driver timing.
 
 Each run folder's model.zip (written by `envfactory train`) is loaded by plain Stable-Baselines3
-(benchmarks/sb3_replay.py) and run on 20 fixed goals (the seeds from --first-seed) twice: on its GoalSim ID with
+(devkit/bench/sb3_replay.py) and run on 20 fixed goals (the seeds from --first-seed) twice: on its GoalSim ID with
 the kwargs it was trained with, and on the GoalReal ID against `envfactory twin ROBOT --task TASK` started as its
 own process, at the driver's stock timing (xs_sdk's 2 s profile until the env sets its own, the UR controller's
 speed scaling of 1.0, Niryo's tools commander), without the model's simulation-only kwargs. The columns give
@@ -11,7 +11,7 @@ the mean wall time of a step (from its first command to its observation) and of 
 Parity: the real success is at least 90% of the simulated one, in episodes at most 1.5 times as long, with no
 abort.
 
-    python benchmarks/real_parity.py RUN_FOLDER [RUN_FOLDER ...] [--episodes 20] [--first-seed 30000]
+    python -m devkit.bench.real_parity RUN_FOLDER [RUN_FOLDER ...] [--episodes 20] [--first-seed 30000]
                                      [--markdown [PATH]]
 """
 
@@ -29,10 +29,10 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
-from report import Report  # beside this script
-from sb3_replay import replay_arguments, sb3_class
 
 import envfactory
+from devkit.bench.sb3_replay import replay_arguments, sb3_class
+from devkit.report import Report
 from envfactory.factory import simulation_only_kwargs
 
 PARITY_SUCCESS, PARITY_LENGTH = 0.9, 1.5

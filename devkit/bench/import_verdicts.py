@@ -6,7 +6,7 @@ but no verdicts (lazy registration, as before verdicts existed), and with the
 verdicts `envfactory validate` records (the broken family stays out). Prints the
 medians and the per-round ratio of the last two.
 
-    python benchmarks/import_verdicts.py [rounds] [--markdown [PATH]]
+    python -m devkit.bench.import_verdicts [rounds] [--markdown [PATH]]
 """
 
 from __future__ import annotations
@@ -21,9 +21,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from report import Report, add_markdown_option
+from devkit.report import Report, add_markdown_option
 
-ROOT = Path(__file__).parents[1]
+ROOT = Path(__file__).resolve().parents[2]  # the repository
 GOOD = (ROOT / "tests" / "broken_specs" / "unknown_key.yaml").read_text()
 PROBE = (
     "import envfactory, gymnasium as gym; "

@@ -2,7 +2,7 @@
 tolerance of the desired one, with goals drawn as before (`++task.goal.allow_achieved_at_reset=true`) and as
 now (drawn again). Every GoalSim ID, seeds 0..N-1.
 
-    python benchmarks/free_goals.py --resets 300 [--markdown [PATH]]
+    python -m devkit.bench.free_goals --resets 300 [--markdown [PATH]]
 """
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ from __future__ import annotations
 import argparse
 
 import gymnasium as gym
-from report import Report, add_markdown_option
 
+from devkit.report import Report, add_markdown_option
 from envfactory.registration import registry
 
 ALLOWED = ["++task.goal.allow_achieved_at_reset=true"]  # a key the task files leave to its default

@@ -6,14 +6,14 @@ from __future__ import annotations
 import types
 import typing
 
-import mdtext as md  # the helpers beside this file
 import typer.core
 import typer.main
-from env_pages import Family
-from kwarg_meanings import MEANINGS
 from pydantic import BaseModel, create_model
 from typer import Context
 
+from devkit.docs import mdtext as md
+from devkit.docs.env_pages import Family
+from devkit.docs.kwarg_meanings import MEANINGS
 from envfactory import factory
 from envfactory.cli.app import app
 from envfactory.schema.models import EnvSpec
@@ -147,7 +147,7 @@ def _check_accepted(accepted: dict) -> None:
     stale = sorted(set(MEANINGS) - set(accepted))
     if missing or stale:
         raise ValueError(
-            "docs/scripts/kwarg_meanings.py is out of step with the specs: "
+            "devkit/docs/kwarg_meanings.py is out of step with the specs: "
             + "; ".join(
                 filter(
                     None,

@@ -1,9 +1,9 @@
 """envfactory against panda-gym 3.0.7, side by side in one run.
 
     pip install -e '.[bench]'
-    nice -n 15 python benchmarks/versus_panda_gym.py [--rounds 5] [--steps 1000] [--policy random|scripted|both]
+    nice -n 15 python -m devkit.bench.versus_panda_gym [--rounds 5] [--steps 1000] [--policy random|scripted|both]
         [--ids ID ...] [--engines pybullet mujoco] [-k name=value ...] [--markdown [PATH]]
-    nice -n 15 python benchmarks/versus_panda_gym.py --vector 2 [--rounds 3] [--steps 300] [--markdown [PATH]]
+    nice -n 15 python -m devkit.bench.versus_panda_gym --vector 2 [--rounds 3] [--steps 300] [--markdown [PATH]]
 
 Every (env, round) runs in a fresh process; the rounds interleave the envs
 (round 1 runs every env once, then round 2, ...), each panda-gym env between
@@ -36,9 +36,8 @@ import subprocess
 import sys
 import time
 
-from report import Report, add_markdown_option
+from devkit.report import Report, add_markdown_option
 
-# untimed steps after the resets, before the timed ones (random actions, then the measured episode's reset)
 WARM_UP_STEPS = 5
 PANDA_TWIN = {"Reacher": "PandaReach-v3", "Push": "PandaPush-v3", "PnP": "PandaPickAndPlace-v3"}
 ENVFACTORY_IDS = [
@@ -310,7 +309,8 @@ def run_one(label: str, steps: int, policy: str, seed: int, kwargs: list[str], v
         kwargs = [*kwargs, f"engine={engine.rstrip(']')}"]
     command = [
         sys.executable,
-        os.path.abspath(__file__),
+        "-m",
+        "devkit.bench.versus_panda_gym",
         "--worker",
         env_id,
         "--steps",

@@ -120,10 +120,8 @@ class Report:
     # ------------------------------------------------------------ the page
 
     def command(self) -> str:
-        script, *arguments = self.argv
-        path = Path(script).resolve()
-        shown = path.relative_to(REPO) if path.is_relative_to(REPO) else path
-        return shlex.join(["python", str(shown), *arguments])
+        """The command line that runs this again: a script of the repository's package as its module."""
+        return shlex.join(["python", *invocation(self.argv[0]), *self.argv[1:]])
 
     def run_facts(self) -> list[tuple[str, str]]:
         took = time.monotonic() - self._started
@@ -151,7 +149,8 @@ class Report:
         # the heading: the first paragraph up to its first colon or full stop
         heading = re.split(r"[:.](?:\s|$)", prose, maxsplit=1)[0]
         lines = [
-            f"<!-- written by benchmarks/{script}: run the command below again to refresh it -->",
+            f"<!-- written by devkit/bench/{script} ({' '.join(['python', *invocation(self.argv[0])])}): "
+            "the Command row is this run's own, at its git revision -->",
             f"# {script}: {heading}",
             "",
             prose,
@@ -168,6 +167,14 @@ class Report:
             else:
                 lines.append(block)
         return "\n".join(lines) + "\n"
+
+
+def invocation(script: str) -> list[str]:
+    """How to run a script: `-m package.module` for a module of the repository's own package, else its path."""
+    path = Path(script).resolve()
+    if path.is_relative_to(REPO / "devkit"):
+        return ["-m", ".".join(path.relative_to(REPO).with_suffix("").parts)]
+    return [str(path.relative_to(REPO) if path.is_relative_to(REPO) else path)]
 
 
 def changed_settings(parser: argparse.ArgumentParser, args: argparse.Namespace) -> list[str]:
@@ -187,7 +194,7 @@ def _setting(value: object) -> str:
 def _prose(doc: str) -> str:
     """The docstring's paragraphs without its usage lines (the command line above says how it ran)."""
     paragraphs = [p for p in doc.strip().split("\n\n") if p.strip()]
-    kept = [p for p in paragraphs if not p.startswith("    ") and "python benchmarks/" not in p.split("\n")[0]]
+    kept = [p for p in paragraphs if not p.startswith("    ") and "python -m devkit" not in p.split("\n")[0]]
     return "\n\n".join(" ".join(line.strip() for line in p.splitlines()) for p in kept)
 
 
@@ -227,7 +234,7 @@ def read_run_facts(page: Path) -> dict[str, str]:
     """The script, title and run facts of a page this module wrote (of another page: its title, if any)."""
     facts = {}
     for line in page.read_text().splitlines():
-        written_by = re.match(r"<!-- written by benchmarks/(\S+\.py):", line)
+        written_by = re.match(r"<!-- written by (?:benchmarks|devkit/bench)/(\S+\.py)", line)
         if written_by and "script" not in facts:
             facts["script"] = written_by.group(1)
         if line.startswith("# ") and "title" not in facts:

@@ -1,7 +1,7 @@
 """The scripted experts (or random actions) on both engines: success over seeds 0..N-1 (the episode runner: an
 episode counts when the goal is reached at some step) and env.step throughput, per Push and PnP Sim ID.
 
-    python benchmarks/engines.py [--episodes 10] [--engines pybullet mujoco] [--ids ID ...] [-k name=value ...]
+    python -m devkit.bench.engines [--episodes 10] [--engines pybullet mujoco] [--ids ID ...] [-k name=value ...]
         [-o OVERRIDE ...] [--policy scripted|random] [--markdown [PATH]]
 
 `-k ee_action_type=true` measures the experts in EE mode. Steps/s counts whole episodes (up to the first
@@ -15,8 +15,8 @@ import time
 
 import gymnasium as gym
 import yaml
-from report import Report, add_markdown_option
 
+from devkit.report import Report, add_markdown_option
 from envfactory.envs.episodes import run_episodes
 from envfactory.experts import make_policy
 from envfactory.registration import registry

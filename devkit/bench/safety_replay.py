@@ -1,6 +1,6 @@
 """The safety check's own cost, apart from what the physics around it does to the CPU caches.
 
-    python benchmarks/safety_replay.py [--steps N] [--ids ID ...] [--markdown [PATH]]
+    python -m devkit.bench.safety_replay [--steps N] [--ids ID ...] [--markdown [PATH]]
 
 Records the checks an env makes on full-scale random actions (joint and EE
 mode), then replays the same checks in one process and times them (CPU time
@@ -17,10 +17,10 @@ import time
 
 import numpy as np
 import pybullet as p
-from report import Report, add_markdown_option
-from safety_bench import SIM_IDS  # the same IDs the in-env timing covers
 
 import envfactory  # noqa: F401  (registers the IDs)
+from devkit.bench.safety_bench import SIM_IDS
+from devkit.report import Report, add_markdown_option
 
 
 def record(env, steps: int) -> list[tuple]:

@@ -3,24 +3,19 @@
 many the proof only fails to clear; beside them the steps refused before the check (no IK solution, a
 joint step over max_joint_delta) and by the object press guard. Per Sim ID and action mode.
 
-    python benchmarks/refusals.py [--steps 300] [--ids ID ...] [--modes joint ee] [--markdown [PATH]]
+    python -m devkit.bench.refusals [--steps 300] [--ids ID ...] [--modes joint ee] [--markdown [PATH]]
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 from collections import Counter
-from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the independent judge is a test helper
-
-from bullet_oracle import BulletJudge  # noqa: E402
-from report import Report, add_markdown_option  # noqa: E402
-
+from devkit.oracles.bullet_judge import BulletJudge
+from devkit.report import Report, add_markdown_option
 from envfactory.registration import registry  # noqa: E402
 
 # a refused motion sampled this finely by the judge (per straight joint-space segment)

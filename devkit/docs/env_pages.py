@@ -6,8 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-import mdtext as md  # the helpers beside this file
-
+from devkit.docs import mdtext as md
 from envfactory import factory
 from envfactory.compiler import Blueprint
 from envfactory.registration import registry

@@ -1,12 +1,12 @@
 """The fast fidelity against full dynamics: distributions of the gaps, per ID.
 
-    python benchmarks/fidelity.py [--episodes 5] [--ids ID ...] [-k name=value ...] [--markdown [PATH]]
-    python benchmarks/fidelity.py --ids VX300SPnPSim-v0 -k engine=mujoco        # MuJoCo's fast fidelity
-    python benchmarks/fidelity.py --ids UR5ePnPSim-v0 -k engine=mujoco -k "overrides=[sim.mujoco.carry_held=true]"
+    python -m devkit.bench.fidelity [--episodes 5] [--ids ID ...] [-k name=value ...] [--markdown [PATH]]
+    python -m devkit.bench.fidelity --ids VX300SPnPSim-v0 -k engine=mujoco        # MuJoCo's fast fidelity
+    python -m devkit.bench.fidelity --ids UR5ePnPSim-v0 -k engine=mujoco -k "overrides=[sim.mujoco.carry_held=true]"
 
 Per ID and policy (random actions, the scripted expert): paired steps (each cycle
 simulated in full and played fast from one saved state; see
-tests/fidelity_probe.py), then whole random trajectories
+devkit/oracles/fidelity_probe.py), then whole random trajectories
 fed the same actions in a fast and a full env, then the expert's success per
 seed in both. Prints median, 99th percentile and maximum of the EE, arm joint,
 gripper and object gaps, and how the fast player played the cycles.
@@ -15,19 +15,14 @@ gripper and object gaps, and how the fast player played the cycles.
 from __future__ import annotations
 
 import argparse
-import sys
 from collections import Counter
-from pathlib import Path
 
 import numpy as np
 import yaml
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the paired probe is a test helper
-
-from fidelity_probe import Gaps, PairedSteps, expert_success, paired_episode, trajectory_gaps  # noqa: E402
-from report import Report, add_markdown_option  # noqa: E402
-
 import envfactory  # noqa: E402
+from devkit.oracles.fidelity_probe import Gaps, PairedSteps, expert_success, paired_episode, trajectory_gaps
+from devkit.report import Report, add_markdown_option
 
 
 def spread(values, scale: float) -> str:

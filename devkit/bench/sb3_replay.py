@@ -4,7 +4,7 @@ seeds, none of them an evaluation seed of the training; success is info["is_succ
 
 An outside check of the training's own evaluations: it shares with them only the env and the saved weights.
 
-    python benchmarks/sb3_replay.py RUN_FOLDER [RUN_FOLDER ...] [--episodes 50] [--first-seed 20000]
+    python -m devkit.bench.sb3_replay RUN_FOLDER [RUN_FOLDER ...] [--episodes 50] [--first-seed 20000]
                                     [--markdown [PATH]]
 """
 
@@ -15,9 +15,9 @@ import json
 from pathlib import Path
 
 import gymnasium as gym
-from report import Report, add_markdown_option  # beside this script
 
 import envfactory  # noqa: F401  (registers the IDs)
+from devkit.report import Report, add_markdown_option
 
 
 def sb3_class(algo: str):

@@ -1,6 +1,6 @@
 """The safety check judged by PyBullet over many steps: accepted steps inside the margin, per ID, mode and policy.
 
-    python benchmarks/safety_oracle.py [--steps N] [--ids ID ...] [--markdown [PATH]]
+    python -m devkit.bench.safety_oracle [--steps N] [--ids ID ...] [--markdown [PATH]]
 
 Uses the same judge as tests/test_safety.py (PyBullet distance queries on the
 simulated scene and along each commanded motion in a second client).
@@ -9,16 +9,11 @@ simulated scene and along each commanded motion in a second client).
 from __future__ import annotations
 
 import argparse
-import sys
 import time
-from pathlib import Path
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-
-from bullet_oracle import POLICIES, judge_steps  # noqa: E402
-from report import Report, add_markdown_option  # noqa: E402
 
 import envfactory  # noqa: E402,F401  (registers the IDs)
+from devkit.oracles.bullet_judge import POLICIES, judge_steps
+from devkit.report import Report, add_markdown_option
 from envfactory.envs import RobotEnv  # noqa: E402
 
 SIM_IDS = [

@@ -15,7 +15,7 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-ROOT = Path(__file__).parents[1]
+ROOT = Path(__file__).resolve().parents[2]  # the repository
 
 
 def models_folder() -> Path | None:

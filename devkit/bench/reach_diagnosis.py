@@ -1,6 +1,6 @@
 """What a learner meets on a Reach goal env, measured without training.
 
-    python benchmarks/reach_diagnosis.py [--ids ID ...] [--goals N] [--steps N] [--episodes N] [-k name=value ...]
+    python -m devkit.bench.reach_diagnosis [--ids ID ...] [--goals N] [--steps N] [--episodes N] [-k name=value ...]
 
 Per ID (kwargs apply to every env made, e.g. -k normalize_actions=true):
 - goal box: the share of uniform goals reachable from the start pose (IK from
