@@ -10,7 +10,7 @@ import pytest
 import envfactory
 
 ALL_IDS = sorted(envfactory.records())
-SIM_IDS = sorted(env_id for env_id, record in envfactory.records().items() if record.backend == "pybullet")
+SIM_IDS = sorted(env_id for env_id, record in envfactory.records().items() if record.backend == "sim")
 REAL_IDS = sorted(env_id for env_id, record in envfactory.records().items() if record.backend == "rosbridge")
 
 

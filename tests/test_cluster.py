@@ -26,7 +26,7 @@ from test_robot_folder import _robot_folder  # noqa: E402
 
 from envfactory.cli.app import app  # noqa: E402
 from envfactory.cluster import pool, trials  # noqa: E402
-from envfactory.cluster.work import Evaluation, Workspace, run_here  # noqa: E402
+from envfactory.cluster.work import SeedEvaluation, ShippedFolders, run_here  # noqa: E402
 from envfactory.factory import unregister_folder  # noqa: E402
 
 runner = CliRunner()
@@ -122,8 +122,8 @@ def test_collect_on_two_workers_writes_the_dataset_of_one_process(tmp_path):
 
 
 @dataclass(frozen=True)
-class CrashingOnce(Evaluation):
-    """Evaluation whose worker process dies after the first episode of the range holding `seed`, the first
+class CrashingOnce(SeedEvaluation):
+    """SeedEvaluation whose worker process dies after the first episode of the range holding `seed`, the first
     time only (the marker file remembers): a worker lost mid-range."""
 
     marker: str = ""
@@ -141,10 +141,10 @@ class CrashingOnce(Evaluation):
 def test_a_killed_worker_costs_no_episode_and_adds_no_partial_one(tmp_path):
     marker = tmp_path / "died"
     seeds = range(0, 12)
-    work = CrashingOnce(REACH, {}, Workspace(), marker=str(marker), seed=4)
-    spread = pool.run_episodes([work], seeds, workers=2, progress=False)[0]
+    work = CrashingOnce(REACH, {}, ShippedFolders(), marker=str(marker), seed=4)
+    spread = pool.run_episodes_on_ray([work], seeds, workers=2, progress=False)[0]
     assert marker.is_file() and int(marker.read_text()) != os.getpid()  # a worker died, not this process
-    reference = run_here(Evaluation(REACH), seeds)
+    reference = run_here(SeedEvaluation(REACH), seeds)
     assert spread == reference  # every seed once, whole, in order: the range that died ran again
 
 
@@ -154,7 +154,7 @@ def test_an_error_in_the_work_names_the_id_and_the_seeds():
         match=r"(?s)UR5eReacherSim-v0 seeds \d\.\.\d: SpecError: .*unknown kwarg "
         "'no_such_kwarg'",
     ):
-        pool.run_episodes([Evaluation(REACH, {"no_such_kwarg": 1})], range(0, 2), workers=2, progress=False)
+        pool.run_episodes_on_ray([SeedEvaluation(REACH, {"no_such_kwarg": 1})], range(0, 2), workers=2, progress=False)
 
 
 @pytest.fixture(scope="module")
@@ -248,7 +248,7 @@ def test_the_creator_refuses_a_flatten_option_that_is_no_switch():
     from envfactory.cluster import rllib
 
     with pytest.raises(ValueError, match="flatten_observation='yes' must be true or false"):
-        rllib.EnvCreator(GOAL_REACH, Workspace.for_ids([GOAL_REACH]))({"flatten_observation": "yes"})
+        rllib.EnvCreator(GOAL_REACH, ShippedFolders.for_ids([GOAL_REACH]))({"flatten_observation": "yes"})
 
 
 def test_an_rllib_env_creator_makes_a_user_id_in_a_worker(user_folder):
@@ -256,7 +256,7 @@ def test_an_rllib_env_creator_makes_a_user_id_in_a_worker(user_folder):
 
     registry.register_folder(user_folder)
     assert rllib.register([USER_ID]) == [USER_ID]
-    creator = rllib.EnvCreator(USER_ID, Workspace.for_ids([USER_ID]))
+    creator = rllib.EnvCreator(USER_ID, ShippedFolders.for_ids([USER_ID]))
 
     @ray.remote
     def make_and_reset(make):

@@ -21,7 +21,7 @@ from typer.testing import CliRunner
 from envfactory import cluster
 from envfactory.cli.app import app
 from envfactory.cluster import bundles, trials
-from envfactory.cluster.work import Collection, Evaluation, Workspace, WorkspaceError, run_here, split
+from envfactory.cluster.work import Collection, SeedEvaluation, ShippedFolders, ShippedFoldersError, run_here, split
 from envfactory.experts import make_policy
 from envfactory.factory import unregister_folder
 from envfactory.learn import extra
@@ -99,7 +99,7 @@ def test_split_covers_every_seed_once():
 
 
 def test_evaluation_ranges_merged_in_any_order_equal_one_run():
-    work = Evaluation(REACH, {"ee_action_type": True})
+    work = SeedEvaluation(REACH, {"ee_action_type": True})
     whole = run_here(work, range(3, 9))
     first, second = work(range(3, 5)), work(range(5, 9))
     assert work.merge([second, first]) == whole
@@ -157,13 +157,13 @@ def test_a_user_id_is_made_from_its_folder_copy_where_the_folder_is_gone(user_fo
     """What a worker on another machine does: the folder is not at its path there, so the copy sent with the
     job is written out and registered, and the ID makes and runs."""
     registry.register_folder(user_folder)
-    workspace = Workspace.for_ids(["MyArmReach-v0"])
-    here = run_here(Evaluation("MyArmReach-v0", {}, workspace), range(0, 2))
+    workspace = ShippedFolders.for_ids(["MyArmReach-v0"])
+    here = run_here(SeedEvaluation("MyArmReach-v0", {}, workspace), range(0, 2))
     unregister_folder(user_folder)
     moved = user_folder.rename(tmp_path / "moved")
     try:
         assert "MyArmReach-v0" not in registry.records()
-        elsewhere = run_here(Evaluation("MyArmReach-v0", {}, workspace), range(0, 2))
+        elsewhere = run_here(SeedEvaluation("MyArmReach-v0", {}, workspace), range(0, 2))
         copy = Path(registry.record("MyArmReach-v0").family.path).parents[1]
         assert bundles.CACHE_FOLDER in copy.parts and copy.name == "robotdir"
         assert elsewhere == here
@@ -275,12 +275,12 @@ def test_a_worker_never_runs_an_id_from_another_folder_than_the_jobs(user_folder
     """A machine whose own folders (ENVFACTORY_SPEC_PATH, `envfactory register`) declare the same ID elsewhere
     would run other specs than the head's: the work refuses, naming both folders."""
     registry.register_folder(user_folder)
-    workspace = Workspace.for_ids(["MyArmReach-v0"])
+    workspace = ShippedFolders.for_ids(["MyArmReach-v0"])
     unregister_folder(user_folder)
     other = shutil.copytree(user_folder, tmp_path / "other")
     registry.register_folder(other)
     try:
-        with pytest.raises(WorkspaceError, match=r"registers it from .*other, not from the job's spec folder"):
-            run_here(Evaluation("MyArmReach-v0", {}, workspace), range(0, 1))
+        with pytest.raises(ShippedFoldersError, match=r"registers it from .*other, not from the job's spec folder"):
+            run_here(SeedEvaluation("MyArmReach-v0", {}, workspace), range(0, 1))
     finally:
         unregister_folder(other)

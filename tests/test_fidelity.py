@@ -17,7 +17,7 @@ import envfactory
 from devkit.oracles.fidelity_probe import assert_within, expert_success, paired_episode, read_scene, trajectory_gaps
 from envfactory.geometry.object_clearance import NEAR_CONTACT
 
-SIM_IDS = sorted(i for i, r in envfactory.records().items() if r.backend == "pybullet" and "Goal" not in i)
+SIM_IDS = sorted(i for i, r in envfactory.records().items() if r.backend == "sim" and "Goal" not in i)
 
 
 def test_full_fidelity_is_the_reference_dynamics():
@@ -104,7 +104,7 @@ def test_fast_steps_match_full_dynamics_from_the_same_state(env_id):
 
 @pytest.mark.parametrize("env_id", ["NED2PnPSim-v0", "RX200PnPSim-v0"])
 def test_a_cube_dropped_at_spawn_settles_before_the_arm_is_placed(env_id):
-    """These specs spawn the cube 5 mm above the table (their seeds' cube_init_pos): it lands and comes to rest
+    """These specs spawn the cube 5 mm above the table (the original suite's cube_init_pos): it lands and comes to rest
     in about 50 substeps. The first cycle simulates only that much, then places the arm where a kinematic
     cycle does, and ends where full dynamics ends the whole cycle."""
     for seed in range(3):

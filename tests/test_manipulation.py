@@ -1,4 +1,4 @@
-"""Push and Pick-and-Place: the cube, the grasp, the lift curriculum and HER-exact rewards, in real physics."""
+"""Push and Pick-and-Place: the cube, the grasp, the lift stage and HER-exact rewards, in real physics."""
 
 import numpy as np
 import pytest
@@ -109,11 +109,11 @@ def test_is_grasped_truth_table_from_physics(env_id, make):
 def test_grasp_direction_comes_from_open_and_closed_values():
     import envfactory
     from envfactory.terms.grasp import bind_grasp
-    from envfactory.terms.library import Layout
+    from envfactory.terms.library import TermContext
 
     for env_id, holding, loose in (("UR5ePnPSim-v0", 0.45, 0.2), ("VX300SPnPSim-v0", 0.0335, 0.04)):
         spec = envfactory.blueprint(env_id).spec
-        layout = Layout(spec.robot, spec.task, 7, np.zeros(7), np.ones(7))
+        layout = TermContext(spec.robot, spec.task, 7, np.zeros(7), np.ones(7))
         test = bind_grasp(layout, bind_grasp.__globals__["GraspParams"](object="cube"))
         assert spec.robot.gripper.closure(holding) >= test.closure > spec.robot.gripper.closure(loose)
 

@@ -85,7 +85,7 @@ def _user_robot(tmp_path: Path, ros: str) -> Path:
     family = (ROOT / "specs" / "ur5e_pnp.yaml").read_text().replace("/robots@robot: ur5e", "/robots@robot: templated")
     family = re.sub(
         r"registration:.*",
-        "registration:\n  ids:\n    TemplatedPnPSim-v0: {backend: pybullet}\n"
+        "registration:\n  ids:\n    TemplatedPnPSim-v0: {backend: sim}\n"
         "    TemplatedPnPReal-v0: {backend: rosbridge}\n",
         family,
         flags=re.S,

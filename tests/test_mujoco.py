@@ -15,7 +15,7 @@ from envfactory.backends.base import BackendError
 from envfactory.backends.mujoco.backend import MujocoBackend
 from envfactory.registration import registry
 
-SIM_IDS = sorted(env_id for env_id, record in registry.records().items() if record.backend == "pybullet")
+SIM_IDS = sorted(env_id for env_id, record in registry.records().items() if record.backend == "sim")
 
 
 @pytest.mark.parametrize("env_id", SIM_IDS)

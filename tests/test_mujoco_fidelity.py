@@ -15,11 +15,9 @@ import envfactory
 from devkit.oracles.fidelity_probe import Gaps, assert_within, expert_success, paired_episode, trajectory_gaps
 
 MANIPULATION_IDS = sorted(
-    i
-    for i, r in envfactory.records().items()
-    if r.backend == "pybullet" and "Goal" not in i and ("Push" in i or "PnP" in i)
+    i for i, r in envfactory.records().items() if r.backend == "sim" and "Goal" not in i and ("Push" in i or "PnP" in i)
 )
-SIM_IDS = sorted(i for i, r in envfactory.records().items() if r.backend == "pybullet" and "Goal" not in i)
+SIM_IDS = sorted(i for i, r in envfactory.records().items() if r.backend == "sim" and "Goal" not in i)
 
 
 @pytest.mark.parametrize("env_id", SIM_IDS)

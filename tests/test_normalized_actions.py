@@ -1,6 +1,6 @@
-"""normalize_actions=True: Box(-1, 1), zero holds still in delta modes, ±1 reaches the seed's Min/Max.
+"""normalize_actions=True: Box(-1, 1), zero holds still in delta modes, ±1 reaches the original suite's Min/Max.
 
-The oracle is the seed pages' action tables (numbers copied here, not read from the robot YAML)."""
+The oracle is the original suite's pages' action tables (numbers copied here, not read from the robot YAML)."""
 
 import numpy as np
 import pytest
@@ -9,7 +9,7 @@ from envfactory.envs.episodes import run_episodes, success_rate
 from envfactory.experts import make_policy
 from envfactory.views.describe import action_table
 
-# seed pages: Action Space, joint mode (Min, Max per row); delta_coeff 0.05
+# the original suite's pages: Action Space, joint mode (Min, Max per row); delta_coeff 0.05
 SEED_JOINT_ROWS = {
     "VX300S": [(-3.14, 3.14), (-1.85, 1.26), (-1.76, 1.61), (-3.14, 3.14), (-1.87, 2.23), (-3.14, 3.14)],
     "UR5e": [(-3.14, 3.14)] * 6,
@@ -71,7 +71,7 @@ def test_zero_means_no_motion_in_the_simulator(make):
         _, _, _, _, info = env.step(np.zeros(6, np.float32))
         assert not info["action_rejected"]
     np.testing.assert_allclose(env.unwrapped.state.q_arm, before, atol=2e-3)
-    # and +1 on the shoulder moves it by delta_coeff × the seed's Max, -1 by × the seed's Min
+    # and +1 on the shoulder moves it by delta_coeff × the original suite's Max, -1 by × its Min
     for value, seed_bound in ((1.0, 1.26), (-1.0, -1.85)):
         start = env.unwrapped.state.q_arm.copy()
         action = np.zeros(6, np.float32)

@@ -1,5 +1,5 @@
 """`normalize_observations=True`: the same episode, every column mapped by its declared bounds, the goals by
-the goal box, and rewards still the seed's formula in metres."""
+the goal box, and rewards still the original suite's formula in metres."""
 
 import numpy as np
 import pytest

@@ -1,7 +1,7 @@
 """Sim-to-real terms: events sample physics that each engine then holds (read back from the engine, not from
 the sampler), sensing terms change only what the policy sees or when its action lands (judged against an
-unrandomized twin env fed the same actions), a seed reproduces everything, and the seed IDs stay unrandomized
-unless asked."""
+unrandomized twin env fed the same actions), a seed reproduces everything, and the original suite's IDs stay
+unrandomized unless asked."""
 
 from __future__ import annotations
 

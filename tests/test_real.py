@@ -211,7 +211,7 @@ def test_ctrl_c_during_run_sends_the_stop(twin):
         "--allow-real-robot-motion",
         "-k",
         f"rosbridge_port={stand_in.port}",
-        # the seeds' 0.5 s cycle: the first episode lasts 50 s, so the Ctrl-C lands in it (a random
+        # the original suite's 0.5 s cycle: the first episode lasts 50 s, so the Ctrl-C lands in it (a random
         # episode may end where the next drive home is rightly refused); the twin shares this busy
         # process, so the staleness gates are generous
         "-k",
@@ -292,7 +292,7 @@ def test_ned2_gripper_takes_open_and_close_goals(twin, make):
 @pytest.mark.slow
 def test_ned2_pnp_expert_succeeds_through_open_close_goals(twin, make):
     stand_in = twin("ned2", "pnp")
-    # the seeds' timing: the jaws need 0.4 s to close, longer than the tests' fast cycle
+    # the original suite's timing: the jaws need 0.4 s to close, longer than the tests' fast cycle
     env = make("NED2PnPReal-v0", rosbridge_port=stand_in.port, allow_real_robot_motion=True, max_episode_steps=80)
     observation, _ = env.reset(seed=0)
     policy = make_policy("scripted", env)

@@ -43,9 +43,7 @@ def _robot_folder(tmp_path: Path, packages: str = "", urdf: str = "assets/arm.ur
     robot = re.sub(r"safety:\n  collision_pairs: .*\n", "", robot)
     (folder / "robots" / "myarm.yaml").write_text(robot)
     family = (ROOT / "specs" / "vx300s_reach.yaml").read_text().replace("/robots@robot: vx300s", "/robots@robot: myarm")
-    family = re.sub(
-        r"registration:.*", "registration:\n  ids: {MyArmReach-v0: {backend: pybullet}}\n", family, flags=re.S
-    )
+    family = re.sub(r"registration:.*", "registration:\n  ids: {MyArmReach-v0: {backend: sim}}\n", family, flags=re.S)
     (folder / "specs" / "myarm_reach.yaml").write_text(family)
     return folder
 

@@ -32,7 +32,7 @@ def user_folder(tmp_path: Path, family: str, robot: str | None = None, edits=())
     (folder / "specs").mkdir(parents=True)
     text = (ROOT / "specs" / f"{family}.yaml").read_text()
     sim_id = re.search(r"^    (\w+Sim-v0):", text, re.M).group(1)
-    text = text[: text.index("registration:")] + f"registration:\n  ids:\n    My{sim_id}: {{backend: pybullet}}\n"
+    text = text[: text.index("registration:")] + f"registration:\n  ids:\n    My{sim_id}: {{backend: sim}}\n"
     (folder / "specs" / f"{family}.yaml").write_text(text)
     if robot is not None:
         (folder / "robots").mkdir()
@@ -489,3 +489,25 @@ def test_lengths_in_centimetres_and_angles_in_degrees_are_named(tmp_path):
         f"{robot}:{line_of(robot, 'home:')}: robot.home.1: home value -90.0 of shoulder_lift_joint is outside "
         f"[-3.14, 3.14]; looks like degrees: angles are in radians (-90° = -1.571 rad)" in message
     )
+
+
+def test_the_old_backend_spelling_registers_a_simulated_id_with_a_deprecation_note(tmp_path):
+    """`backend: pybullet` was how a simulated ID registered whichever engine ran it: it still does, as `sim`,
+    and says so; the ID makes and steps on the spec's engine."""
+    folder = user_folder(
+        tmp_path, "ur5e_reach", edits=[("specs/ur5e_reach.yaml", "{backend: sim}", "{backend: pybullet}")]
+    )
+    try:
+        with pytest.warns(DeprecationWarning, match="registration backend 'pybullet' is the old spelling of 'sim'"):
+            added, problems = register_specs(folder)
+        assert problems == [] and added == ["MyUR5eReacherSim-v0"]
+        assert envfactory.records()["MyUR5eReacherSim-v0"].backend == "sim"
+        env = gym.make("MyUR5eReacherSim-v0", engine="mujoco")
+        try:
+            assert env.unwrapped.blueprint.backend == "mujoco"
+            env.reset(seed=0)
+            env.step(env.action_space.sample())
+        finally:
+            env.close()
+    finally:
+        unregister_folder(folder)

@@ -35,7 +35,7 @@ def CUBE_ROWS(start):
     return [(f"{start + 3 * i}–{start + 3 * i + 2}", "3", name, unit) for i, (name, unit) in enumerate(components)]
 
 
-# The seed pages' index tables (Idx, Dim, Component, Unit), row for row.
+# The original suite's index tables (Idx, Dim, Component, Unit), row for row.
 SEED_TABLES = {
     "UR5eReacherSim-v0": [
         ("0–2", "3", "EE position", "m"),
@@ -111,7 +111,8 @@ def test_ee_mode_shrinks_previous_action():
 @pytest.mark.parametrize(
     "env_id, standard, ee_mode, goal_env",
     [
-        # the seeds' sizes; EE mode shrinks the previous action to 3 (+1 gripper), goal envs drop the 4 goal columns
+        # the original suite's sizes; EE mode shrinks the previous action to 3 (+1 gripper), goal envs drop the 4
+        # goal columns
         ("UR5ePushSim-v0", 45, 42, 41),
         ("UR5ePnPSim-v0", 47, 44, 43),
         ("VX300SPushSim-v0", 49, 46, 45),

@@ -87,7 +87,7 @@ def _documented(path: str, kind: str) -> bool:
 
 def _family(name):
     return next(
-        r for r in envfactory.records().values() if r.family.name == name and r.backend == "pybullet" and not r.goal_env
+        r for r in envfactory.records().values() if r.family.name == name and r.backend == "sim" and not r.goal_env
     )
 
 

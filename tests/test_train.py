@@ -445,7 +445,7 @@ def test_collect_writes_a_minari_dataset_that_loads_back(tmp_path, monkeypatch, 
             obs = episode.observations
             assert len(obs["observation"]) == len(episode.actions) + 1
             assert all(env.action_space.contains(a) for a in episode.actions)
-            # the seed's sparse reward, recomputed from the recorded goals: 0 within 2 cm, else -1
+            # the original suite's sparse reward, recomputed from the recorded goals: 0 within 2 cm, else -1
             distance = np.linalg.norm(obs["achieved_goal"][1:] - obs["desired_goal"][1:], axis=1)
             assert np.array_equal(episode.rewards, np.where(distance < 0.02, 0.0, -1.0))
             assert episode.terminations[-1] and distance[-1] < 0.02  # the expert reaches every goal

@@ -58,7 +58,7 @@ task:
 workspace: {{min: [-0.30, -0.85, 0.55], max: [1.20, 0.85, 1.50]}}
 registration:
   ids:
-    {env_id}: {{backend: pybullet}}
+    {env_id}: {{backend: sim}}
 """
 
 
@@ -89,7 +89,7 @@ def test_terms_from_a_module_beside_the_spec(tmp_path):
         ee = env.unwrapped.state.ee_position
         distance = float(np.linalg.norm(ee - goal))
         level = float(abs(ee[2] - goal[2]) < 0.05)
-        # the seed's dense reach reward, plus the user's term at weight 0.5
+        # the original suite's dense reach reward, plus the user's term at weight 0.5
         expected = (
             -2.0 * distance
             + 20.0 * (distance < 0.02)

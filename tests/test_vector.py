@@ -8,7 +8,7 @@ import pytest
 
 import envfactory
 
-SIM_IDS = sorted(i for i, r in envfactory.records().items() if r.backend == "pybullet")
+SIM_IDS = sorted(i for i, r in envfactory.records().items() if r.backend == "sim")
 
 
 def step_async(env_id: str, num_envs: int = 2, steps: int = 3) -> None:

@@ -45,7 +45,7 @@ def main() -> None:
         default=sorted(
             env_id
             for env_id, record in registry.records().items()
-            if record.backend == "pybullet" and not record.goal_env and ("Push" in env_id or "PnP" in env_id)
+            if record.backend == "sim" and not record.goal_env and ("Push" in env_id or "PnP" in env_id)
         ),
     )
     parser.add_argument("-k", "--kwarg", action="append", default=[], help="name=value for every env")

@@ -57,7 +57,7 @@ def main() -> None:
     args = parser.parse_args()
     report = Report.start(parser, args, __doc__)
     kwargs = {name: yaml.safe_load(value) for name, _, value in (pair.partition("=") for pair in args.kwarg)}
-    ids = args.ids or sorted(i for i, r in envfactory.records().items() if r.backend == "pybullet" and "Goal" not in i)
+    ids = args.ids or sorted(i for i, r in envfactory.records().items() if r.backend == "sim" and "Goal" not in i)
     table = report.table(
         ["ID", "measure", "steps", "EE mm", "arm joint mrad", "object mm", "object °", "cycles played"],
         title=f"gaps to full dynamics: median / p99 / max; EE, object in mm; joints in mrad; object "

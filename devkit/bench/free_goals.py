@@ -31,9 +31,7 @@ def main() -> None:
     add_markdown_option(parser)
     args = parser.parse_args()
     report = Report.start(parser, args, __doc__)
-    ids = sorted(
-        env_id for env_id, record in registry.records().items() if record.goal_env and record.backend == "pybullet"
-    )
+    ids = sorted(env_id for env_id, record in registry.records().items() if record.goal_env and record.backend == "sim")
     table = report.table(
         ["goal env", "successful at reset, drawn as before", "now"],
         title=f"share of {args.resets} resets (seeds 0–{args.resets - 1}) that start successful",

@@ -65,9 +65,7 @@ def main() -> None:
         "--ids",
         nargs="*",
         default=sorted(
-            env_id
-            for env_id, record in registry.records().items()
-            if record.backend == "pybullet" and not record.goal_env
+            env_id for env_id, record in registry.records().items() if record.backend == "sim" and not record.goal_env
         ),
     )
     parser.add_argument("--modes", nargs="*", default=["joint", "ee"])

@@ -28,7 +28,7 @@ import ray
 
 from devkit.report import Report, add_markdown_option
 from envfactory.cluster import pool
-from envfactory.cluster.work import Collection, Evaluation, run_here
+from envfactory.cluster.work import Collection, SeedEvaluation, run_here
 from envfactory.learn.demonstrations import collect
 
 
@@ -120,7 +120,7 @@ def main() -> None:
     args = parser.parse_args()
     report = Report.start(parser, args, __doc__)
     env_id, seeds = args.env_id, range(0, args.episodes)
-    evaluation, collection = Evaluation(env_id), Collection(env_id)
+    evaluation, collection = SeedEvaluation(env_id), Collection(env_id)
 
     # the reference: one process, no Ray (the first make of the process is paid before the clock starts)
     run_here(evaluation, range(0, 1))
@@ -172,7 +172,7 @@ def main() -> None:
                 repeats = 1 if cold else args.repeats
                 _fresh_workers(workers, cold)
                 spent, results = _best(
-                    repeats, lambda: pool.run_episodes([evaluation], seeds, workers, progress=False)[0]
+                    repeats, lambda: pool.run_episodes_on_ray([evaluation], seeds, workers, progress=False)[0]
                 )
                 assert results == reference, "the cluster's episodes differ from the single process's"
                 _fresh_workers(workers, cold)

@@ -35,7 +35,7 @@ class Family:
     @property
     def picture_id(self) -> str:
         """The ID the scene is rendered with: the first simulated standard ID, else the first simulated one."""
-        simulated = [i for i in self.ids if registry.record(i).backend == "pybullet"]
+        simulated = [i for i in self.ids if registry.record(i).backend == "sim"]
         if not simulated:
             raise ValueError(f"{self.path}: no simulated ID to render the scene with")
         return next((i for i in simulated if not registry.record(i).goal_env), simulated[0])

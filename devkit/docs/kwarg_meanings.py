@@ -11,7 +11,7 @@ from __future__ import annotations
 MEANINGS: dict[str, str] = {
     "seed": "Seed of the first reset() when it is called without one (the goal and cube draws follow from it).",
     "gui": "Open the simulator's window (PyBullet GUI; MuJoCo is headless). Sim IDs only.",
-    "gazebo_gui": "The seeds' name for `gui`: opens the PyBullet window.",
+    "gazebo_gui": "The original suite's name for `gui`: opens the PyBullet window.",
     "reward_type": "`Dense` (weighted shaping terms) or `Sparse` (0 at the goal, else -1, with termination at "
     "the goal). Any letter case is accepted.",
     "ee_action_type": "Act in end-effector space (Cartesian position, solved by IK) instead of joint space.",
@@ -20,7 +20,7 @@ MEANINGS: dict[str, str] = {
     "normalize_actions": "The policy acts in [-1, 1] on every row; each row is mapped onto its declared bounds.",
     "normalize_observations": "Every vector observation column (and both goals in goal envs) is scaled from its "
     "declared bounds to [-1, 1].",
-    "environment_loop_rate": "The seeds' control loop rate, Hz. Here it bounds the cycle from below: "
+    "environment_loop_rate": "The original suite's control loop rate, Hz. Here it bounds the cycle from below: "
     "`action_cycle_time` must be at least 1 / `environment_loop_rate`.",
     "action_cycle_time": "Seconds of motion one step lets pass (simulated in Sim, waited for on a real arm).",
     "action_speed": "Seconds the arm takes to reach each commanded joint target within a cycle.",

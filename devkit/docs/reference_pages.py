@@ -16,7 +16,7 @@ from devkit.docs.env_pages import Family
 from devkit.docs.kwarg_meanings import MEANINGS
 from envfactory import factory
 from envfactory.cli.app import app
-from envfactory.schema.models import EnvSpec
+from envfactory.schema.models import ComposedSpec
 from envfactory.views import term_catalog as catalog
 from envfactory.views.describe import kwarg_paths, value_at
 
@@ -171,7 +171,7 @@ def _values(values: list) -> str:
 
 def field_doc(dotted: str) -> str:
     """`type = default (limits)` of the schema field at a spec path, as `envfactory terms` writes params."""
-    model: typing.Any = EnvSpec
+    model: typing.Any = ComposedSpec
     field = None
     for part in dotted.split("."):
         if isinstance(model, type) and issubclass(model, BaseModel):

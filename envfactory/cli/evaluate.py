@@ -20,7 +20,7 @@ from envfactory import cluster
 from envfactory.cli.common import KWARG_HELP, check_output, command, console, fail, known_id, model_file, parse_kwargs
 from envfactory.cluster import trials as trial_runs
 from envfactory.cluster.bundles import FolderCopyError
-from envfactory.cluster.work import Evaluation, PolicySource, Workspace, run_here
+from envfactory.cluster.work import PolicySource, SeedEvaluation, ShippedFolders, run_here
 from envfactory.envs.episodes import EpisodeResult, success_rate
 from envfactory.learn.extra import MissingExtra
 from envfactory.learn.hyperparams import HyperparameterError
@@ -60,7 +60,7 @@ def cluster_size(workers: int | None, address: str | None) -> int | None:
 
 
 def simulated_only(env_id: str, command_name: str) -> None:
-    if registry.records()[env_id].backend != "pybullet":
+    if registry.records()[env_id].backend != "sim":
         fail(
             f"{env_id}: {command_name} runs simulated IDs only (it would drive the real arm for every episode); "
             f"`envfactory run {env_id} --allow-real-robot-motion` runs a real arm, one episode after another"
@@ -107,10 +107,10 @@ def evaluate(
     kwargs = {**source.trained_kwargs(), **parse_kwargs(kwarg)}  # -k over the kwargs a model was trained with
     size = cluster_size(workers, address)
     try:  # the spec folders travel only to other processes: here the IDs are known already
-        workspace = Workspace() if size is None else Workspace.for_ids(list(env_id))
+        workspace = ShippedFolders() if size is None else ShippedFolders.for_ids(list(env_id))
     except FolderCopyError as exc:
         fail(str(exc))
-    works = [Evaluation(name, kwargs, workspace, source) for name in env_id]
+    works = [SeedEvaluation(name, kwargs, workspace, source) for name in env_id]
     seeds = range(seed, seed + episodes)
     if size is None:
         with tqdm(total=len(works) * episodes, unit="episode", disable=not progress, desc="episodes") as bar:
@@ -118,7 +118,7 @@ def evaluate(
     else:
         pool = cluster_module("pool", "evaluate --workers/--address")
         with pool.connected(size, address):
-            results = pool.run_episodes(works, seeds, pool.cluster_cpus(size), progress)
+            results = pool.run_episodes_on_ray(works, seeds, pool.cluster_cpus(size), progress)
     _print_table(source.label, env_id, results, seeds)
     if out_csv is not None:
         _write_csv(out_csv, env_id, results)

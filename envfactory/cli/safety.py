@@ -31,7 +31,7 @@ def _robot_blueprint(name: str):
         fail(unknown_robot(name, list(robots), ids=tuple(records)))
     first_error = None
     for env_id in robots[name]:
-        if records[env_id].backend != "pybullet":
+        if records[env_id].backend != "sim":
             continue
         try:
             return factory.blueprint(env_id)

@@ -172,7 +172,7 @@ def _smoke_build(env_ids: list[str]) -> bool:
     ok = True
     for env_id in env_ids:
         backend = registry.records()[env_id].backend
-        if backend != "pybullet":
+        if backend != "sim":
             console.print(f"registered {env_id} (backend {backend}: not smoke-built, it would need the robot)")
             continue
         try:

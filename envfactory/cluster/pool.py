@@ -2,7 +2,7 @@
 (`--address`), with a progress bar, retries for a worker that dies, and one clear error for a task that fails.
 
     with connected(workers=4):
-        results = run_episodes([Evaluation("UR5ePushSim-v0")], range(0, 200), workers=4)
+        results = run_episodes_on_ray([SeedEvaluation("UR5ePushSim-v0")], range(0, 200), workers=4)
 
 Episode work (work.py) is cut into ranges of seeds, several per worker so the fast ones take more; each
 range is one task returning whole episodes. A worker process that dies (killed, out of memory, its machine
@@ -23,7 +23,7 @@ import ray
 from ray.exceptions import RayError, RayTaskError
 from tqdm import tqdm
 
-from envfactory.cluster.work import Collection, EpisodeWork, Workspace, split
+from envfactory.cluster.work import Collection, EpisodeWork, ShippedFolders, split
 from envfactory.learn.demonstrations import Recording
 
 EPISODE_RETRIES = 3  # a range of episodes is run again this often when its worker dies
@@ -135,7 +135,7 @@ def _reason(exc: RayError, retries: int) -> str:
     return f"{type(exc).__name__} (its worker died, {times}): {str(exc).splitlines()[0]}"
 
 
-def run_episodes(works: list[EpisodeWork], seeds: range, workers: int, progress: bool = True) -> list:
+def run_episodes_on_ray(works: list[EpisodeWork], seeds: range, workers: int, progress: bool = True) -> list:
     """Each work over `seeds`, spread over the cluster; per work, the merged result (work.merge), equal to
     running it in one process."""
     pieces = split(seeds, workers * RANGES_PER_WORKER)
@@ -156,8 +156,8 @@ def recorder(workers: int, progress: bool = True) -> Callable:
     call it inside `connected`."""
 
     def record_on_cluster(env_id: str, seeds: range, env_kwargs: dict | None = None, on_episode=None) -> Recording:
-        work = Collection(env_id, dict(env_kwargs or {}), Workspace.for_ids([env_id]))
-        recording = run_episodes([work], seeds, workers, progress)[0]
+        work = Collection(env_id, dict(env_kwargs or {}), ShippedFolders.for_ids([env_id]))
+        recording = run_episodes_on_ray([work], seeds, workers, progress)[0]
         for result in recording.results if on_episode is not None else ():
             on_episode(result)
         return recording

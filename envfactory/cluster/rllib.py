@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import gymnasium as gym
 from ray.tune.registry import register_env
 
-from envfactory.cluster.work import Workspace
+from envfactory.cluster.work import ShippedFolders
 from envfactory.registration import registry
 
 # keys RLlib itself puts into env_config (a vector env's size), which are no kwargs of the env
@@ -42,7 +42,7 @@ class EnvCreator:
     """RLlib's env creator for one ID: env_config -> the env, in any process."""
 
     env_id: str
-    workspace: Workspace
+    workspace: ShippedFolders
 
     def __call__(self, env_config) -> gym.Env:
         self.workspace.enter([self.env_id])
@@ -61,7 +61,7 @@ def register(env_ids: list[str] | None = None) -> list[str]:
     chosen = sorted(env_ids if env_ids is not None else registry.records())
     for env_id in chosen:
         registry.record(env_id)  # an unknown ID fails here, with the nearest known one
-    workspace = Workspace.for_ids(chosen)  # each user folder packed once, whatever the number of its IDs
+    workspace = ShippedFolders.for_ids(chosen)  # each user folder packed once, whatever the number of its IDs
     for env_id in chosen:
         register_env(env_id, EnvCreator(env_id, workspace))
     return chosen

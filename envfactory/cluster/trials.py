@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from envfactory.cluster.work import Workspace
+from envfactory.cluster.work import ShippedFolders
 from envfactory.learn.curve import Evaluation, plot
 from envfactory.learn.hyperparams import HyperparameterError, load
 from envfactory.learn.trainer import train
@@ -46,7 +46,7 @@ class Trial:
     eval_every: int | None
     eval_episodes: int | None
     demos: str | None
-    workspace: Workspace
+    workspace: ShippedFolders
     token: str  # the group marker's content
 
     @property
@@ -110,7 +110,7 @@ def plan(
     for setting in settings:
         load(algo, env_id, (*overrides, *setting))  # a bad name or value fails here, naming its source
     group = group.expanduser().resolve()
-    workspace = Workspace.for_ids([env_id])
+    workspace = ShippedFolders.for_ids([env_id])
     token = uuid.uuid4().hex
     return [
         Trial(

@@ -27,19 +27,19 @@ from envfactory.registration import registry
 from envfactory.schema.folders import folder_of
 
 
-class WorkspaceError(RuntimeError):
+class ShippedFoldersError(RuntimeError):
     """A job's spec folder cannot serve its IDs in this process."""
 
 
 @dataclass(frozen=True)
-class Workspace:
+class ShippedFolders:
     """The user spec folders a job's IDs come from, sent along with it (built-in IDs need none): for each
     user ID, the copy of the folder that declares it."""
 
     folders: tuple[tuple[str, FolderCopy], ...] = ()  # (env ID, its folder)
 
     @classmethod
-    def for_ids(cls, env_ids: list[str]) -> "Workspace":
+    def for_ids(cls, env_ids: list[str]) -> "ShippedFolders":
         origins = {env_id: _user_spec_folder(env_id) for env_id in env_ids}
         copies = {folder: FolderCopy.pack(folder) for folder in set(origins.values()) if folder is not None}
         return cls(tuple((env_id, copies[folder]) for env_id, folder in sorted(origins.items()) if folder))
@@ -52,7 +52,7 @@ class Workspace:
         for env_id in env_ids:
             if env_id not in sent:
                 if env_id not in registry.records():
-                    raise WorkspaceError(
+                    raise ShippedFoldersError(
                         f"{env_id}: not registered in this process, and the job sent no spec folder declaring it"
                     )
                 continue
@@ -60,12 +60,12 @@ class Workspace:
             problems = [] if env_id in registry.records() else registry.register_folder(folder)[1]
             if env_id not in registry.records():
                 found = "; ".join(registry.one_line(problem) for problem in problems) or "it declares no such ID"
-                raise WorkspaceError(
+                raise ShippedFoldersError(
                     f"{env_id}: its spec folder {sent[env_id].origin} (here {folder}) does not register it: {found}"
                 )
             declared = folder_of(registry.record(env_id).family.path).resolve()
             if declared != folder.resolve():
-                raise WorkspaceError(
+                raise ShippedFoldersError(
                     f"{env_id}: this process registers it from {declared}, not from the job's "
                     f"spec folder {sent[env_id].origin} (here {folder}); leave the other folder "
                     f"out of this machine's ENVFACTORY_SPEC_PATH or `envfactory register`"
@@ -119,7 +119,7 @@ class EpisodeWork:
 
     env_id: str
     env_kwargs: dict = field(default_factory=dict)
-    workspace: Workspace = Workspace()
+    workspace: ShippedFolders = ShippedFolders()
 
     def __call__(self, seeds: range, on_episode: Callable | None = None):
         self.workspace.enter([self.env_id])
@@ -134,7 +134,7 @@ class EpisodeWork:
 
 
 @dataclass(frozen=True)
-class Evaluation(EpisodeWork):
+class SeedEvaluation(EpisodeWork):
     """A policy's episodes, each until the env ends it (as `envfactory run` shows them): EpisodeResults."""
 
     policy: PolicySource = PolicySource()

@@ -16,7 +16,7 @@ from pydantic import BaseModel
 
 from envfactory.compiler.normalization import ActionScale
 from envfactory.geometry.point_boxes import PointBoxes
-from envfactory.schema.models import EnvSpec
+from envfactory.schema.models import ComposedSpec
 from envfactory.schema.randomization import Every
 from envfactory.terms.library import (
     Description,
@@ -151,7 +151,7 @@ class Blueprint:
     backend: str
     goal_env: bool
     max_episode_steps: int
-    spec: EnvSpec
+    spec: ComposedSpec
     asset_root: Path
     observation: tuple[ObservationSlot, ...]  # the full layout, as the standard env sees it
     action: ActionLayout

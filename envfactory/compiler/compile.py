@@ -27,10 +27,11 @@ from envfactory.experts import EXPERTS
 from envfactory.geometry.point_boxes import derived_boxes
 from envfactory.schema.compose import LoadedSpec
 from envfactory.schema.errors import suggest
-from envfactory.schema.models import EnvSpec
+from envfactory.schema.models import ComposedSpec
+from envfactory.schema.settings import SIMULATED
 from envfactory.schema.sources import Findings
 from envfactory.schema.validation import validation_problems
-from envfactory.terms import EVENTS, IMAGES, OBSERVATIONS, REWARDS, SENSING, TERMINATIONS, Layout, plugins
+from envfactory.terms import EVENTS, IMAGES, OBSERVATIONS, REWARDS, SENSING, TERMINATIONS, TermContext, plugins
 from envfactory.terms.library import UnknownReference
 from envfactory.terms.rewards import step_info_keys
 from envfactory.terms.stages import stage_factory
@@ -38,7 +39,7 @@ from envfactory.terms.stages import stage_factory
 SIMULATORS = ("pybullet", "mujoco")  # the backends that integrate physics (sim.physics_hz, sim.mujoco)
 
 
-def _action_layout(spec: EnvSpec) -> ActionLayout:
+def _action_layout(spec: ComposedSpec) -> ActionLayout:
     robot, settings = spec.robot, spec.env.action
     kind = "delta" if settings.delta else "(absolute)"
     rows: list[ActionRow] = []
@@ -82,7 +83,7 @@ def _lookup(table: dict, name: str, path: str, kind: str, found: Findings):
     return term
 
 
-def _bind(term, layout: Layout, params, path: str, found: Findings, inert: tuple[type[Exception], ...] = ()):
+def _bind(term, layout: TermContext, params, path: str, found: Findings, inert: tuple[type[Exception], ...] = ()):
     """What the term's function receives; None (the problem found, unless it is of a kind declared inert)."""
     try:
         return term.bind(layout, params)
@@ -92,7 +93,7 @@ def _bind(term, layout: Layout, params, path: str, found: Findings, inert: tuple
         return None
 
 
-def _observation(spec: EnvSpec, layout: Layout, found: Findings):
+def _observation(spec: ComposedSpec, layout: TermContext, found: Findings):
     slots, start = [], 0
     for index, entry in enumerate(spec.task.observation):
         ((name, raw_params),) = entry.items()
@@ -130,7 +131,7 @@ def _resolved_terms(
     table: dict,
     path: str,
     kind: str,
-    layout: Layout,
+    layout: TermContext,
     found: Findings,
     inert: tuple[type[Exception], ...] = (),
 ):
@@ -148,14 +149,14 @@ def _resolved_terms(
             yield name, ref, term, params, bound
 
 
-def _rewards(refs: dict, path: str, layout: Layout, found: Findings):
+def _rewards(refs: dict, path: str, layout: TermContext, found: Findings):
     return tuple(
         WeightedTerm(name, term, ref.weight, params, bound)
         for name, ref, term, params, bound in _resolved_terms(refs, REWARDS, path, "reward", layout, found)
     )
 
 
-def _terminations(spec: EnvSpec, layout: Layout, found: Findings):
+def _terminations(spec: ComposedSpec, layout: TermContext, found: Findings):
     reward_type = spec.env.reward_type.lower()
     return tuple(
         TerminationSlot(name, term, params, bound, ref.when in ("always", reward_type))
@@ -166,7 +167,7 @@ def _terminations(spec: EnvSpec, layout: Layout, found: Findings):
 
 
 def _randomization(
-    spec: EnvSpec, layout: Layout, observation, goal_env: bool, env_id: str, backend: str, found: Findings
+    spec: ComposedSpec, layout: TermContext, observation, goal_env: bool, env_id: str, backend: str, found: Findings
 ) -> tuple[tuple[EventSlot, ...], tuple[SensingSlot, ...]]:
     """The declared events and sensing terms. Their names, params and ranges are checked whether or not this ID
     turns them on (a typo is caught before anyone does); what they refer to in the task (an object, an
@@ -200,7 +201,7 @@ def _randomization(
     return events, sensing
 
 
-def _check_info_keys(spec: EnvSpec, rewards, terminations, found: Findings) -> None:
+def _check_info_keys(spec: ComposedSpec, rewards, terminations, found: Findings) -> None:
     """Every step-info key a term reads must be one the step records."""
     recorded = set(step_info_keys()) | {t.term.info_keys[0] for t in rewards if t.term.measure}
     for path, slots in (("task.reward", rewards), ("task.termination", terminations)):
@@ -215,7 +216,7 @@ def _check_info_keys(spec: EnvSpec, rewards, terminations, found: Findings) -> N
                     )
 
 
-def _achieved_from(spec: EnvSpec, found: Findings) -> str:
+def _achieved_from(spec: ComposedSpec, found: Findings) -> str:
     source, _, quantity = spec.task.goal.achieved.partition(".")
     valid = ["ee.position", *(f"{name}.position" for name in spec.task.objects)]
     if quantity != "position" or (source != "ee" and source not in spec.task.objects):
@@ -231,7 +232,7 @@ def _achieved_from(spec: EnvSpec, found: Findings) -> str:
     return source
 
 
-def _images(spec: EnvSpec, found: Findings) -> tuple[ImageSlot, ...]:
+def _images(spec: ComposedSpec, found: Findings) -> tuple[ImageSlot, ...]:
     if not spec.env.observation.camera_images:
         return ()
     camera = spec.scene.camera
@@ -247,7 +248,7 @@ def _images(spec: EnvSpec, found: Findings) -> tuple[ImageSlot, ...]:
     return tuple(slots)
 
 
-def _check_expert(spec: EnvSpec, found: Findings) -> None:
+def _check_expert(spec: ComposedSpec, found: Findings) -> None:
     ref = spec.task.expert
     if ref is None:
         return
@@ -267,9 +268,9 @@ def _check_expert(spec: EnvSpec, found: Findings) -> None:
         found.add(f"task.expert.params.{name}", message)
 
 
-def _engine(spec: EnvSpec, env_id: str, backend: str, found: Findings) -> str:
+def _engine(spec: ComposedSpec, env_id: str, backend: str, found: Findings) -> str:
     """The backend that runs the ID: a simulated ID's physics engine is the spec's `sim.engine`."""
-    if backend == "pybullet":
+    if backend == SIMULATED:
         return spec.sim.engine
     if spec.sim.engine != "pybullet":
         found.add(
@@ -279,9 +280,10 @@ def _engine(spec: EnvSpec, env_id: str, backend: str, found: Findings) -> str:
     return backend
 
 
-def _check_backend(spec: EnvSpec, env_id: str, backend: str, found: Findings) -> None:
+def _check_backend(spec: ComposedSpec, env_id: str, backend: str, found: Findings) -> None:
     path = f"registration.ids.{env_id}.backend"
-    known = backends.available()
+    # a simulated ID registers as `sim` (its engine is sim.engine's); the engines are not registration backends
+    known = [SIMULATED, *(name for name in backends.available() if name not in SIMULATORS)]
     if backend not in known:
         found.add(path, f"unknown backend {backend!r}{suggest(backend, known)}")
         return
@@ -323,7 +325,7 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
     found = loaded.findings()
     _import_terms(loaded, found)
     action = _action_layout(spec)
-    layout = Layout(
+    layout = TermContext(
         spec.robot,
         spec.task,
         action.size,
@@ -343,8 +345,8 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
     _check_expert(spec, found)
     check_expert_workspace(spec, found)
     images = _images(spec, found)
-    backend = _engine(spec, env_id, backend, found)
     _check_backend(spec, env_id, backend, found)
+    backend = _engine(spec, env_id, backend, found)
     events, sensing = _randomization(spec, layout, observation, goal_env, env_id, backend, found)
     if backend in SIMULATORS:
         sim_checks.check_physics_rate(spec, backend, found)

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 from envfactory.experts import EXPERTS
 from envfactory.experts.points import ExpertPoint
-from envfactory.schema.models import EnvSpec
+from envfactory.schema.models import ComposedSpec
 
 
-def expert_points(spec: EnvSpec) -> list[ExpertPoint]:
+def expert_points(spec: ComposedSpec) -> list[ExpertPoint]:
     """The expert's working points, or [] without an expert (or with one whose params do not validate: the
     compiler reports those)."""
     ref = spec.task.expert

@@ -21,7 +21,7 @@ from envfactory.geometry.robot_model import RobotGeometry, robot_geometry
 from envfactory.geometry.urdf_assembly import AssemblyError, assemble
 from envfactory.schema.errors import suggest
 from envfactory.schema.folders import builtin_root, folder_of
-from envfactory.schema.models import EnvSpec
+from envfactory.schema.models import ComposedSpec
 from envfactory.schema.sources import Findings
 from envfactory.schema.units import out_of_range_hint
 
@@ -36,7 +36,7 @@ PAIRS_PATH = "robot.safety.collision_pairs"
 _found: dict[str, tuple[tuple[str, str], ...]] = {}  # what the checks found, per robot, task, scene and settings
 
 
-def check(spec: EnvSpec, asset_root: Path, found: Findings, family: Path | None = None, env_id: str = "") -> None:
+def check(spec: ComposedSpec, asset_root: Path, found: Findings, family: Path | None = None, env_id: str = "") -> None:
     """Every problem `make` or `reset` would hit in the robot model and the reach of the task. The checks
     run once per robot, task, scene and settings: what they find is kept as (dotted path, message). `family`
     and `env_id` say whose pair list it is, for the advice on writing it."""
@@ -63,7 +63,7 @@ def check(spec: EnvSpec, asset_root: Path, found: Findings, family: Path | None 
         found.add(path, message)
 
 
-def _pairs_advice(spec: EnvSpec, asset_root: Path, family: Path | None, env_id: str) -> str:
+def _pairs_advice(spec: ComposedSpec, asset_root: Path, family: Path | None, env_id: str) -> str:
     """How to write the pair list, never into the installed package for a user's family: a list there serves
     the robot as shipped, and a user's padding or edits need a list of their own."""
     robot = spec.robot.name
@@ -84,12 +84,12 @@ def _pairs_advice(spec: EnvSpec, asset_root: Path, family: Path | None, env_id: 
     return f"run {command} to write it (into {pairs}, the file robot.safety.collision_pairs names)"
 
 
-def _pairs_text(spec: EnvSpec, asset_root: Path) -> str:
+def _pairs_text(spec: ComposedSpec, asset_root: Path) -> str:
     pairs = pairs_file(spec, asset_root)
     return pairs.read_text() if pairs is not None and pairs.is_file() else ""
 
 
-def _problems(spec: EnvSpec, asset_root: Path) -> list[tuple[str, str]]:
+def _problems(spec: ComposedSpec, asset_root: Path) -> list[tuple[str, str]]:
     try:
         urdf = assemble(spec.robot.model, asset_root, spec.robot.name)
     except AssemblyError as exc:
@@ -134,7 +134,7 @@ def _problems(spec: EnvSpec, asset_root: Path) -> list[tuple[str, str]]:
         return [("robot.model", f"the kinematics fail on this robot model: {exc}")]
 
 
-def _name_problems(spec: EnvSpec, model) -> list[tuple[str, str]]:
+def _name_problems(spec: ComposedSpec, model) -> list[tuple[str, str]]:
     robot = spec.robot
     joints = {model.names[i]: i for i in range(1, model.njoints)}
     frames = {frame.name for frame in model.frames}
@@ -201,7 +201,7 @@ def _name_problems(spec: EnvSpec, model) -> list[tuple[str, str]]:
     return problems
 
 
-def _gripper_direction_problems(spec: EnvSpec, model) -> list[tuple[str, str]]:
+def _gripper_direction_problems(spec: ComposedSpec, model) -> list[tuple[str, str]]:
     """`closed` must be the way the fingers close in the URDF: swapped, the expert's grasp opens the fingers,
     and every grasp test reads an open gripper as a closed one. Judged on the pads' distance (or, without pads,
     the gripper links'): it must shrink from open to closed."""
@@ -245,7 +245,7 @@ def _gripper_links(model, gripper) -> list[str]:
     return [frame.name for frame in model.frames if frame.type == pin.FrameType.BODY and frame.parentJoint in joints]
 
 
-def _padding_problems(spec: EnvSpec, model) -> list[tuple[str, str]]:
+def _padding_problems(spec: ComposedSpec, model) -> list[tuple[str, str]]:
     """A padded link the URDF lacks would silently keep no extra clearance."""
     links = {frame.name for frame in model.frames}
     return [
@@ -255,7 +255,7 @@ def _padding_problems(spec: EnvSpec, model) -> list[tuple[str, str]]:
     ]
 
 
-def _pose_problems(spec: EnvSpec, geometry: RobotGeometry) -> list[tuple[str, str]]:
+def _pose_problems(spec: ComposedSpec, geometry: RobotGeometry) -> list[tuple[str, str]]:
     home = np.asarray(spec.robot.home, float)
     gripper = spec.gripper_assumed_at_reset
     verdict = geometry.safety_check(spec.env.safety).check(
@@ -281,7 +281,7 @@ def _point(point) -> str:
     return "[" + ", ".join(f"{float(v):g}" for v in np.round(point, 3)) + "]"
 
 
-def _reach_problems(spec: EnvSpec, geometry: RobotGeometry) -> list[tuple[str, str]]:
+def _reach_problems(spec: ComposedSpec, geometry: RobotGeometry) -> list[tuple[str, str]]:
     safety = geometry.safety_check(spec.env.safety)
     kinematics = safety.kinematics
     home = np.asarray(spec.robot.home, float)
@@ -341,7 +341,7 @@ def _reach_problems(spec: EnvSpec, geometry: RobotGeometry) -> list[tuple[str, s
     return problems
 
 
-def _expert_problems(spec: EnvSpec, geometry: RobotGeometry) -> list[tuple[str, str]]:
+def _expert_problems(spec: ComposedSpec, geometry: RobotGeometry) -> list[tuple[str, str]]:
     """The expert's grasp and push points must be poses the safety check accepts: a point where the fingers
     come within the safety margin of the table is refused at every try, and the expert stalls above it."""
     robot = spec.robot

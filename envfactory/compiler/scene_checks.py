@@ -12,7 +12,7 @@ import numpy as np
 from envfactory.compiler.expert_points import expert_points
 from envfactory.geometry.frames import TaskFrame
 from envfactory.geometry.obstacles import table_bounds_xy
-from envfactory.schema.models import EnvSpec
+from envfactory.schema.models import ComposedSpec
 from envfactory.schema.sources import Findings
 
 # A goal tolerance above this fraction of the workspace diagonal makes "reached" meaningless.
@@ -43,7 +43,7 @@ def _box(low, high) -> str:
 class TaskFrameScene:
     """The table and the floor in the task frame (which turns about z at most, so heights stay heights)."""
 
-    def __init__(self, spec: EnvSpec):
+    def __init__(self, spec: ComposedSpec):
         self.frame = TaskFrame.of(spec.robot)
         origin = self.frame.origin
         table = spec.scene.table
@@ -70,7 +70,7 @@ class TaskFrameScene:
         """Height above the table top of a task-frame z."""
         return float(z) - self.top_z
 
-    def other_frame_hint(self, spec: EnvSpec, low_z: float) -> str:
+    def other_frame_hint(self, spec: ComposedSpec, low_z: float) -> str:
         """'; ... looks like <other>-frame heights ...' when a box starting at `low_z` would sit on the table read
         in the other frame (world heights in a base frame, or base heights in the world frame), else ''."""
         robot = spec.robot
@@ -101,7 +101,7 @@ class TaskFrameScene:
         return f"x in [{low[0]:g}, {high[0]:g}], y in [{low[1]:g}, {high[1]:g}]{world}"
 
 
-def height_summary(spec: EnvSpec) -> str:
+def height_summary(spec: ComposedSpec) -> str:
     """The goal box's and each object's spawn height above the table top: what a frame or unit mistake in a
     height changes first, shown by describe and validate."""
     scene = TaskFrameScene(spec)
@@ -114,7 +114,7 @@ def height_summary(spec: EnvSpec) -> str:
     return f"Heights above the table top (z {scene.top_z:g} in the {spec.robot.task_frame} frame): " + ", ".join(parts)
 
 
-def check_scene(spec: EnvSpec, found: Findings) -> None:
+def check_scene(spec: ComposedSpec, found: Findings) -> None:
     scene = TaskFrameScene(spec)
     _table(spec, scene, found)
     _goal(spec, scene, found)
@@ -123,7 +123,7 @@ def check_scene(spec: EnvSpec, found: Findings) -> None:
     _observation_bounds(spec, found)
 
 
-def _observation_bounds(spec: EnvSpec, found: Findings) -> None:
+def _observation_bounds(spec: ComposedSpec, found: Findings) -> None:
     """The observation Box must hold what the robot can do: its workspace and its joint ranges."""
     robot = spec.robot
     ee_low, ee_high = robot.ee_bounds
@@ -162,7 +162,7 @@ def _observation_bounds(spec: EnvSpec, found: Findings) -> None:
             )
 
 
-def _table(spec: EnvSpec, scene: TaskFrameScene, found: Findings) -> None:
+def _table(spec: ComposedSpec, scene: TaskFrameScene, found: Findings) -> None:
     table, floor = spec.scene.table, spec.env.safety.floor_z
     if table.top_z - table.thickness <= floor:
         found.add(
@@ -174,7 +174,7 @@ def _table(spec: EnvSpec, scene: TaskFrameScene, found: Findings) -> None:
         found.add("robot.mount", f"the robot base z {spec.robot.mount[2]:g} lies below the floor ({floor:g})")
 
 
-def _goal(spec: EnvSpec, scene: TaskFrameScene, found: Findings) -> None:
+def _goal(spec: ComposedSpec, scene: TaskFrameScene, found: Findings) -> None:
     goal, workspace = spec.task.goal, spec.workspace
     low, high = (np.asarray(b, float) for b in goal.box)
     source = goal.achieved.partition(".")[0]
@@ -224,7 +224,7 @@ def _goal(spec: EnvSpec, scene: TaskFrameScene, found: Findings) -> None:
         )
 
 
-def _objects(spec: EnvSpec, scene: TaskFrameScene, found: Findings) -> None:
+def _objects(spec: ComposedSpec, scene: TaskFrameScene, found: Findings) -> None:
     for name, obj in spec.task.objects.items():
         path = f"task.objects.{name}.spawn"
         position = np.asarray(obj.spawn.position, float)
@@ -267,7 +267,7 @@ def _objects(spec: EnvSpec, scene: TaskFrameScene, found: Findings) -> None:
             )
 
 
-def check_expert_workspace(spec: EnvSpec, found: Findings) -> None:
+def check_expert_workspace(spec: ComposedSpec, found: Findings) -> None:
     """EE mode never commands the EE outside the workspace: an expert point out of it is never reached there.
     (Run with the compiler's checks, once the expert's params are known to be valid.)"""
     low, high = (np.asarray(bound, float) for bound in (spec.workspace.min, spec.workspace.max))
@@ -301,7 +301,7 @@ def check_expert_workspace(spec: EnvSpec, found: Findings) -> None:
             break
 
 
-def _tolerance(spec: EnvSpec, found: Findings) -> None:
+def _tolerance(spec: ComposedSpec, found: Findings) -> None:
     diagonal = float(np.linalg.norm(np.subtract(spec.workspace.max, spec.workspace.min)))
     limit = TOLERANCE_FRACTION * diagonal
     tolerance = spec.task.goal.tolerance

@@ -4,7 +4,7 @@ display for the PyBullet window it asks for."""
 from __future__ import annotations
 
 from envfactory.backends.base import window_impossible
-from envfactory.schema.models import EnvSpec
+from envfactory.schema.models import ComposedSpec
 from envfactory.schema.sources import Findings
 
 # Physics steps the fastest motion of a step must span. Motors and contacts are integrated once per physics
@@ -17,7 +17,7 @@ from envfactory.schema.sources import Findings
 MIN_STEPS_PER_MOTION = 20
 
 
-def check_physics_rate(spec: EnvSpec, engine: str, found: Findings) -> None:
+def check_physics_rate(spec: ComposedSpec, engine: str, found: Findings) -> None:
     """Refuse a physics rate too low for the action's motion or the robot's fastest joint."""
     path, rate = (
         ("sim.mujoco.physics_hz", spec.sim.mujoco.physics_hz)
@@ -57,7 +57,7 @@ def check_physics_rate(spec: EnvSpec, engine: str, found: Findings) -> None:
         )
 
 
-def check_display(spec: EnvSpec, engine: str, found: Findings) -> None:
+def check_display(spec: ComposedSpec, engine: str, found: Findings) -> None:
     """A PyBullet window needs an X display: without one PyBullet ends the process from inside its C code."""
     if engine != "pybullet" or not spec.env.gui or not window_impossible():
         return

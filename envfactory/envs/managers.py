@@ -98,15 +98,12 @@ def _entry(info: dict, key: str):
 
 
 class RewardManager:
-    def __init__(
-        self,
-        terms: Sequence[WeightedTerm],
-        terminations: Sequence[TerminationSlot],
-        tolerance: float,
-        info_keys: Sequence[str],
-    ):
+    """The reward: the weighted sum of the active reward set's terms, pure in (achieved, desired, info) and
+    vectorised over a batch, so that HER's relabelled rewards are exact; and the state-dependent values those
+    terms read from info, measured at step time."""
+
+    def __init__(self, terms: Sequence[WeightedTerm], tolerance: float, info_keys: Sequence[str]):
         self.terms = tuple(terms)
-        self.terminations = tuple(t for t in terminations if t.active)
         self.tolerance = tolerance
         self.info_keys = tuple(info_keys)
         self._measured = [(t.term.info_keys[0], t.term.measure, t.bound) for t in self.terms if t.term.measure]
@@ -134,6 +131,26 @@ class RewardManager:
         """Values of the state-dependent terms, for the step to record in info."""
         return {key: float(fn(state, bound)) for key, fn, bound in self._measured}
 
+    def table(self) -> list[tuple[str, str, str, str, str]]:
+        """(name, term, params, weight, meaning) of each active term."""
+        rows = []
+        for t in self.terms:
+            params = ", ".join(
+                f"{key}={value}" for key, value in t.params.model_dump(by_alias=True).items() if value is not None
+            )
+            rows.append((t.name, t.term.name, params, f"{t.weight:g}", t.term.description))
+        return rows
+
+
+class TerminationManager:
+    """Whether an episode ends: any active termination term (the reward type's, and those `when: always`), pure
+    in (achieved, desired, info) and vectorised over a batch as the reward is."""
+
+    def __init__(self, terminations: Sequence[TerminationSlot], tolerance: float, info_keys: Sequence[str]):
+        self.terminations = tuple(t for t in terminations if t.active)
+        self.tolerance = tolerance
+        self.info_keys = tuple(info_keys)
+
     def terminated(self, achieved: np.ndarray, desired: np.ndarray, info) -> np.ndarray:
         achieved, desired = np.asarray(achieved, float), np.asarray(desired, float)
         batch = achieved.shape[:-1]
@@ -144,13 +161,3 @@ class RewardManager:
         for term in self.terminations:
             done |= term.term.fn(achieved, desired, columns, term.bound, self.tolerance)
         return done
-
-    def table(self) -> list[tuple[str, str, str, str, str]]:
-        """(name, term, params, weight, meaning) of each active term."""
-        rows = []
-        for t in self.terms:
-            params = ", ".join(
-                f"{key}={value}" for key, value in t.params.model_dump(by_alias=True).items() if value is not None
-            )
-            rows.append((t.name, t.term.name, params, f"{t.weight:g}", t.term.description))
-        return rows

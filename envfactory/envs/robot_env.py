@@ -20,7 +20,7 @@ from envfactory.compiler import Blueprint
 from envfactory.compiler.normalization import AffineScale
 from envfactory.envs.actions import ActionAdapter
 from envfactory.envs.goals import GoalSampler
-from envfactory.envs.managers import ImageManager, ObservationManager, RewardManager
+from envfactory.envs.managers import ImageManager, ObservationManager, RewardManager, TerminationManager
 from envfactory.envs.objects import ObjectSpawner, ObjectTracker
 from envfactory.envs.randomization import Randomizer
 from envfactory.geometry.frames import TaskFrame
@@ -70,9 +70,8 @@ class RobotEnv(gym.Env):
             check_reach=blueprint.achieved_from == "ee",
             gripper=spec.gripper_assumed_at_reset,
         )
-        self.rewards = RewardManager(
-            blueprint.rewards, blueprint.terminations, spec.task.goal.tolerance, blueprint.info_keys
-        )
+        self.rewards = RewardManager(blueprint.rewards, spec.task.goal.tolerance, blueprint.info_keys)
+        self.terminations = TerminationManager(blueprint.terminations, spec.task.goal.tolerance, blueprint.info_keys)
         self.observations = ObservationManager(blueprint.policy_observation)
         self._vector_scale = self._goal_scale = None
         if spec.env.observation.normalize:  # normalize_observations
@@ -284,7 +283,7 @@ class RobotEnv(gym.Env):
         if abort:
             info["abort_reason"] = abort
         reward = float(self.rewards.reward(achieved, self._goal, info))
-        terminated = bool(self.rewards.terminated(achieved, self._goal, info))
+        terminated = bool(self.terminations.terminated(achieved, self._goal, info))
         return observation, reward, terminated, truncated, info
 
     def _info(self, state: EnvState, achieved: np.ndarray, out_of_bounds: bool, rejection: str) -> dict:
@@ -395,7 +394,7 @@ class GoalRobotEnv(RobotEnv):
         return self.rewards.reward(*self._in_metres(achieved_goal, desired_goal), info)
 
     def compute_terminated(self, achieved_goal, desired_goal, info):
-        return self.rewards.terminated(*self._in_metres(achieved_goal, desired_goal), info)
+        return self.terminations.terminated(*self._in_metres(achieved_goal, desired_goal), info)
 
     def compute_truncated(self, achieved_goal, desired_goal, info):
         # truncation is the registered time limit's job

@@ -139,7 +139,7 @@ class PickPlaceExpert(Expert):
         ee_goal = goal - self.hold_offset
         carry_z = max(ee_goal[2], self.floor_z - self.hold_offset[2] + p.lift)
         if self.phase == "lift":
-            # straight up first: the lift stage of the curriculum, and clear of the table
+            # straight up first: the lift stage, and clear of the table
             if ee[2] < carry_z - LIFT_WITHIN:
                 return motion.toward(np.append(ee[:2], carry_z), state.ee_rotation, grip, p.step)
             self.phase = "carry"

@@ -51,7 +51,7 @@ from envfactory.geometry.collision import CollisionModel, PairRules
 from envfactory.geometry.collision.shapes import shape_points
 from envfactory.geometry.safety import SafetyCheck
 from envfactory.schema.errors import suggest
-from envfactory.schema.models import EnvSpec
+from envfactory.schema.models import ComposedSpec
 
 DEFAULT_SAMPLES = 5000
 NEVER_NEAR = 0.05  # m beyond the margin: a pair that never came this close is listed as never near
@@ -437,6 +437,6 @@ def _unknown_entries(text: str, data: dict, collision: CollisionModel) -> list[t
     return sorted(found)
 
 
-def pairs_file(spec: EnvSpec, asset_root: Path) -> Path | None:
+def pairs_file(spec: ComposedSpec, asset_root: Path) -> Path | None:
     name = spec.robot.safety.collision_pairs
     return None if name is None else (asset_root / name)

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from envfactory.schema.models import EnvSpec, TableSpec
+from envfactory.schema.models import ComposedSpec, TableSpec
 
 FLOOR_HALF_EXTENT = 3.0  # m: beyond every arm's reach
 FLOOR_THICKNESS = 0.02
@@ -65,7 +65,7 @@ def table_obstacles(table: TableSpec) -> list[Obstacle]:
     ]
 
 
-def scene_obstacles(spec: EnvSpec) -> list[Obstacle]:
+def scene_obstacles(spec: ComposedSpec) -> list[Obstacle]:
     """Every fixed body of the scene, world frame, in a stable order."""
     floor_z = spec.env.safety.floor_z
     obstacles = [
@@ -110,7 +110,7 @@ def scene_obstacles(spec: EnvSpec) -> list[Obstacle]:
     return obstacles
 
 
-def guarded_obstacles(spec: EnvSpec) -> list[Obstacle]:
+def guarded_obstacles(spec: ComposedSpec) -> list[Obstacle]:
     """The obstacles the safety check keeps the arm clear of: the scene's, with the table top widened by
     the spec's footprint margin."""
     widened = spec.env.safety.table_footprint_margin

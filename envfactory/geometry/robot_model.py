@@ -23,7 +23,7 @@ from envfactory.geometry.kinematics import Kinematics
 from envfactory.geometry.obstacles import guarded_obstacles, scene_obstacles
 from envfactory.geometry.safety import SafetyCheck
 from envfactory.geometry.urdf_assembly import assemble
-from envfactory.schema.models import EnvSpec
+from envfactory.schema.models import ComposedSpec
 from envfactory.schema.settings import SafetySettings
 
 # The robot fields the kinematic chain is built from; the others (home, bounds, topics, labels)
@@ -70,7 +70,7 @@ def _digest(*parts: str) -> str:
     return hashlib.sha256("\0".join(parts).encode()).hexdigest()
 
 
-def robot_chain(spec: EnvSpec, asset_root: Path) -> tuple[Path, Kinematics]:
+def robot_chain(spec: ComposedSpec, asset_root: Path) -> tuple[Path, Kinematics]:
     """The assembled URDF and the shared kinematic chain of a spec's robot (AssemblyError, or Pinocchio's
     own error, when the model does not load)."""
     robot = spec.robot
@@ -84,7 +84,7 @@ def robot_chain(spec: EnvSpec, asset_root: Path) -> tuple[Path, Kinematics]:
     return _chains.get_or_build(key, build)
 
 
-def robot_geometry(spec: EnvSpec, asset_root: Path) -> RobotGeometry:
+def robot_geometry(spec: ComposedSpec, asset_root: Path) -> RobotGeometry:
     """The shared geometry of a spec's robot in its scene; StalePairs when its generated pair list no longer
     matches it. The key covers the pair list's text, so a regenerated or edited list is read again."""
     pairs = pairs_file(spec, asset_root)
@@ -108,7 +108,7 @@ def robot_geometry(spec: EnvSpec, asset_root: Path) -> RobotGeometry:
     return _geometries.get_or_build(key, build)
 
 
-def regenerate_pairs(spec: EnvSpec, asset_root: Path, samples: int = DEFAULT_SAMPLES, seed: int = 0) -> Path:
+def regenerate_pairs(spec: ComposedSpec, asset_root: Path, samples: int = DEFAULT_SAMPLES, seed: int = 0) -> Path:
     """Sample the robot's self pairs again and write them where its YAML points."""
     path = pairs_file(spec, asset_root)
     if path is None:

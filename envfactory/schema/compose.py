@@ -20,7 +20,7 @@ from pydantic import ValidationError
 
 from envfactory.schema.errors import Problem, SpecError, suggest
 from envfactory.schema.folders import builtin_root, folder_of
-from envfactory.schema.models import EnvSpec
+from envfactory.schema.models import ComposedSpec
 from envfactory.schema.numbers import non_finite_paths
 from envfactory.schema.sources import Findings, SourceMap, load_plain, parse_yaml
 from envfactory.schema.tree import leaves
@@ -84,14 +84,14 @@ def _defaults_sources(family: FamilyFile, node: yaml.Node | None, sources: Sourc
             )
             continue
         top = (package or "").split(".", 1)[0]
-        if top and not top.startswith("_") and top not in EnvSpec.model_fields:
+        if top and not top.startswith("_") and top not in ComposedSpec.model_fields:
             # Hydra would merge the file under a key no spec has: every value of it lost, reported as missing
             problems.append(
                 Problem(
                     "defaults",
                     f"package {package!r} of {group}{f': {option}' if option else ''} "
-                    f"names no part of a spec{suggest(top, EnvSpec.model_fields)}; "
-                    f"valid: {', '.join(EnvSpec.model_fields)} or {' or '.join(HYDRA_PACKAGES)}",
+                    f"names no part of a spec{suggest(top, ComposedSpec.model_fields)}; "
+                    f"valid: {', '.join(ComposedSpec.model_fields)} or {' or '.join(HYDRA_PACKAGES)}",
                     str(family.path),
                     line,
                 )
@@ -102,7 +102,7 @@ def _defaults_sources(family: FamilyFile, node: yaml.Node | None, sources: Sourc
                 Problem(
                     "defaults",
                     f"package {package!r} of {group}: unknown{suggest(package, HYDRA_PACKAGES)}"
-                    f"; valid: a part of a spec ({', '.join(EnvSpec.model_fields)}) or "
+                    f"; valid: a part of a spec ({', '.join(ComposedSpec.model_fields)}) or "
                     f"{' or '.join(HYDRA_PACKAGES)}",
                     str(family.path),
                     line,
@@ -333,7 +333,7 @@ def _resolve(config: dict, sources: SourceMap) -> dict:
 class LoadedSpec:
     """A validated spec with the map back to where each value was written."""
 
-    spec: EnvSpec
+    spec: ComposedSpec
     sources: SourceMap
     family: FamilyFile
 
@@ -396,9 +396,9 @@ def validate_config(config: dict, sources: SourceMap, family: FamilyFile) -> Loa
     skip = {*missing, *non_finite}
     spec = None
     try:
-        spec = EnvSpec.model_validate(resolved)
+        spec = ComposedSpec.model_validate(resolved)
     except ValidationError as exc:
-        found.problems += [p for p in validation_problems(exc, sources, EnvSpec) if p.path not in skip]
+        found.problems += [p for p in validation_problems(exc, sources, ComposedSpec) if p.path not in skip]
     if found:
         found.problems = _placed(found.problems, family)
     found.raise_if_any(family.name)

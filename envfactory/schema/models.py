@@ -41,7 +41,7 @@ from envfactory.schema.task import (
     ExpertRef,
     GoalSpec,
     GripperUse,
-    LiftStage,
+    LiftSpec,
     ObjectSpec,
     RewardSets,
     SpawnSpec,
@@ -51,7 +51,7 @@ from envfactory.schema.task import (
 )
 
 
-class EnvSpec(Model):
+class ComposedSpec(Model):
     """A composed env family: robot x task, plus the IDs it registers."""
 
     robot: RobotSpec
@@ -66,7 +66,7 @@ class EnvSpec(Model):
     terms: list[str] = Field(default=[], max_length=50)
 
     @model_validator(mode="after")
-    def _gripper_needed(self) -> "EnvSpec":
+    def _gripper_needed(self) -> "ComposedSpec":
         uses_gripper = self.task.gripper.in_action or self.task.gripper.at_reset != "unchanged"
         if uses_gripper and self.robot.gripper is None:
             # placed at the robot: the robot was chosen without one, the task is as it should be
@@ -111,7 +111,7 @@ __all__ = [
     "CameraSpec",
     "ContactSpec",
     "EnvSettings",
-    "EnvSpec",
+    "ComposedSpec",
     "ExpertRef",
     "FrameSpec",
     "GoalSpec",
@@ -120,7 +120,7 @@ __all__ = [
     "GripperUse",
     "IdEntry",
     "JointStateEntry",
-    "LiftStage",
+    "LiftSpec",
     "Model",
     "ModelSpec",
     "Position",

@@ -1,6 +1,6 @@
 """Sim-to-real by spec: what the physics samples (events) and how sensing and timing differ from the truth
 (sensing), declared as terms under `task.randomization`. Off unless `enabled` (the `randomize` kwarg), so the
-seed IDs keep the seeds' contract."""
+original suite's IDs keep its contract."""
 
 from __future__ import annotations
 

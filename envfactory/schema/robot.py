@@ -96,7 +96,7 @@ class ArmJoint(Model):
             if "delta" not in self.model_fields_set:
                 written = f"{written} (the default: this joint declares none)"
             example = (
-                f"[{self.lower:g}, {self.upper:g}] (the range itself, the seeds' convention)"
+                f"[{self.lower:g}, {self.upper:g}] (the range itself, the original suite's convention)"
                 if self.lower < 0 < self.upper
                 else f"{span:.3g}"
             )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from typing import Any, Literal
 
 from pydantic import Field, field_validator, model_validator
@@ -190,10 +191,28 @@ class Workspace(Model):
         return self
 
 
+# Registration backends spelled the old way: a simulated ID was registered as `pybullet` whichever engine ran it
+LEGACY_BACKENDS = {"pybullet": "sim"}
+SIMULATED = "sim"  # the backend of a simulated ID; its engine is the spec's sim.engine (the engine kwarg)
+
+
 class IdEntry(Model):
-    backend: str
+    backend: str  # sim (its engine from sim.engine), rosbridge, or a backend joined through an entry point
     goal_env: bool = False
     kwargs: dict[str, Any] = {}
+
+    @field_validator("backend")
+    @classmethod
+    def _current_spelling(cls, value: str) -> str:
+        if value in LEGACY_BACKENDS:
+            warnings.warn(
+                f"registration backend {value!r} is the old spelling of {LEGACY_BACKENDS[value]!r} (the "
+                f"engine is sim.engine's, or the engine kwarg's): write backend: {LEGACY_BACKENDS[value]}",
+                DeprecationWarning,
+                stacklevel=2,
+            )
+            return LEGACY_BACKENDS[value]
+        return value
 
 
 class Registration(Model):

@@ -49,8 +49,9 @@ class GripperUse(Model):
     at_reset: Literal["open", "closed", "unchanged"] | Real = "unchanged"  # or a joint value
 
 
-class LiftStage(Model):
-    """The multi_goal curriculum: lift the object above its spawn point, then go for the goal."""
+class LiftSpec(Model):
+    """The lift stage as a task declares it (the multi_goal kwarg): lift the object above its spawn point, then
+    go for the goal."""
 
     enabled: bool = True  # multi_goal
     height: Annotated[Positive, Field(le=2.0)] = 0.15  # lift_height, m
@@ -66,7 +67,7 @@ class GoalSpec(Model):
     # a random goal within tolerance of where the achieved point starts is a success nobody earned: drawn again
     # unless this says such goals are wanted
     allow_achieved_at_reset: bool = False
-    lift: LiftStage | None = None
+    lift: LiftSpec | None = None
 
     @field_validator("box")
     @classmethod

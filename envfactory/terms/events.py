@@ -13,7 +13,7 @@ from pydantic import model_validator
 
 from envfactory.schema.numbers import Real
 from envfactory.step_state import PhysicsChange
-from envfactory.terms.library import Layout, TermParams, UnknownReference, event_term
+from envfactory.terms.library import TermContext, TermParams, UnknownReference, event_term
 
 
 class Sampled(TermParams):
@@ -80,32 +80,32 @@ def _resolve(
     return SampledQuantity(quantity, target, float(low), float(high), params.distribution)
 
 
-def _object(layout: Layout, params: ObjectSampled):
+def _object(layout: TermContext, params: ObjectSampled):
     objects = layout.task.objects
     if params.object not in objects:
         raise UnknownReference(f"object {params.object!r} is not one of the task's objects ({list(objects) or 'none'})")
     return objects[params.object]
 
 
-def _bind_object_mass(layout: Layout, params: ObjectSampled) -> SampledQuantity:
+def _bind_object_mass(layout: TermContext, params: ObjectSampled) -> SampledQuantity:
     mass = _object(layout, params).mass
     return _resolve(params, "object_mass", params.object, mass, "kg", (1e-3, 100.0))
 
 
-def _bind_object_friction(layout: Layout, params: ObjectSampled) -> SampledQuantity:
+def _bind_object_friction(layout: TermContext, params: ObjectSampled) -> SampledQuantity:
     friction = _object(layout, params).friction
     return _resolve(params, "object_friction", params.object, friction, "", (0.0, 10.0))
 
 
-def _bind_table_friction(layout: Layout, params: Sampled) -> SampledQuantity:
+def _bind_table_friction(layout: TermContext, params: Sampled) -> SampledQuantity:
     return _resolve(params, "table_friction", "", None, "", (0.0, 10.0))
 
 
-def _bind_arm_damping(layout: Layout, params: Sampled) -> SampledQuantity:
+def _bind_arm_damping(layout: TermContext, params: Sampled) -> SampledQuantity:
     return _resolve(params, "arm_damping", "", None, "N m s/rad", (0.0, 100.0))
 
 
-def _bind_gripper_force(layout: Layout, params: Sampled) -> SampledQuantity:
+def _bind_gripper_force(layout: TermContext, params: Sampled) -> SampledQuantity:
     gripper = layout.robot.gripper
     if gripper is None:
         raise UnknownReference(f"robot {layout.robot.name!r} has no gripper")

@@ -1,4 +1,4 @@
-"""The term registry: every observation, reward and termination term by name.
+"""The term tables: every observation, reward and termination term by name.
 
 A term is a plain function plus what the compiler needs to know without
 running physics: its size, its Box bounds, how it reads in a table, and a
@@ -30,7 +30,7 @@ NoParams = TermParams
 
 
 @dataclass(frozen=True)
-class Layout:
+class TermContext:
     """Compile-time facts a term may need: the robot, the task and the action."""
 
     robot: Any
@@ -49,7 +49,7 @@ class Description:
     unit: str
 
 
-def unchanged(layout: "Layout", params: Any) -> Any:
+def unchanged(layout: "TermContext", params: Any) -> Any:
     return params
 
 
@@ -89,14 +89,14 @@ class ObservationTerm(RegisteredTerm):
     kind = "observation"
     name: str
     fn: Callable  # (state, bound params) -> array of `size`
-    size: Callable[[Layout, Any], int]
-    bounds: Callable[[Layout, Any, int], tuple[np.ndarray, np.ndarray]]
-    describe: Callable[[Layout, Any], Description]
+    size: Callable[[TermContext, Any], int]
+    bounds: Callable[[TermContext, Any, int], tuple[np.ndarray, np.ndarray]]
+    describe: Callable[[TermContext, Any], Description]
     params: type[BaseModel] = NoParams
     goal_dependent: bool = False
     # Checks the params against the robot and task (ValueError names what is
     # wrong) and returns what `fn` receives, with robot facts resolved once.
-    bind: Callable[[Layout, Any], Any] = unchanged
+    bind: Callable[[TermContext, Any], Any] = unchanged
     unit: str = ""  # for `envfactory terms`; the describe table gives the resolved one
 
     @property
@@ -114,7 +114,7 @@ class GoalTerm(RegisteredTerm):
     description: str
     params: type[BaseModel] = NoParams
     info_keys: tuple[str, ...] = ()  # step info the term reads
-    bind: Callable[[Layout, Any], Any] = unchanged
+    bind: Callable[[TermContext, Any], Any] = unchanged
 
 
 @dataclass(frozen=True)
@@ -159,7 +159,7 @@ class EventTerm(RegisteredTerm):
     name: str
     fn: Callable
     params: type[BaseModel]
-    bind: Callable[[Layout, Any], Any]  # checks the range against the spec and resolves it to absolute values
+    bind: Callable[[TermContext, Any], Any]  # checks the range against the spec and resolves it to absolute values
     unit: str = ""
 
 
@@ -171,7 +171,7 @@ class SensingTerm(RegisteredTerm):
     name: str
     fn: Callable
     params: type[BaseModel]
-    bind: Callable[[Layout, Any], Any] = unchanged
+    bind: Callable[[TermContext, Any], Any] = unchanged
     unit: str = ""
 
 
@@ -236,7 +236,7 @@ def sensing_term(**spec) -> Callable:
     return term_decorator(SensingTerm, **spec)
 
 
-def fixed(size: int) -> Callable[[Layout, Any], int]:
+def fixed(size: int) -> Callable[[TermContext, Any], int]:
     def sized(layout, params):
         return size
 
@@ -244,7 +244,7 @@ def fixed(size: int) -> Callable[[Layout, Any], int]:
     return sized
 
 
-def size_of(doc: str, function: Callable[[Layout, Any], int]) -> Callable[[Layout, Any], int]:
+def size_of(doc: str, function: Callable[[TermContext, Any], int]) -> Callable[[TermContext, Any], int]:
     """A size that depends on the robot or the action, with the words `envfactory terms` shows."""
     function.doc = doc
     return function

@@ -12,7 +12,7 @@ import numpy as np
 from pydantic import Field
 
 from envfactory.schema.numbers import NonNegative
-from envfactory.terms.library import OBSERVATIONS, Layout, TermParams, UnknownReference, sensing_term
+from envfactory.terms.library import OBSERVATIONS, TermContext, TermParams, UnknownReference, sensing_term
 
 MAX_DELAY_STEPS = 10  # beyond this a policy acting on the observation would be playing a different game
 
@@ -35,7 +35,7 @@ class Columns(TermParams):
     observations: list[str] = []
 
 
-def _columns(layout: Layout, params: Columns) -> np.ndarray:
+def _columns(layout: TermContext, params: Columns) -> np.ndarray:
     """The observation vector's columns of the named terms (ValueError names an unknown one)."""
     slots = layout.observation_slots
     if not params.observations:
@@ -79,7 +79,7 @@ class NoiseSensor(Sensor):
         return out
 
 
-def _bind_columns(layout: Layout, params: Columns) -> tuple[np.ndarray, Columns]:
+def _bind_columns(layout: TermContext, params: Columns) -> tuple[np.ndarray, Columns]:
     return _columns(layout, params), params
 
 

@@ -30,7 +30,7 @@ POSE_HZ = 30.0
 
 def _sim_id(robot: str, task: str) -> str:
     candidates = [
-        env_id for env_id, record in sorted(records().items()) if record.backend == "pybullet" and not record.goal_env
+        env_id for env_id, record in sorted(records().items()) if record.backend == "sim" and not record.goal_env
     ]
     for env_id in candidates:
         spec = blueprint(env_id).spec

@@ -86,7 +86,7 @@ def reward_table(compiled: Blueprint) -> Table:
         "Weight",
         "Meaning",
     )
-    manager = RewardManager(compiled.rewards, compiled.terminations, spec.task.goal.tolerance, compiled.info_keys)
+    manager = RewardManager(compiled.rewards, spec.task.goal.tolerance, compiled.info_keys)
     for row in manager.table():
         table.add_row(*row)
     return table

@@ -24,7 +24,7 @@ from envfactory.backends.mujoco.model import CAMERA, build
 from envfactory.backends.view import RENDER_SIZE, RENDER_VIEW
 from envfactory.geometry.frames import TaskFrame
 from envfactory.geometry.obstacles import TABLE_TOP
-from envfactory.schema.models import CameraSpec, EnvSpec
+from envfactory.schema.models import CameraSpec, ComposedSpec
 
 _render_failure: str | None = None  # why this process cannot render, once a try has shown it
 RENDER_HELP = (
@@ -41,7 +41,7 @@ class MujocoBackend:
 
     teleports_on_reset = True  # reset sets the joints directly; no path is driven
 
-    def __init__(self, spec: EnvSpec, urdf_path, task_frame: TaskFrame, render_mode: str | None = None):
+    def __init__(self, spec: ComposedSpec, urdf_path, task_frame: TaskFrame, render_mode: str | None = None):
         if spec.env.gui or render_mode == "human":
             raise BackendError(
                 "the MuJoCo engine runs headless: a GUI (gui=True, render_mode='human') is "

@@ -30,7 +30,7 @@ from envfactory.backends.mujoco.model import ROBOT_PREFIX
 from envfactory.backends.synchronous import synchronous_length
 from envfactory.geometry.object_clearance import NEAR_CONTACT, ObjectClearance, bounding_radius
 from envfactory.geometry.obstacles import scene_obstacles
-from envfactory.schema.models import EnvSpec
+from envfactory.schema.models import ComposedSpec
 
 STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
 CONTROL = int(mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_QFRC_APPLIED)  # what each substep's row sets
@@ -103,7 +103,7 @@ class FastCycles:
     """The cycles of one env's MuJoCo data: the commanded profiles, the clock, and how each cycle is played
     (at rest, kinematic, carried or dynamic; only dynamic under `full`). `counts` says how they were played."""
 
-    def __init__(self, spec: EnvSpec, model, data, handles):
+    def __init__(self, spec: ComposedSpec, model, data, handles):
         self.model, self.data, self.handles = model, data, handles
         self.robot = spec.robot
         self.dt = model.opt.timestep

@@ -30,7 +30,7 @@ import pinocchio as pin
 from envfactory.backends.view import MARKER_RGBA
 from envfactory.geometry.frames import base_rotation
 from envfactory.geometry.obstacles import scene_obstacles
-from envfactory.schema.models import CameraSpec, EnvSpec
+from envfactory.schema.models import CameraSpec, ComposedSpec
 
 ROBOT_PREFIX = "robot/"
 # contype/conaffinity bits: robot geoms touch the scene and objects, never each other
@@ -100,7 +100,7 @@ def _camera_axes(camera: CameraSpec) -> list[float]:
     return [*right, *up]
 
 
-def build(spec: EnvSpec, urdf_path: Path) -> tuple[mujoco.MjModel, Handles]:
+def build(spec: ComposedSpec, urdf_path: Path) -> tuple[mujoco.MjModel, Handles]:
     robot_spec = spec.robot
     world = mujoco.MjSpec()
     world.option.timestep = 1.0 / spec.sim.mujoco.physics_hz
@@ -212,7 +212,7 @@ def _servo(world: mujoco.MjSpec, joint: str, effort: float) -> None:
     world.joint(ROBOT_PREFIX + joint).armature = effort * ARMATURE_PER_EFFORT
 
 
-def _handles(model: mujoco.MjModel, spec: EnvSpec) -> Handles:
+def _handles(model: mujoco.MjModel, spec: ComposedSpec) -> Handles:
     robot = spec.robot
 
     def joint(name: str):

@@ -26,7 +26,7 @@ from envfactory.backends.view import MARKER_RGBA, RENDER_SIZE, RENDER_VIEW
 from envfactory.geometry.frames import TaskFrame, base_rotation
 from envfactory.geometry.object_clearance import ObjectClearance, bounding_radius
 from envfactory.geometry.obstacles import TABLE_TOP, scene_obstacles
-from envfactory.schema.models import CameraSpec, EnvSpec
+from envfactory.schema.models import CameraSpec, ComposedSpec
 
 # Followers of a mimic joint track their driver through gear constraints;
 # PyBullet ignores URDF <mimic> tags.
@@ -47,7 +47,7 @@ class PyBulletBackend:
 
     def __init__(
         self,
-        spec: EnvSpec,
+        spec: ComposedSpec,
         urdf_path: Path,
         task_frame: TaskFrame,
         render_mode: str | None = None,

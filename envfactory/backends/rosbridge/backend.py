@@ -48,7 +48,7 @@ from envfactory.backends.rosbridge.transforms import FrameGraph
 from envfactory.backends.synchronous import synchronous_length
 from envfactory.backends.view import RENDER_SIZE
 from envfactory.schema.driver import RAMP_SHARE, setup_values
-from envfactory.schema.models import EnvSpec
+from envfactory.schema.models import ComposedSpec
 
 log = logging.getLogger("envfactory.rosbridge")
 
@@ -64,7 +64,7 @@ class RosbridgeBackend:
 
     teleports_on_reset = False  # the arm drives home
 
-    def __init__(self, spec: EnvSpec, urdf_path: Path, task_frame, render_mode: str | None = None):
+    def __init__(self, spec: ComposedSpec, urdf_path: Path, task_frame, render_mode: str | None = None):
         robot, real = spec.robot, spec.env.real
         self.spec, self.real = spec, real
         if robot.ros is None:
