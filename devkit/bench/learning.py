@@ -38,6 +38,7 @@ from pathlib import Path
 
 import yaml
 
+from devkit.bench.run_commands import train_commands
 from devkit.report import RUN_HEADINGS, machine, revision
 from envfactory.learn.curve import Evaluation, plot, read_csv
 from envfactory.learn.demonstrations import collect, default_dataset_id
@@ -207,7 +208,7 @@ def docs_page(results: dict, steps: list[int], args, command: str) -> str:
     commands = []
     for env_id, variant, seed in results:
         try:
-            commands.append(RunRecord.read(folder_of(env_id, variant, seed, args)).data["command"])
+            commands += train_commands(RunRecord.read(folder_of(env_id, variant, seed, args)).data)
         except RunFolderError:
             pass
     date = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
@@ -255,7 +256,8 @@ def docs_page(results: dict, steps: list[int], args, command: str) -> str:
     lines += [
         "## The runs",
         "",
-        "Each run's own command (its `model.json` records every setting):",
+        "Each run's own command (its `model.json` records every setting), after the command that collects its "
+        "demonstrations (DATASET):",
         "",
         "```bash",
         *commands,

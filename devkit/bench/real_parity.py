@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import json
 import math
-import re
 import socket
 import subprocess
 import sys
@@ -31,6 +30,7 @@ import gymnasium as gym
 import numpy as np
 
 import envfactory
+from devkit.bench.run_commands import train_commands
 from devkit.bench.sb3_replay import replay_arguments, sb3_class
 from devkit.report import Report
 from envfactory.factory import simulation_only_kwargs
@@ -90,13 +90,10 @@ def _episodes(env, model, seeds: range) -> dict:
 
 
 def _how_trained(record: dict, folder: Path) -> str:
-    """The run's train command as it was typed, its demonstration dataset named by the command that makes it."""
-    command = re.sub(r"--demos \S+", "--demos DATASET", record["command"])
-    line = f"`{folder}`: `{command}`"
-    if record.get("demos"):
-        kwargs = " ".join(f"-k {name}={json.dumps(value)}" for name, value in record["env_kwargs"].items())
-        line += f", DATASET from `envfactory collect {record['env_id']} {kwargs} -n {record['demos'].get('episodes')}`"
-    return f"{line}; {record['timesteps']:,} steps in all"
+    """The run folder and the commands that made it (the dataset's first, where it learned from one)."""
+    return f"`{folder}` ({record['timesteps']:,} steps in all): " + "; ".join(
+        f"`{command.split('   #')[0]}`" for command in train_commands(record)
+    )
 
 
 def _real_id(sim_id: str) -> str:
