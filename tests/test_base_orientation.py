@@ -201,12 +201,7 @@ def test_accepted_steps_keep_the_margin_by_pybullet(name):
         env.close()
 
 
-@pytest.mark.parametrize(
-    "overrides, words",
-    [
-        (["+robot.mount_rpy=[0.2,0.0,0.0]"], "needs 'task_frame: world'"),
-    ],
-)
+@pytest.mark.parametrize("overrides, words", [(["+robot.mount_rpy=[0.2,0.0,0.0]"], "needs 'task_frame: world'")])
 def test_a_tilted_base_task_frame_is_refused_with_the_line(overrides, words):
     with pytest.raises(SpecError) as error:
         envfactory.blueprint("VX300SReacherSim-v0", overrides)

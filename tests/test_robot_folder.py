@@ -106,13 +106,7 @@ def test_collision_pairs_rewrites_a_stale_list(tmp_path):
     cli = str(Path(sys.executable).parent / "envfactory")
 
     def run(*args):
-        return subprocess.run(
-            [cli, *args],
-            env=env,
-            capture_output=True,
-            text=True,
-            timeout=300,
-        )
+        return subprocess.run([cli, *args], env=env, capture_output=True, text=True, timeout=300)
 
     before = run("validate", str(folder))
     assert before.returncode == 1 and "stale" in before.stderr + before.stdout
@@ -147,13 +141,7 @@ def test_collision_pairs_writes_a_missing_list(tmp_path):
     cli = str(Path(sys.executable).parent / "envfactory")
 
     def run(*args):
-        return subprocess.run(
-            [cli, *args],
-            env=env,
-            capture_output=True,
-            text=True,
-            timeout=300,
-        )
+        return subprocess.run([cli, *args], env=env, capture_output=True, text=True, timeout=300)
 
     assert run("validate", str(folder)).returncode == 1
     written = run("collision-pairs", "myarm", "--samples", "200")

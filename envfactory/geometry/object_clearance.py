@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from envfactory.geometry.collision import CollisionModel
-from envfactory.geometry.kernels.motion import motion_clear_of_spheres
+from envfactory.geometry.kernels.spheres import motion_clear_of_spheres
 
 # Closer than this to a movable object, a motion gets full dynamics. Bullet builds contact points
 # within its 2 cm breaking threshold but pushes only on a gap closed within one substep (a few mm

@@ -20,7 +20,7 @@ import numpy as np
 
 from envfactory.geometry.collision import CollisionModel
 from envfactory.geometry.frames import TaskFrame
-from envfactory.geometry.safety import ACCEPTED, Verdict
+from envfactory.geometry.judged_motion import ACCEPTED, Verdict
 from envfactory.schema.models import ObjectSpec
 from envfactory.step_state import ObjectState
 

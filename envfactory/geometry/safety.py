@@ -1,76 +1,26 @@
 """Decides whether a joint target may be sent to the arm.
 
-One check serves sim and real: finite values, joint bounds, the largest joint
-change allowed in one action, and the clearance of every link's collision
-shapes from the scene's obstacles and from the arm's other links, proven over
-the whole commanded motion (the gripper's included), not sampled: two safe
-end poses can sweep a link through the table between any two samples.
+One check serves sim and real: finite values, joint bounds, the largest joint change allowed in one action, and the
+clearance of every link's collision shapes from the scene's obstacles and from the arm's other links, proven over
+the whole commanded motion (the gripper's included), not sampled: two safe end poses can sweep a link through the
+table between any two samples.
 
-The proof rests on one bound. A joint change Δq moves no point of a shape
-farther than lever · |Δq| (its per-coordinate lever arms), so clearances
-known at two poses of a straight joint-space motion bound the clearance
-everywhere between them: at least (c_a + c_b - travel) / 2. Pieces whose
-bound falls short are halved until they are proven, found unsafe, or too
-small to split: then the motion is refused. A doubt stops the arm.
+The proof rests on one bound. A joint change Δq moves no point of a shape farther than lever · |Δq| (its
+per-coordinate lever arms), so clearances known at two poses of a straight joint-space motion bound the clearance
+everywhere between them: at least (c_a + c_b - travel) / 2. Pieces whose bound falls short are halved until they are
+proven, found unsafe, or too small to split: then the motion is refused. A doubt stops the arm.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from envfactory.geometry.collision import CollisionModel
+from envfactory.geometry.judged_motion import ACCEPTED, Anchor, Motion, Verdict, weak_pairs
 from envfactory.geometry.kernels.motion import DOUBT_AT_ENDS, PROVEN
 from envfactory.schema.models import SafetySettings
-
-
-@dataclass(frozen=True)
-class Verdict:
-    accepted: bool
-    reason: str = ""
-
-
-ACCEPTED = Verdict(True)
-
-
-@dataclass
-class Anchor:
-    """One arm pose of a motion, with a lower bound on each pair's clearance there over the whole
-    range the gripper sweeps in the motion. Bounds tighten in levels: capsules (0), coal at the
-    gripper's middle value less the gripper's half-travel (1), coal across the gripper's range (2)."""
-
-    fraction: float
-    q_arm: np.ndarray
-    bound: np.ndarray
-    level: np.ndarray  # per pair
-
-
-@dataclass(frozen=True)
-class Motion:
-    """A straight joint-space motion of the arm, and the gripper's range during it."""
-
-    q_from: np.ndarray
-    q_to: np.ndarray
-    gripper_from: float
-    gripper_to: float
-    travel: np.ndarray  # per pair: how far the arm's motion can close it, end to end
-    reserve: np.ndarray  # per pair: how far the gripper's motion can close it from its middle value
-    threshold: np.ndarray  # per pair: the clearance it must keep
-    gripper_moves: bool = False
-    samples: tuple[int, int] = (0, -1)  # the fingers' table samples bracketing the gripper's range (bracket())
-    way: np.ndarray = field(init=False)  # q_to - q_from: asked for at every piece
-
-    @property
-    def gripper_middle(self) -> float:
-        return (self.gripper_from + self.gripper_to) / 2
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "way", self.q_to - self.q_from)
-
-    def arm_at(self, fraction: float) -> np.ndarray:
-        return self.q_from + fraction * self.way
 
 
 class SafetyCheck:
@@ -235,13 +185,13 @@ class SafetyCheck:
         while pieces:
             a, b, pairs = pieces.pop()
             length = b.fraction - a.fraction
-            short = self._weak(a, b, motion, length, pairs)
+            short = weak_pairs(a, b, motion, length, pairs)
             for level in (1, 2) if motion.gripper_moves else (1,):
                 if short.size == 0:
                     break
                 self._refine(a, short, motion, level)
                 self._refine(b, short, motion, level)
-                short = self._weak(a, b, motion, length, short)
+                short = weak_pairs(a, b, motion, length, short)
             if short.size == 0:
                 continue
             if short.size <= self.FEW_PAIRS:
@@ -286,7 +236,7 @@ class SafetyCheck:
                 )
         if not verdict.accepted:
             return verdict, inside[:0]
-        weak = self._weak(start, end, motion, 1.0, None)
+        weak = weak_pairs(start, end, motion, 1.0, None)
         if weak.size:
             weak = collision.unproven_by_capsules(
                 motion.q_from,
@@ -487,14 +437,6 @@ class SafetyCheck:
                     worst = int(np.argmin(np.where(below, clearance - motion.threshold[measured], np.inf)))
                     return Verdict(False, self._describe(measured[worst], clearance[worst], where))
         return self._violation(anchor, motion.threshold, where)
-
-    @staticmethod
-    def _weak(a: Anchor, b: Anchor, motion: Motion, length: float, pairs: np.ndarray | None) -> np.ndarray:
-        """The pairs (of these, or of all) whose clearance between two anchors is not proven above their threshold."""
-        if pairs is None:
-            return (a.bound + b.bound - motion.travel * length < 2 * motion.threshold).nonzero()[0]
-        proven = a.bound[pairs] + b.bound[pairs] - motion.travel[pairs] * length >= 2 * motion.threshold[pairs]
-        return pairs[~proven]
 
     def _violation(self, anchor: Anchor, threshold: np.ndarray, where: str) -> Verdict:
         below = ((anchor.level > 0) & (anchor.bound < threshold)).nonzero()[0]

@@ -22,14 +22,7 @@ from pydantic import ValidationError
 from envfactory.registration import user_config, validation_cache
 from envfactory.schema.compose import FamilyFile
 from envfactory.schema.errors import Problem, SpecError, nearest, suggest
-from envfactory.schema.folders import (
-    MAX_SPEC_BYTES,
-    builtin_root,
-    folder_of,
-    list_folder,
-    search_roots,
-    unread_files,
-)
+from envfactory.schema.folders import MAX_SPEC_BYTES, builtin_root, folder_of, list_folder, search_roots, unread_files
 from envfactory.schema.models import Registration
 from envfactory.schema.sources import Findings, SourceMap, load_plain
 from envfactory.schema.validation import validation_problems

@@ -8,14 +8,7 @@ from pydantic import ConfigDict, Field
 from envfactory.geometry.point_boxes import Box
 from envfactory.geometry.vectors import length
 from envfactory.schema.numbers import TWO_PI
-from envfactory.terms.library import (
-    Description,
-    TermParams,
-    constant_bounds,
-    fixed,
-    observation_term,
-    size_of,
-)
+from envfactory.terms.library import Description, TermParams, constant_bounds, fixed, observation_term, size_of
 
 
 def box_bounds(box) -> tuple[np.ndarray, np.ndarray]:

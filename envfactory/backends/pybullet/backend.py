@@ -22,15 +22,11 @@ from envfactory.backends.base import (
 from envfactory.backends.driver_readings import DriverReadings
 from envfactory.backends.pybullet import scene
 from envfactory.backends.pybullet.fast_cycles import FastCycles, GripperResponse, Rig, record_gripper_response
-from envfactory.backends.view import MARKER_RGBA, RENDER_SIZE, RENDER_VIEW
+from envfactory.backends.view import RENDER_SIZE
 from envfactory.geometry.frames import TaskFrame, base_rotation
 from envfactory.geometry.object_clearance import ObjectClearance, bounding_radius
 from envfactory.geometry.obstacles import TABLE_TOP, scene_obstacles
 from envfactory.schema.models import CameraSpec, ComposedSpec
-
-# Followers of a mimic joint track their driver through gear constraints;
-# PyBullet ignores URDF <mimic> tags.
-GEAR_MAX_FORCE = 1000.0
 
 # The gripper's recorded step response, per robot and physics settings: recorded once per process.
 _GRIPPER_RESPONSES: dict[tuple, GripperResponse] = {}
@@ -134,35 +130,7 @@ class PyBulletBackend:
             gripper = self.robot.gripper
             self._gripper_force, self._gripper_target = gripper.force, gripper.open
             self._gripper = index[gripper.joint]
-            self._gripper_followers = [(index[name], gain) for name, gain in gripper.mimic.items()]
-            for follower, gain in self._gripper_followers:
-                constraint = p.createConstraint(
-                    self.body,
-                    self._gripper,
-                    self.body,
-                    follower,
-                    p.JOINT_GEAR,
-                    [1, 0, 0],
-                    [0, 0, 0],
-                    [0, 0, 0],
-                    physicsClientId=c,
-                )
-                p.changeConstraint(
-                    constraint, gearRatio=-1.0 / gain, maxForce=GEAR_MAX_FORCE, erp=0.8, physicsClientId=c
-                )
-            pads = gripper.pads
-            for link in pads.links:
-                if link not in link_index:
-                    raise BackendError(f"robot {self.robot.name!r}: gripper.pads names no link {link!r}")
-                p.changeDynamics(
-                    self.body,
-                    link_index[link],
-                    lateralFriction=pads.lateral_friction,
-                    spinningFriction=pads.spinning_friction,
-                    rollingFriction=pads.rolling_friction,
-                    frictionAnchor=int(pads.friction_anchor),
-                    physicsClientId=c,
-                )
+            self._gripper_followers = scene.link_gripper(c, self.body, self.robot, index, link_index)
         self.objects: dict[str, int] = {}  # spawned fresh at every reset
         self._goal_marker = scene.add_marker(c, self.task_frame.to_world([0.0, 0.0, -10.0]))
         self._set_joint_state(np.asarray(self.robot.home, float), self._gripper_reset_value(None))
@@ -452,42 +420,13 @@ class PyBulletBackend:
             )
 
     def render(self, width: int = RENDER_SIZE[0], height: int = RENDER_SIZE[1]) -> np.ndarray:
-        view = p.computeViewMatrixFromYawPitchRoll(
-            cameraTargetPosition=RENDER_VIEW.target(self.spec.scene.table),
-            distance=RENDER_VIEW.distance,
-            yaw=RENDER_VIEW.yaw,
-            pitch=RENDER_VIEW.pitch,
-            roll=0,
-            upAxisIndex=2,
-        )
-        projection = p.computeProjectionMatrixFOV(fov=55, aspect=width / height, nearVal=0.05, farVal=6.0)
         with self._lock:
-            _, _, rgba, _, _ = p.getCameraImage(
-                width, height, view, projection, renderer=p.ER_TINY_RENDERER, physicsClientId=self.client
-            )
-        return np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
+            return scene.render_view(self.client, self.spec.scene.table, width, height)
 
     def capture(self, camera: CameraSpec) -> CameraFrame:
-        width, height = camera.width, camera.height
-        view = p.computeViewMatrix(
-            cameraEyePosition=list(camera.eye), cameraTargetPosition=list(camera.target), cameraUpVector=[0, 0, 1]
-        )
-        projection = p.computeProjectionMatrixFOV(
-            fov=camera.fov, aspect=width / height, nearVal=camera.near, farVal=camera.far
-        )
         with self._lock:
-            # the goal marker is for people watching; the policy's camera must not see the goal
-            p.changeVisualShape(self._goal_marker, -1, rgbaColor=[0, 0, 0, 0], physicsClientId=self.client)
-            _, _, rgba, depth_buffer, _ = p.getCameraImage(
-                width, height, view, projection, renderer=p.ER_TINY_RENDERER, physicsClientId=self.client
-            )
-            p.changeVisualShape(self._goal_marker, -1, rgbaColor=MARKER_RGBA, physicsClientId=self.client)
-        rgb = np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
-        # the buffer holds OpenGL depth in [0, 1]; turn it back into metres
-        buffer = np.asarray(depth_buffer, dtype=np.float32).reshape(height, width)
-        near, far = camera.near, camera.far
-        depth = far * near / (far - (far - near) * buffer)
-        return CameraFrame(rgb, depth.astype(np.float32))
+            rgb, depth = scene.capture_frame(self.client, camera, hidden=self._goal_marker)
+        return CameraFrame(rgb, depth)
 
     def close(self) -> None:
         if self._closed:

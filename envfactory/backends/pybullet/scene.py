@@ -1,12 +1,19 @@
-"""Scene bodies built from primitives: the fixed obstacles, the task's objects, the goal marker."""
+"""What PyBullet draws and builds around the robot: the scene bodies from primitives (the fixed obstacles, the
+task's objects, the goal marker), the gripper's linkage of gear constraints and pad contacts, and the pictures
+(the people's view, a scene camera's frame)."""
 
 from __future__ import annotations
 
+import numpy as np
 import pybullet as p
 
-from envfactory.backends.view import MARKER_RGBA
+from envfactory.backends.base import BackendError
+from envfactory.backends.view import MARKER_RGBA, RENDER_VIEW
 from envfactory.geometry.obstacles import Obstacle
-from envfactory.schema.models import ObjectSpec
+from envfactory.schema.models import CameraSpec, ObjectSpec, RobotSpec
+
+# Followers of a mimic joint track their driver through gear constraints (PyBullet ignores URDF <mimic> tags)
+GEAR_MAX_FORCE = 1000.0
 
 
 def _box(client: int, half_extents, position, rgba, mass: float = 0.0, orientation=(0.0, 0.0, 0.0, 1.0)) -> int:
@@ -39,3 +46,70 @@ def add_marker(client: int, position, radius: float = 0.025) -> int:
     """A see-through sphere with no collision shape: shows the goal, touches nothing."""
     visual = p.createVisualShape(p.GEOM_SPHERE, radius=radius, rgbaColor=MARKER_RGBA, physicsClientId=client)
     return p.createMultiBody(0.0, -1, visual, basePosition=list(position), physicsClientId=client)
+
+
+def link_gripper(client: int, body: int, robot: RobotSpec, index: dict[str, int], link_index: dict[str, int]):
+    """The gripper's mimic joints held to its driven joint by gear constraints (PyBullet ignores URDF mimic
+    tags), and its pads' contact parameters; the (follower joint, gain) pairs."""
+    gripper = robot.gripper
+    driven = index[gripper.joint]
+    followers = [(index[name], gain) for name, gain in gripper.mimic.items()]
+    for follower, gain in followers:
+        constraint = p.createConstraint(
+            body, driven, body, follower, p.JOINT_GEAR, [1, 0, 0], [0, 0, 0], [0, 0, 0], physicsClientId=client
+        )
+        p.changeConstraint(constraint, gearRatio=-1.0 / gain, maxForce=GEAR_MAX_FORCE, erp=0.8, physicsClientId=client)
+    pads = gripper.pads
+    for link in pads.links:
+        if link not in link_index:
+            raise BackendError(f"robot {robot.name!r}: gripper.pads names no link {link!r}")
+        p.changeDynamics(
+            body,
+            link_index[link],
+            lateralFriction=pads.lateral_friction,
+            spinningFriction=pads.spinning_friction,
+            rollingFriction=pads.rolling_friction,
+            frictionAnchor=int(pads.friction_anchor),
+            physicsClientId=client,
+        )
+    return followers
+
+
+def _pixels(client: int, width: int, height: int, view, projection):
+    _, _, rgba, depth_buffer, _ = p.getCameraImage(
+        width, height, view, projection, renderer=p.ER_TINY_RENDERER, physicsClientId=client
+    )
+    return np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy(), depth_buffer
+
+
+def render_view(client: int, table, width: int, height: int) -> np.ndarray:
+    """The people's picture of the scene (backends/view.py's view, as MuJoCo draws it)."""
+    view = p.computeViewMatrixFromYawPitchRoll(
+        cameraTargetPosition=RENDER_VIEW.target(table),
+        distance=RENDER_VIEW.distance,
+        yaw=RENDER_VIEW.yaw,
+        pitch=RENDER_VIEW.pitch,
+        roll=0,
+        upAxisIndex=2,
+    )
+    projection = p.computeProjectionMatrixFOV(fov=55, aspect=width / height, nearVal=0.05, farVal=6.0)
+    return _pixels(client, width, height, view, projection)[0]
+
+
+def capture_frame(client: int, camera: CameraSpec, hidden: int) -> tuple[np.ndarray, np.ndarray]:
+    """A scene camera's RGB and depth (metres along the view axis), with the body `hidden` (the goal marker:
+    it is for people watching, the policy's camera must not see the goal) out of the picture."""
+    width, height = camera.width, camera.height
+    view = p.computeViewMatrix(
+        cameraEyePosition=list(camera.eye), cameraTargetPosition=list(camera.target), cameraUpVector=[0, 0, 1]
+    )
+    projection = p.computeProjectionMatrixFOV(
+        fov=camera.fov, aspect=width / height, nearVal=camera.near, farVal=camera.far
+    )
+    p.changeVisualShape(hidden, -1, rgbaColor=[0, 0, 0, 0], physicsClientId=client)
+    rgb, depth_buffer = _pixels(client, width, height, view, projection)
+    p.changeVisualShape(hidden, -1, rgbaColor=MARKER_RGBA, physicsClientId=client)
+    # the buffer holds OpenGL depth in [0, 1]; turn it back into metres
+    buffer = np.asarray(depth_buffer, dtype=np.float32).reshape(height, width)
+    near, far = camera.near, camera.far
+    return rgb, (far * near / (far - (far - near) * buffer)).astype(np.float32)

@@ -43,8 +43,8 @@ from envfactory.backends.rosbridge.gate import require_motion_gate
 from envfactory.backends.rosbridge.gripper import GripperLink
 from envfactory.backends.rosbridge.link import Link
 from envfactory.backends.rosbridge.motion import MotionWatch, drive_plan
+from envfactory.backends.rosbridge.readings import Readings
 from envfactory.backends.rosbridge.templates import fill
-from envfactory.backends.rosbridge.transforms import FrameGraph
 from envfactory.backends.synchronous import synchronous_length
 from envfactory.backends.view import RENDER_SIZE
 from envfactory.schema.driver import RAMP_SHARE, setup_values
@@ -84,23 +84,7 @@ class RosbridgeBackend:
         self.state_names = robot.state_names
         self.arm_names = robot.arm_state_names
         self._arm_in_states = robot.arm_state_indices
-        self._published = [i for i, entry in enumerate(robot.joint_states) if entry.published]
-        self._published_names = [self.state_names[i] for i in self._published]
-        self._unpublished = robot.unpublished_gripper_gains  # /joint_states index -> gain of the gripper value
         self._velocities = np.asarray(robot.arm_velocities, float)
-        missing = [name for name in spec.task.objects if name not in ros.object_poses]
-        if missing:
-            raise BackendError(f"robot {robot.name!r}: ros.object_poses has no topic for {missing}")
-        self.frames = FrameGraph(ros.task_frame_id, ros.static_transforms)
-        target = real.cube_tracker_target_frame
-        if target and not ros.use_tf:
-            try:
-                self.frames.to_task(target, np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]))
-            except KeyError as exc:
-                raise BackendError(
-                    f"cube_tracker_target_frame {target!r}: {exc.args[0]}; declare it in "
-                    f"ros.static_transforms or set ros.use_tf"
-                ) from None
         # How long the driver takes for an arm command that carries no duration: the motion time its setup
         # gives it (long enough for the largest joint change the safety check lets through, at the joints'
         # speed limits over the profile's cruise), else its stock profile
@@ -111,10 +95,6 @@ class RosbridgeBackend:
         self._driver_motion_s = self.motion_s if ros.motion_set_by_setup else ros.arm_command.profile_time_s
 
         self._lock = threading.Lock()
-        self.joints = Feed(ros.joint_states.topic, real.joint_state_timeout_s, self._lock)
-        self.objects = {
-            name: Feed(ros.object_poses[name].topic, real.cube_pose_timeout_s, self._lock) for name in spec.task.objects
-        }
         self.follow = FollowWatch(ros.arm_command.topic, real.follow_timeout_s)
         self.motion = MotionWatch(ros.arm_command.topic, ros.settle)
         self.gripper = (
@@ -122,6 +102,8 @@ class RosbridgeBackend:
             if ros.gripper_command is not None and robot.gripper is not None
             else None
         )
+        self.readings = Readings(spec, self._lock, self.follow, self.gripper)
+        self.joints, self.objects = self.readings.joints, self.readings.objects
         self._reading_age, self._reading_repeated, self._last_stamp = math.nan, False, -math.inf
         self._step_started: float | None = None  # the first command of the step under way
         self._last_step_s = math.nan
@@ -131,17 +113,7 @@ class RosbridgeBackend:
         self._holding = False  # a stop went out and no motion since: another stop adds nothing
         self._stop_owed = False  # a stop that found no connection goes out once there is one
         self._closed = False
-        subscriptions = {ros.joint_states.topic: (ros.joint_states.type, self._on_joint_state)}
-        for name in self.objects:
-            topic = ros.object_poses[name]
-            subscriptions[topic.topic] = (topic.type, lambda msg, name=name: self._on_pose(name, msg))
-        if ros.use_tf:
-            for name in ("/tf", "/tf_static"):
-                subscriptions[name] = ("tf2_msgs/TFMessage", self.frames.learn)
-        if self.gripper is not None and self.gripper.awaits_results:
-            result = ros.gripper_command.result
-            subscriptions[result.topic] = (result.type, self.gripper.on_result)
-        self.link = Link(real, ros, subscriptions)
+        self.link = Link(real, ros, self.readings.subscriptions())
         self.link.open(FIRST_CONNECT_TRIES)
         try:
             self._set_up_driver()
@@ -172,44 +144,7 @@ class RosbridgeBackend:
     def attach_geometry(self, collision) -> None:
         """The real arm's motions are its own: nothing to play without dynamics."""
 
-    @property
-    def _feeds(self) -> list[Feed]:
-        return [self.joints, *self.objects.values()]
-
     # ------------------------------------------------------------------ readings
-
-    def _on_joint_state(self, msg: dict) -> None:
-        try:
-            published = messages.decode_joint_state(msg, self._published_names, self.ros_spec.joint_states.template)
-        except messages.MalformedMessage as exc:
-            self.joints.fail(f"malformed message on {self.joints.topic}: {exc}")
-            return
-        position, velocity = np.zeros(len(self.state_names)), np.zeros(len(self.state_names))
-        position[self._published], velocity[self._published] = published
-        self.joints.update((position, velocity))
-        self.follow.observe(position[self._arm_in_states], time.monotonic())
-
-    def _with_gripper_commands(self, position: np.ndarray) -> np.ndarray:
-        """The joints the driver does not publish, read from the gripper's last completed command."""
-        if self._unpublished:
-            position = position.copy()
-            value = self.gripper.completed if self.gripper is not None else 0.0
-            for index, gain in self._unpublished.items():
-                position[index] = gain * value
-        return position
-
-    def _on_pose(self, name: str, msg: dict) -> None:
-        feed = self.objects[name]
-        try:
-            frame, position, quaternion = messages.decode_pose(msg, self.ros_spec.object_poses[name].template)
-            position, quaternion = self.frames.to_task(frame, position, quaternion)
-        except messages.MalformedMessage as exc:
-            feed.fail(f"malformed message on {feed.topic}: {exc}")
-            return
-        except KeyError as exc:
-            feed.fail(f"unusable pose on {feed.topic}: {exc.args[0]}")
-            return
-        feed.update((position, quaternion))
 
     def _guarded(self, check):
         """Run a check; any fault it finds stops the arm before it propagates."""
@@ -242,12 +177,12 @@ class RosbridgeBackend:
         while True:
             if not self.link.connected:
                 raise ConnectionLost(f"lost the rosbridge connection to {self.url} while waiting for readings")
-            for feed in self._feeds:
+            for feed in self.readings.feeds:
                 with self._lock:
                     error = feed.error
                 if error:
                     raise MalformedFeed(error)
-            silent = [feed.topic for feed in self._feeds if not feed.newer_than(since)]
+            silent = [feed.topic for feed in self.readings.feeds if not feed.newer_than(since)]
             if not silent:
                 return
             if time.monotonic() > deadline:
@@ -359,7 +294,7 @@ class RosbridgeBackend:
             self.gripper.forget()
         if not self.link.connected:
             self.link.open(self.real.reconnect_tries)
-        since = min(feed.clear() for feed in self._feeds)
+        since = min(feed.clear() for feed in self.readings.feeds)
         self._set_up_driver()
         self._wait_for_readings(since)
         if self._stop_owed:
@@ -432,7 +367,7 @@ class RosbridgeBackend:
         (position, velocity), stamp = self._fresh(self.joints)
         self._reading_age, self._reading_repeated = time.monotonic() - stamp, stamp == self._last_stamp
         self._last_stamp = stamp
-        return JointReading(self._with_gripper_commands(position), velocity.copy(), stamp)
+        return JointReading(self.readings.with_gripper_commands(position), velocity.copy(), stamp)
 
     def step_timing(self) -> dict[str, float]:
         """How the last step was timed on the real path: the joint reading's age when read, whether it was the one

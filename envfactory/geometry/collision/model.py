@@ -22,8 +22,9 @@ import pinocchio as pin
 from envfactory.geometry.collision.shapes import BOX_ROUNDING, Shape, box_of, capsule_of
 from envfactory.geometry.collision.structure import Structure
 from envfactory.geometry.gripper_sweep import GripperSweep
+from envfactory.geometry.kernels.bisection import capsule_motion_unproven
 from envfactory.geometry.kernels.joints import JointTable, joint_frames
-from envfactory.geometry.kernels.motion import capsule_motion_unproven, motion_proof
+from envfactory.geometry.kernels.motion import motion_proof
 from envfactory.geometry.kernels.pose import capsule_bounds, shape_sphere_gaps
 from envfactory.geometry.kinematics import Kinematics
 from envfactory.geometry.obstacles import Obstacle

@@ -1,3 +1,4 @@
 """The safety geometry's compiled kernels, in the order the proof uses them: the kinematic tree as arrays
-(joints.py), per-pose capsule bounds (pose.py), a finger's sweep over a gripper range (finger_sweep.py), and the
-proof of a whole motion (motion.py)."""
+(joints.py), per-pose capsule bounds (pose.py), a finger's sweep over a gripper range (finger_sweep.py), the
+proof of a whole motion (motion.py) with its bisection of the pairs in doubt (bisection.py), and the same proof
+against the objects' bounding spheres (spheres.py)."""
