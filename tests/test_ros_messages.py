@@ -141,3 +141,21 @@ def test_the_follow_watch_waits_for_motion_and_keeps_its_clock_across_commands()
 def test_ros2_type_names_match_their_ros1_spelling():
     assert same_type("trajectory_msgs/msg/JointTrajectory", "trajectory_msgs/JointTrajectory")
     assert not same_type("std_msgs/msg/Float64MultiArray", "trajectory_msgs/JointTrajectory")
+
+
+def test_a_real_motion_is_done_at_its_target_and_at_rest_and_overdue_past_its_margin():
+    """A step ends as a simulated one does: the arm at its target and still; one that moves on past its target, or
+    never gets there, is overdue once the driver's time and the margin are over."""
+    from envfactory.backends.rosbridge.motion import MotionUnfinished, MotionWatch
+    from envfactory.schema.driver import Settle
+
+    watch = MotionWatch("/arm", Settle(tolerance=0.01, velocity=0.05, margin_s=0.5))
+    target = np.array([0.3, -0.2])
+    watch.commanded(target, now=10.0, length_s=0.2)
+    assert not watch.done(np.array([0.1, -0.2]), np.zeros(2), now=10.1)  # on its way
+    assert not watch.done(target + 0.005, np.array([0.0, 0.4]), now=10.2)  # at the target, still moving
+    watch.check(target + 0.005, np.array([0.0, 0.4]), now=10.6)  # within 0.2 + 0.5 s: no fault yet
+    with pytest.raises(MotionUnfinished, match=r"within 0.70 s .* fastest joint at 0.400 rad/s \(settled below 0.05\)"):
+        watch.check(target + 0.005, np.array([0.0, 0.4]), now=10.8)
+    assert watch.done(target + 0.005, np.array([0.0, 0.01]), now=10.9)
+    assert watch.motion_time() == pytest.approx(0.9)

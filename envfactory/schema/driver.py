@@ -66,8 +66,10 @@ class ServiceType(Model):
 
 
 class Settle(Model):
-    """When a real step's motion is done: every arm joint within `tolerance` of its target. A motion not done
+    """When a real step's motion is done: every arm joint within `tolerance` of its target and slower than
+    `velocity` (so the observation after it sees an arm at rest, as a simulated step's does). A motion not done
     `margin_s` after the time the driver was given for it stops the arm and ends the episode with the reason."""
 
     tolerance: Annotated[Real, Field(gt=0, le=0.2)] = 0.01  # rad
+    velocity: Annotated[Real, Field(gt=0, le=1.0)] = 0.05  # rad/s (a driver that publishes no velocity reads 0)
     margin_s: Annotated[Real, Field(gt=0, le=10.0)] = 1.0

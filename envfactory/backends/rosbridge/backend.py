@@ -354,11 +354,11 @@ class RosbridgeBackend:
             with self._lock:
                 self._last_alive = now  # a step under way is no silence: the deadman waits for the next one
             self._check_follow()
-            (position, _), _ = self._fresh(self.joints)
-            q_arm = position[self._arm_in_states]
-            self._guarded(lambda: self.motion.check(q_arm, now))
+            (position, velocity), _ = self._fresh(self.joints)
+            q_arm, qd_arm = position[self._arm_in_states], velocity[self._arm_in_states]
+            self._guarded(lambda: self.motion.check(q_arm, qd_arm, now))
             busy = self.gripper is not None and self._guarded(lambda: self.gripper.busy(now))
-            if now - started >= seconds and self.motion.done(q_arm, now) and not busy:
+            if now - started >= seconds and self.motion.done(q_arm, qd_arm, now) and not busy:
                 break
             time.sleep(POLL_S)
         self._last_step_s = time.monotonic() - started

@@ -2,7 +2,7 @@
 
 A step ends as it does in simulation: with the commanded motion done, then the observation. The driver is
 given the motion's duration (a trajectory's time_from_start, or the time profile set at connect), and the
-motion is done once every arm joint reads within the robot's settle tolerance of the target. One that is
+motion is done once every arm joint reads within the robot's settle tolerance of the target, at rest. One that is
 not done `margin_s` after its duration is overdue: the arm is stopped and the episode ends with the reason.
 """
 
@@ -37,19 +37,24 @@ class MotionWatch:
     def commanded(self, target: np.ndarray, now: float, length_s: float) -> None:
         self.motion, self.done_at = Motion(np.asarray(target, float), now, length_s), None
 
-    def done(self, q_arm: np.ndarray, now: float) -> bool:
-        """Whether the commanded motion is done (or nothing was commanded), judged on a fresh reading."""
+    def done(self, q_arm: np.ndarray, qd_arm: np.ndarray, now: float) -> bool:
+        """Whether the commanded motion is done (or nothing was commanded): on a fresh reading, every arm joint at
+        its target and at rest."""
         if self.motion is None:
             return True
-        if float(np.max(np.abs(q_arm - self.motion.target))) <= self.settle.tolerance:
+        settle = self.settle
+        if (
+            float(np.max(np.abs(q_arm - self.motion.target))) <= settle.tolerance
+            and float(np.max(np.abs(qd_arm))) <= settle.velocity
+        ):
             self.done_at = now if self.done_at is None else self.done_at
             return True
         return False
 
-    def check(self, q_arm: np.ndarray, now: float) -> None:
+    def check(self, q_arm: np.ndarray, qd_arm: np.ndarray, now: float) -> None:
         """MotionUnfinished once the motion is overdue and still not done."""
         motion = self.motion
-        if motion is None or self.done(q_arm, now):
+        if motion is None or self.done(q_arm, qd_arm, now):
             return
         allowed = motion.length_s + self.settle.margin_s
         if now - motion.sent_at > allowed:
@@ -58,8 +63,9 @@ class MotionWatch:
             raise MotionUnfinished(
                 f"the arm did not finish the command on {self.topic} within {allowed:.2f} s (its driver was given "
                 f"{motion.length_s:.2f} s, plus a margin of {self.settle.margin_s:.2f} s): joint {worst} is still "
-                f"{off[worst]:.3f} rad from its target (settle tolerance {self.settle.tolerance:g} rad). The "
-                f"driver's timing is not the one it was given, or the arm is blocked."
+                f"{off[worst]:.3f} rad from its target (settle tolerance {self.settle.tolerance:g} rad), the "
+                f"fastest joint at {float(np.max(np.abs(qd_arm))):.3f} rad/s (settled below "
+                f"{self.settle.velocity:g}). The driver's timing is not the one it was given, or the arm is blocked."
             )
 
     def motion_time(self) -> float:
