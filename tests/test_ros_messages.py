@@ -151,11 +151,31 @@ def test_a_real_motion_is_done_at_its_target_and_at_rest_and_overdue_past_its_ma
 
     watch = MotionWatch("/arm", Settle(tolerance=0.01, velocity=0.05, margin_s=0.5))
     target = np.array([0.3, -0.2])
-    watch.commanded(target, now=10.0, length_s=0.2)
+    watch.commanded(np.zeros(2), target, now=10.0, length_s=0.2)
     assert not watch.done(np.array([0.1, -0.2]), np.zeros(2), now=10.1)  # on its way
     assert not watch.done(target + 0.005, np.array([0.0, 0.4]), now=10.2)  # at the target, still moving
     watch.check(target + 0.005, np.array([0.0, 0.4]), now=10.6)  # within 0.2 + 0.5 s: no fault yet
     with pytest.raises(MotionUnfinished, match=r"within 0.70 s .* fastest joint at 0.400 rad/s \(settled below 0.05\)"):
         watch.check(target + 0.005, np.array([0.0, 0.4]), now=10.8)
     assert watch.done(target + 0.005, np.array([0.0, 0.01]), now=10.9)
-    assert watch.motion_time() == pytest.approx(0.9)
+    assert watch.motion_time() == pytest.approx(0.9) and watch.gap == pytest.approx(0.005)
+
+
+def test_an_arm_held_back_at_rest_has_done_its_motion_once_the_driver_is_through():
+    """An arm pushing something stops a little short, in simulation as on the real arm: at rest within held_back of
+    its target once its driver's time is over, its motion is done (the gap recorded); farther, it is overdue."""
+    from envfactory.backends.rosbridge.motion import MotionUnfinished, MotionWatch
+    from envfactory.schema.driver import Settle
+
+    watch = MotionWatch("/arm", Settle(tolerance=0.005, velocity=0.05, held_back=0.05, margin_s=1.0))
+    target = np.array([0.3, -0.2])
+    watch.commanded(np.zeros(2), target, now=0.0, length_s=0.2)
+    still = np.zeros(2)
+    assert not watch.done(target - 0.03, still, now=0.1)  # at rest before the driver's time: not yet started
+    assert watch.done(target - 0.03, still, now=0.25) and watch.gap == pytest.approx(0.03)
+    watch.commanded(target - 0.03, target, now=1.0, length_s=0.2)
+    assert not watch.done(target - 0.03, still, now=1.5)  # never moved: no driver carried it out
+    watch.commanded(np.zeros(2), target, now=1.0, length_s=0.2)
+    assert not watch.done(target - 0.08, still, now=1.5)  # held back farther than 0.05 rad
+    with pytest.raises(MotionUnfinished, match="still 0.080 rad from its target"):
+        watch.check(target - 0.08, still, now=2.3)

@@ -67,9 +67,22 @@ class ServiceType(Model):
 
 class Settle(Model):
     """When a real step's motion is done: every arm joint within `tolerance` of its target and slower than
-    `velocity` (so the observation after it sees an arm at rest, as a simulated step's does). A motion not done
-    `margin_s` after the time the driver was given for it stops the arm and ends the episode with the reason."""
+    `velocity`, so the observation after it sees an arm at rest, as a simulated step's does. An arm at rest short
+    of its target once the driver's time is over, by at most `held_back` (held back by what it pushes, as a
+    simulated arm is), has done its motion too, and the step records the gap. A motion not done `margin_s` after
+    the driver's time stops the arm and ends the episode with the reason."""
 
     tolerance: Annotated[Real, Field(gt=0, le=0.2)] = 0.01  # rad
     velocity: Annotated[Real, Field(gt=0, le=1.0)] = 0.05  # rad/s (a driver that publishes no velocity reads 0)
+    held_back: Annotated[Real, Field(gt=0, le=0.2)] = 0.05  # rad
     margin_s: Annotated[Real, Field(gt=0, le=10.0)] = 1.0
+
+    @model_validator(mode="after")
+    def _held_back_beyond_tolerance(self) -> "Settle":
+        if self.held_back < self.tolerance:
+            raise located(
+                "held_back",
+                f"held_back {self.held_back} is below the tolerance {self.tolerance}: an "
+                "arm within the tolerance is at its target",
+            )
+        return self

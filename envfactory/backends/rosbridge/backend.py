@@ -210,7 +210,7 @@ class RosbridgeBackend:
         now = time.monotonic()
         self._last_target = target
         self.follow.commanded(q_from, target, now, length_s)
-        self.motion.commanded(target, now, length_s)
+        self.motion.commanded(q_from, target, now, length_s)
         if self._step_started is None:
             self._step_started = now
 
@@ -372,7 +372,8 @@ class RosbridgeBackend:
     def step_timing(self) -> dict[str, float]:
         """How the last step was timed on the real path: the joint reading's age when read, whether it was the one
         read before (a reading that did not come in time), the command latencies measured since the last call,
-        the motion's time from command to target and the step's wall time (NaN: none this step).
+        the motion's time from command to target (or to rest, held back), how far from its target it came to rest
+        (rad, the largest joint's) and the step's wall time (NaN: none this step).
         `envfactory sensing-spec` turns a log of these into sensing terms."""
         latencies = self.follow.take_latencies()
         timing = {
@@ -380,6 +381,7 @@ class RosbridgeBackend:
             "joint_reading_repeated": float(self._reading_repeated),
             "command_latency_s": float(np.mean(latencies)) if latencies else math.nan,
             "motion_s": self.motion.motion_time(),
+            "motion_gap_rad": self.motion.gap,
             "step_s": self._last_step_s,
         }
         self._last_step_s = math.nan

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from envfactory.backends.base import EpisodeAbort
+from envfactory.backends.rosbridge.follow import MIN_MOTION
 from envfactory.schema.driver import Settle
 
 
@@ -23,6 +24,7 @@ class MotionUnfinished(EpisodeAbort):
 
 @dataclass(frozen=True)
 class Motion:
+    start: np.ndarray  # where the arm was when the command went out
     target: np.ndarray
     sent_at: float  # time.monotonic()
     length_s: float  # how long the driver was given for it
@@ -33,21 +35,29 @@ class MotionWatch:
         self.topic, self.settle = topic, settle
         self.motion: Motion | None = None
         self.done_at: float | None = None  # when the last motion was first read done
+        self.gap = float("nan")  # how far from its target the arm was then, rad (the largest joint's)
 
-    def commanded(self, target: np.ndarray, now: float, length_s: float) -> None:
-        self.motion, self.done_at = Motion(np.asarray(target, float), now, length_s), None
+    def commanded(self, start: np.ndarray, target: np.ndarray, now: float, length_s: float) -> None:
+        motion = Motion(np.asarray(start, float), np.asarray(target, float), now, length_s)
+        self.motion, self.done_at, self.gap = motion, None, float("nan")
 
     def done(self, q_arm: np.ndarray, qd_arm: np.ndarray, now: float) -> bool:
-        """Whether the commanded motion is done (or nothing was commanded): on a fresh reading, every arm joint at
-        its target and at rest."""
-        if self.motion is None:
+        """Whether the commanded motion is done (or nothing was commanded), on a fresh reading: every arm joint at
+        rest, and at its target, or (once the driver's time is over, having moved) held back at most `held_back`
+        from it."""
+        motion, settle = self.motion, self.settle
+        if motion is None:
             return True
-        settle = self.settle
-        if (
-            float(np.max(np.abs(q_arm - self.motion.target))) <= settle.tolerance
-            and float(np.max(np.abs(qd_arm))) <= settle.velocity
+        if float(np.max(np.abs(qd_arm))) > settle.velocity:
+            return False
+        gap = float(np.max(np.abs(q_arm - motion.target)))
+        # held back: the arm followed (an arm that never moved has no driver carrying the command out)
+        followed = float(np.max(np.abs(q_arm - motion.start))) >= MIN_MOTION
+        if gap <= settle.tolerance or (
+            gap <= settle.held_back and followed and now - motion.sent_at >= motion.length_s
         ):
-            self.done_at = now if self.done_at is None else self.done_at
+            if self.done_at is None:
+                self.done_at, self.gap = now, gap
             return True
         return False
 
@@ -76,6 +86,7 @@ class MotionWatch:
 
     def clear(self) -> None:
         self.motion = self.done_at = None
+        self.gap = float("nan")
 
 
 def drive_plan(
