@@ -206,7 +206,12 @@ def test_evaluate_prints_a_success_table_and_every_episode(tmp_path, user_folder
 @pytest.mark.parametrize(
     "args, message",
     [
-        (["evaluate", "UR5eReacherReal-v0", "-n", "1"], "evaluate runs simulated IDs only"),
+        (["evaluate", "UR5eReacherReal-v0", "-n", "1"], "drives a real arm for every episode: clear the workspace"),
+        (
+            ["evaluate", "UR5eReacherReal-v0", "--allow-real-robot-motion", "--workers", "2"],
+            "drives a real arm: it runs here, one episode after another (drop --workers/--address)",
+        ),
+        (["collect", "UR5eReacherReal-v0"], "collect runs simulated IDs only"),
         (["evaluate", REACH, "--policy", "random"], "use 'scripted' or a model file (.zip)"),
         (["evaluate", REACH, "--policy", "nowhere/model.zip"], "no such file"),
         (["evaluate", REACH, "--csv", "out.txt"], "must end in one of .csv"),

@@ -510,3 +510,25 @@ def test_a_model_trained_in_simulation_runs_on_the_real_id_without_its_simulatio
     assert "simulation-only kwargs are left out: engine='mujoco', randomize=True" in " ".join(result.output.split())
     assert "success rate" in result.output
     assert stand_in.received  # it drove the twin
+    sent = len(stand_in.received)
+    result = runner.invoke(
+        app,
+        [
+            "evaluate",
+            "VX300SReacherGoalReal-v0",
+            "--policy",
+            str(tmp_path / "run" / "model.zip"),
+            "-n",
+            "1",
+            "--allow-real-robot-motion",
+            "-k",
+            f"rosbridge_port={stand_in.port}",
+            "-k",
+            "max_episode_steps=2",
+            "--no-progress",
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    assert "simulation-only kwargs are left out: engine='mujoco', randomize=True" in " ".join(result.output.split())
+    assert "over 1 episodes" in result.output
+    assert len(stand_in.received) > sent  # evaluate drove it too

@@ -171,3 +171,30 @@ def parse_kwargs(items: List[str] | None) -> dict:
 
 
 KWARG_HELP = "gym.make kwarg as name=value, repeatable"
+
+ALLOW_REAL_HELP = "Let a Real ID move the arm (the motion gate); clear the workspace first"
+
+
+def allow_real_option():
+    return typer.Option(False, "--allow-real-robot-motion", help=ALLOW_REAL_HELP)
+
+
+def is_real(env_id: str) -> bool:
+    return registry.records()[env_id].backend == "rosbridge"
+
+
+def real_arm_kwargs(env_id: str, trained_kwargs: dict) -> dict:
+    """The kwargs a model was trained with, as `env_id` takes them: on a Real ID the model runs as it is, without
+    what only a simulator has (its engine, fidelity, randomization), and the dropped ones are printed."""
+    if not is_real(env_id):
+        return trained_kwargs
+    from envfactory import factory  # composes the family's config: only commands that load a model pay for it
+
+    dropped = factory.simulation_only_kwargs(env_id, trained_kwargs)
+    if dropped:
+        console.print(
+            f"{env_id} is a real arm: the model's simulation-only kwargs are left out: "
+            f"{', '.join(f'{name}={trained_kwargs[name]!r}' for name in dropped)}",
+            highlight=False,
+        )
+    return {name: value for name, value in trained_kwargs.items() if name not in dropped}

@@ -17,7 +17,19 @@ from rich.table import Table
 from tqdm import tqdm
 
 from envfactory import cluster
-from envfactory.cli.common import KWARG_HELP, check_output, command, console, fail, known_id, model_file, parse_kwargs
+from envfactory.cli.common import (
+    KWARG_HELP,
+    allow_real_option,
+    check_output,
+    command,
+    console,
+    fail,
+    is_real,
+    known_id,
+    model_file,
+    parse_kwargs,
+    real_arm_kwargs,
+)
 from envfactory.cluster import trials as trial_runs
 from envfactory.cluster.bundles import FolderCopyError
 from envfactory.cluster.work import PolicySource, SeedEvaluation, ShippedFolders, run_here
@@ -25,7 +37,6 @@ from envfactory.envs.episodes import EpisodeResult, success_rate
 from envfactory.learn.extra import MissingExtra
 from envfactory.learn.hyperparams import HyperparameterError
 from envfactory.learn.runs import fresh_folder
-from envfactory.registration import registry
 
 WORKERS_HELP = (
     "Run as Ray tasks on this many workers (a local Ray instance of that many CPUs, or at most that "
@@ -60,11 +71,19 @@ def cluster_size(workers: int | None, address: str | None) -> int | None:
 
 
 def simulated_only(env_id: str, command_name: str) -> None:
-    if registry.records()[env_id].backend != "sim":
+    if is_real(env_id):
         fail(
             f"{env_id}: {command_name} runs simulated IDs only (it would drive the real arm for every episode); "
-            f"`envfactory run {env_id} --allow-real-robot-motion` runs a real arm, one episode after another"
+            f"`envfactory run` or `evaluate {env_id} --allow-real-robot-motion` runs a real arm, one episode "
+            "after another"
         )
+
+
+def _real_arm_allowed(env_id: str, allowed: bool, size: int | None) -> None:
+    if size is not None:
+        fail(f"{env_id} drives a real arm: it runs here, one episode after another (drop --workers/--address)")
+    if not allowed:
+        fail(f"{env_id} drives a real arm for every episode: clear the workspace and pass --allow-real-robot-motion")
 
 
 def _policy_source(policy: str, algo: str | None) -> PolicySource:
@@ -76,7 +95,7 @@ def _policy_source(policy: str, algo: str | None) -> PolicySource:
 
 @command()
 def evaluate(
-    env_id: List[str] = typer.Argument(..., metavar="ID...", help="The IDs to evaluate on (simulated)"),
+    env_id: List[str] = typer.Argument(..., metavar="ID...", help="The IDs to evaluate on"),
     policy: str = typer.Option(
         "scripted",
         help="'scripted' (each task's expert) or a model.zip saved by "
@@ -93,24 +112,31 @@ def evaluate(
     ),
     workers: Optional[int] = workers_option(),
     address: Optional[str] = address_option(),
+    allow_real_robot_motion: bool = allow_real_option(),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar"),
 ):
     """Run a policy over IDs and seeds and print its success table: each episode until the env ends it, as a
-    learner sees it (Success: is_success at the last step). With --workers the episodes run as Ray tasks."""
+    learner sees it (Success: is_success at the last step). With --workers the episodes run as Ray tasks. A Real
+    ID runs with --allow-real-robot-motion, in this process, one episode after another."""
 
+    size = cluster_size(workers, address)
     for name in env_id:
         known_id(name)
-        simulated_only(name, "evaluate")
+        if is_real(name):
+            _real_arm_allowed(name, allow_real_robot_motion, size)
     if out_csv is not None:
         check_output(out_csv, (".csv",))
     source = _policy_source(policy, algo)
-    kwargs = {**source.trained_kwargs(), **parse_kwargs(kwarg)}  # -k over the kwargs a model was trained with
-    size = cluster_size(workers, address)
+    given = parse_kwargs(kwarg)
+    if allow_real_robot_motion:
+        given["allow_real_robot_motion"] = True
+    # -k over the kwargs a model was trained with, which a Real ID takes without the simulation-only ones
+    per_id = {name: {**real_arm_kwargs(name, source.trained_kwargs()), **given} for name in env_id}
     try:  # the spec folders travel only to other processes: here the IDs are known already
         workspace = ShippedFolders() if size is None else ShippedFolders.for_ids(list(env_id))
     except FolderCopyError as exc:
         fail(str(exc))
-    works = [SeedEvaluation(name, kwargs, workspace, source) for name in env_id]
+    works = [SeedEvaluation(name, per_id[name], workspace, source) for name in env_id]
     seeds = range(seed, seed + episodes)
     if size is None:
         with tqdm(total=len(works) * episodes, unit="episode", disable=not progress, desc="episodes") as bar:

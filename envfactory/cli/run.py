@@ -13,6 +13,7 @@ from envfactory import factory
 from envfactory.backends.base import BackendError
 from envfactory.cli.common import (
     KWARG_HELP,
+    allow_real_option,
     check_output,
     command,
     console,
@@ -21,11 +22,11 @@ from envfactory.cli.common import (
     known_id,
     model_file,
     parse_kwargs,
+    real_arm_kwargs,
 )
 from envfactory.envs.episodes import iter_episodes, success_rate
 from envfactory.experts import make_policy
 from envfactory.learn.trainer import load_policy, read_meta
-from envfactory.registration import registry
 from envfactory.schema.errors import SpecError
 from envfactory.terms.sensing_from_log import read_log, sensing_terms, sensing_yaml
 
@@ -44,11 +45,7 @@ def run(
     video: Optional[Path] = typer.Option(None, help="Record the episodes to this video file (e.g. out.mp4)"),
     override: List[str] = typer.Option(None, "--override", "-o", help="Hydra override, repeatable"),
     kwarg: List[str] = typer.Option(None, "--kwarg", "-k", help=KWARG_HELP),
-    allow_real_robot_motion: bool = typer.Option(
-        False,
-        "--allow-real-robot-motion",
-        help="Let a Real ID move the arm (the motion gate); clear the workspace first",
-    ),
+    allow_real_robot_motion: bool = allow_real_option(),
     stop_at_success: bool = typer.Option(
         False,
         "--stop-at-success",
@@ -75,17 +72,8 @@ def run(
     saved = None
     if policy not in ("scripted", "random"):
         saved, trained_kwargs = _saved_policy(policy)
-        if registry.records()[env_id].backend == "rosbridge":
-            # a model trained in simulation runs on the real arm as it is: what only a simulator has goes
-            dropped = factory.simulation_only_kwargs(env_id, trained_kwargs)
-            if dropped:
-                console.print(
-                    f"{env_id} is a real arm: the model's simulation-only kwargs are left out: "
-                    f"{', '.join(f'{name}={trained_kwargs[name]!r}' for name in dropped)}",
-                    highlight=False,
-                )
-            trained_kwargs = {name: value for name, value in trained_kwargs.items() if name not in dropped}
-        kwargs = {**trained_kwargs, **kwargs}  # the env it was trained on, unless -k says otherwise
+        # the env it was trained on (a Real ID without what only a simulator has), unless -k says otherwise
+        kwargs = {**real_arm_kwargs(env_id, trained_kwargs), **kwargs}
     if video is not None:
         check_output(video, VIDEO_SUFFIXES)
     if allow_real_robot_motion:

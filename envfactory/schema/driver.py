@@ -69,8 +69,10 @@ class Settle(Model):
     """When a real step's motion is done: every arm joint within `tolerance` of its target and slower than
     `velocity`, so the observation after it sees an arm at rest, as a simulated step's does. An arm at rest short
     of its target once the driver's time is over, by at most `held_back` (held back by what it pushes, as a
-    simulated arm is), has done its motion too, and the step records the gap. A motion not done `margin_s` after
-    the driver's time stops the arm and ends the episode with the reason."""
+    simulated arm is), has done its motion too, and the step records the gap; so has one held back and still
+    creeping at the end of `margin_s` (pressing into what holds it) too slowly to close its gap within another
+    `margin_s`. Any other motion not done `margin_s` after the driver's time stops the arm and ends the episode
+    with the reason."""
 
     tolerance: Annotated[Real, Field(gt=0, le=0.2)] = 0.01  # rad
     velocity: Annotated[Real, Field(gt=0, le=1.0)] = 0.05  # rad/s (a driver that publishes no velocity reads 0)

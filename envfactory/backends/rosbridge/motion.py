@@ -44,18 +44,20 @@ class MotionWatch:
     def done(self, q_arm: np.ndarray, qd_arm: np.ndarray, now: float) -> bool:
         """Whether the commanded motion is done (or nothing was commanded), on a fresh reading: every arm joint at
         rest, and at its target, or (once the driver's time is over, having moved) held back at most `held_back`
-        from it."""
+        from it. At the end of the margin, an arm held back that still creeps (pressing into what holds it) is
+        done too if at its speed it would not close the gap within another margin."""
         motion, settle = self.motion, self.settle
         if motion is None:
             return True
-        if float(np.max(np.abs(qd_arm))) > settle.velocity:
-            return False
+        speed = float(np.max(np.abs(qd_arm)))
         gap = float(np.max(np.abs(q_arm - motion.target)))
+        elapsed = now - motion.sent_at
         # held back: the arm followed (an arm that never moved has no driver carrying the command out)
-        followed = float(np.max(np.abs(q_arm - motion.start))) >= MIN_MOTION
-        if gap <= settle.tolerance or (
-            gap <= settle.held_back and followed and now - motion.sent_at >= motion.length_s
-        ):
+        held = gap <= settle.held_back and float(np.max(np.abs(q_arm - motion.start))) >= MIN_MOTION
+        pressing = held and elapsed >= motion.length_s + settle.margin_s and speed * settle.margin_s < gap
+        if speed > settle.velocity and not pressing:
+            return False
+        if gap <= settle.tolerance or (held and elapsed >= motion.length_s):
             if self.done_at is None:
                 self.done_at, self.gap = now, gap
             return True
