@@ -301,3 +301,40 @@ def test_a_simulator_reads_the_gripper_as_xs_sdk_publishes_it(twin, robot, env_i
             == 0.0
         )
     env.close()
+
+
+# ------------------------------------------------------------------ the twin's stand-in for a person
+
+
+def call_service(stand_in, service, args):
+    """One service call as a bare rosbridge client makes it: the server's answer."""
+    with connect(f"ws://127.0.0.1:{stand_in.port}") as websocket:
+        websocket.send(json.dumps({"op": "call_service", "service": service, "args": args, "id": "1"}))
+        while True:
+            message = json.loads(websocket.recv(timeout=5.0))
+            if message.get("op") == "service_response":
+                return message
+
+
+def test_the_twin_puts_the_cube_back_where_it_is_asked_as_a_person_would(twin, make):
+    """Between real episodes a person puts the cube back; the twin's place_object service does it, and the Real
+    ID reads the cube there, at rest on the table. Anything else is refused with the reason."""
+    from envfactory.twin.twin import PLACE_SERVICE, place_object
+
+    stand_in = twin("ur5e", "push")
+    env = make_real(make, "UR5ePushReal-v0", stand_in)
+    env.reset(seed=0)
+    spawn = np.array(stand_in.spec.task.objects["cube"].spawn.position)
+    where = spawn + [-0.06, 0.08, 0.0]
+    assert call_service(stand_in, PLACE_SERVICE, {"name": "cube", "position": list(where)})["result"] is True
+    time.sleep(0.5)  # the tracker publishes at 30 Hz
+    read = env.unwrapped.backend.read_object("cube").position
+    assert np.allclose(read, where, atol=2e-3), (read, where)
+    for args, reason in [
+        ({"name": "ball", "position": list(where)}, "no object 'ball' in the task (it has ['cube'])"),
+        ({"name": "cube", "position": [0.5, 0.1]}, "is not a task-frame point x, y, z"),
+    ]:
+        assert call_service(stand_in, PLACE_SERVICE, args)["result"] is False
+        assert any(reason in error for error in stand_in.server.errors), stand_in.server.errors
+    with pytest.raises(RuntimeError, match=r"did not place ball at \[0\.5, 0\.1, 0\.8\]"):
+        place_object(stand_in.port, "ball", [0.5, 0.1, 0.8])  # the client a benchmark or rehearsal script calls

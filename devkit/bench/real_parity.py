@@ -5,7 +5,9 @@ Each run folder's model.zip (written by `envfactory train`) is loaded by plain S
 (devkit/bench/sb3_replay.py) and run on 20 fixed goals (the seeds from --first-seed) twice: on its GoalSim ID with
 the kwargs it was trained with, and on the GoalReal ID against `envfactory twin ROBOT --task TASK` started as its
 own process, at the driver's stock timing (xs_sdk's 2 s profile until the env sets its own, the UR controller's
-speed scaling of 1.0, Niryo's tools commander), without the model's simulation-only kwargs. The columns give
+speed scaling of 1.0, Niryo's tools commander), without the model's simulation-only kwargs. Between episodes
+the twin's place_object service stands in for the person who puts the cube back where the env's reset asks
+(the spawn of the simulated episode of the same seed). The columns give
 each side's success and mean episode length (steps), the real path's watchdog and other aborts, and its cycle:
 the mean wall time of a step (from its first command to its observation) and of its motion (command to target).
 Parity: the real success is at least 90% of the simulated one, in episodes at most 1.5 times as long, with no
@@ -33,9 +35,12 @@ import envfactory
 from devkit.bench.run_commands import train_commands
 from devkit.bench.sb3_replay import replay_arguments, sb3_class
 from devkit.report import Report
+from envfactory.backends.base import BackendError
 from envfactory.factory import simulation_only_kwargs
+from envfactory.twin.twin import POSE_HZ, place_object
 
 PARITY_SUCCESS, PARITY_LENGTH = 0.9, 1.5
+PLACED_S = 5 / POSE_HZ
 
 
 def _free_port() -> int:
@@ -63,10 +68,32 @@ def _start_twin(robot: str, task: str, log: Path) -> tuple[subprocess.Popen, int
     return twin, port
 
 
+def _put_back_objects(env, port: int) -> None:
+    """Between real episodes a person puts the cube back. Here the twin's place_object service does it once the
+    arm is home, where the env's reset asks (the spawn a simulated reset of the same seed makes), so that each
+    real episode starts as its simulated one does; without it the cube would start where the last episode
+    left it."""
+    backend = env.unwrapped.backend
+    drive_home = backend.reset
+
+    def reset(q_arm, gripper, objects) -> None:
+        drive_home(q_arm, gripper, objects)
+        for name, (position, _) in objects.items():
+            place_object(port, name, position)
+        if objects:
+            time.sleep(PLACED_S)  # the tracker's next poses see it at rest
+
+    backend.reset = reset
+
+
 def _episodes(env, model, seeds: range) -> dict:
     successes, lengths, aborts, steps, motions = 0, [], [], [], []
     for seed in seeds:
-        observation, info = env.reset(seed=seed)
+        try:
+            observation, info = env.reset(seed=seed)
+        except BackendError as refused:  # the arm stays where it is: the remaining episodes count as failed
+            aborts.append(f"reset {seed} refused: {refused}")
+            break
         terminated = truncated = False
         length = 0
         while not (terminated or truncated):
@@ -82,7 +109,7 @@ def _episodes(env, model, seeds: range) -> dict:
         lengths.append(length)
     return {
         "success": successes / len(seeds),
-        "length": float(np.mean(lengths)),
+        "length": float(np.mean(lengths)) if lengths else math.nan,  # of the episodes that ran
         "aborts": aborts,
         "step_s": float(np.mean(steps)) if steps else math.nan,
         "motion_s": float(np.mean(motions)) if motions else math.nan,
@@ -139,6 +166,7 @@ def main() -> None:
         twin, port = _start_twin(spec.robot.name, spec.task.name, Path(tempfile.gettempdir()) / f"twin-{real_id}.log")
         try:
             real_env = gym.make(real_id, rosbridge_port=port, allow_real_robot_motion=True, **real_kwargs)
+            _put_back_objects(real_env, port)
             real = _episodes(real_env, model_class.load(folder / "model.zip", env=real_env, device="cpu"), seeds)
             real_env.close()
         finally:

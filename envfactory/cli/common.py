@@ -16,6 +16,7 @@ import yaml
 from rich.console import Console
 from rich.markup import escape
 
+from envfactory import factory
 from envfactory.cli.lookup import MissingSpecFolder, register_spec_folders, unknown_id
 from envfactory.learn.extra import TRAIN_MODULES, MissingExtra, require
 from envfactory.registration import registry
@@ -188,8 +189,6 @@ def real_arm_kwargs(env_id: str, trained_kwargs: dict) -> dict:
     what only a simulator has (its engine, fidelity, randomization), and the dropped ones are printed."""
     if not is_real(env_id):
         return trained_kwargs
-    from envfactory import factory  # composes the family's config: only commands that load a model pay for it
-
     dropped = factory.simulation_only_kwargs(env_id, trained_kwargs)
     if dropped:
         console.print(

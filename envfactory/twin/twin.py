@@ -10,6 +10,8 @@ loopback socket.
 from __future__ import annotations
 
 import asyncio
+import json
+import math
 import threading
 import time
 
@@ -23,9 +25,11 @@ from envfactory.geometry.urdf_assembly import assemble
 from envfactory.registration.registry import records
 from envfactory.twin import msgtypes
 from envfactory.twin.drivers import DRIVERS, DeclaredDriver, UrRobotDriver
-from envfactory.twin.server import Faults, Node, Received, RosbridgeServer
+from envfactory.twin.server import Faults, Node, Received, RosbridgeServer, ServiceReply
 
 POSE_HZ = 30.0
+# Only the twin has it: a real scene's objects are put back by a person.
+PLACE_SERVICE, PLACE_TYPE = "/envfactory_twin/place_object", "envfactory_twin/PlaceObject"
 
 
 def _sim_id(robot: str, task: str) -> str:
@@ -178,6 +182,10 @@ class Twin:
         self.server.add_node(
             Node("/cube_tracker", publishes={t.topic: typed(t.topic, t.type) for t in ros.object_poses.values()})
         )
+        self.server.add_node(
+            Node("/envfactory_twin", services={PLACE_SERVICE: (PLACE_TYPE, self._place_object)}),
+            {PLACE_TYPE: ({"name": "string", "position": "float64[]"}, {})},
+        )
 
     # ------------------------------------------------------------------ what it publishes
 
@@ -216,6 +224,18 @@ class Twin:
 
     # ------------------------------------------------------------------ what it executes
 
+    def _place_object(self, request: dict) -> ServiceReply:
+        """The person who puts the cube back between episodes, as a service only the twin has (for rehearsals
+        and benchmarks that start each episode where a simulated one starts): a task object, at rest at a
+        task-frame position, the arm left as it is."""
+        name, position = request.get("name", ""), list(request.get("position") or [])
+        if name not in self.spec.task.objects:
+            return ServiceReply(False, f"no object {name!r} in the task (it has {sorted(self.spec.task.objects)})")
+        if len(position) != 3 or not all(math.isfinite(value) for value in position):
+            return ServiceReply(False, f"position {position} is not a task-frame point x, y, z")
+        self.sim.place_objects({name: (np.asarray(position, float), np.array([0.0, 0.0, 0.0, 1.0]))})
+        return ServiceReply(True, {})
+
     def _on_command(self, topic: str, msg: dict) -> None:
         if self.faults.ignore_commands:
             return  # taken, never executed: a controller that is not running
@@ -223,3 +243,19 @@ class Twin:
             self.driver.on_arm(msg)
         else:
             self.driver.on_gripper(msg)
+
+
+def place_object(port: int, name: str, position, host: str = "127.0.0.1") -> None:
+    """Ask a running twin (in any process) to put a task object at rest at `position` (task frame), as a person
+    puts the cube back between real episodes."""
+    from websockets.sync.client import connect
+
+    args = {"name": name, "position": [float(value) for value in position]}
+    with connect(f"ws://{host}:{port}") as websocket:
+        websocket.send(json.dumps({"op": "call_service", "service": PLACE_SERVICE, "args": args, "id": "place"}))
+        while True:
+            reply = json.loads(websocket.recv(timeout=5.0))
+            if reply.get("op") == "service_response":
+                break
+    if not reply.get("result"):
+        raise RuntimeError(f"the twin at port {port} did not place {name} at {args['position']}: {reply.get('values')}")

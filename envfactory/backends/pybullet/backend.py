@@ -278,29 +278,36 @@ class PyBulletBackend:
         with self._lock:
             # Objects are removed and spawned anew: moving them would keep their
             # contact caches, and the next episode would not replay bit for bit.
-            for body in self.objects.values():
-                p.removeBody(body, physicsClientId=c)
-            self.objects = {}
+            self._remove_objects(self.objects)
             p.restoreState(self._saved, physicsClientId=c)
             gripper_value = self._gripper_reset_value(gripper)
             self._set_joint_state(q_arm, gripper_value)
             self._hold(q_arm, gripper_value)
-            for name, (position, quaternion) in objects.items():
-                if name not in self.spec.task.objects:
-                    raise BackendError(f"reset places {name!r}, which the task does not declare")
-                self.objects[name] = scene.add_object(
-                    c,
-                    self.spec.task.objects[name],
-                    self.task_frame.to_world(position),
-                    self.task_frame.quaternion_to_world(quaternion),
-                )
-            # the bounding sphere of each (cubic) object, for the fast fidelity's clearance
-            self._object_radii = {
-                body: bounding_radius(self.spec.task.objects[name].size) for name, body in self.objects.items()
-            }
+            self._add_objects(objects)
             if self._fast is not None:
                 self._fast.reset(q_arm, gripper_value, has_objects=bool(self.objects))
             self._sim_time = 0.0
+
+    def place_objects(self, objects) -> None:
+        """Put the named objects anew, at rest, the arm left as it is: what a person does to a real scene between
+        episodes (the twin's scene runs full physics; fast cycles learn of objects only at reset)."""
+        if self._fast is not None:
+            raise BackendError("objects are placed anew only in full physics; fast cycles place them at reset")
+        with self._lock:
+            self._remove_objects(objects)
+            self._add_objects(objects)
+
+    def _remove_objects(self, names) -> None:
+        for name in list(names):
+            if name in self.objects:
+                p.removeBody(self.objects.pop(name), physicsClientId=self.client)
+
+    def _add_objects(self, objects) -> None:
+        self.objects.update(scene.add_objects(self.client, self.spec.task.objects, self.task_frame, objects))
+        # the bounding sphere of each (cubic) object, for the fast fidelity's clearance
+        self._object_radii = {
+            body: bounding_radius(self.spec.task.objects[name].size) for name, body in self.objects.items()
+        }
 
     def command_joints(self, q_arm_target, duration: float) -> None:
         # The motors move at the speeds that land every joint on its target at the same time: after

@@ -42,6 +42,18 @@ def add_object(client: int, spec: ObjectSpec, position, orientation) -> int:
     return body
 
 
+def add_objects(client: int, declared: dict[str, ObjectSpec], task_frame, objects) -> dict[str, int]:
+    """The task's objects at their (task-frame position, quaternion): their bodies by name."""
+    bodies = {}
+    for name, (position, quaternion) in objects.items():
+        if name not in declared:
+            raise BackendError(f"reset places {name!r}, which the task does not declare")
+        bodies[name] = add_object(
+            client, declared[name], task_frame.to_world(position), task_frame.quaternion_to_world(quaternion)
+        )
+    return bodies
+
+
 def add_marker(client: int, position, radius: float = 0.025) -> int:
     """A see-through sphere with no collision shape: shows the goal, touches nothing."""
     visual = p.createVisualShape(p.GEOM_SPHERE, radius=radius, rgbaColor=MARKER_RGBA, physicsClientId=client)

@@ -17,6 +17,10 @@ from envfactory.backends.base import EpisodeAbort
 from envfactory.backends.rosbridge.follow import MIN_MOTION
 from envfactory.schema.driver import Settle
 
+# An arm pressing into what holds it has slowed to a creep: at most this share of the fastest it moved for this
+# command. An arm that still runs near its fastest is being driven slowly (a low speed scaling), not held.
+PRESSING_SPEED_SHARE = 0.25
+
 
 class MotionUnfinished(EpisodeAbort):
     """The arm moved but did not reach its target within the time its driver was given, plus the margin."""
@@ -36,25 +40,33 @@ class MotionWatch:
         self.motion: Motion | None = None
         self.done_at: float | None = None  # when the last motion was first read done
         self.gap = float("nan")  # how far from its target the arm was then, rad (the largest joint's)
+        self.peak_speed = 0.0  # the fastest joint speed read since the command, rad/s
 
     def commanded(self, start: np.ndarray, target: np.ndarray, now: float, length_s: float) -> None:
         motion = Motion(np.asarray(start, float), np.asarray(target, float), now, length_s)
-        self.motion, self.done_at, self.gap = motion, None, float("nan")
+        self.motion, self.done_at, self.gap, self.peak_speed = motion, None, float("nan"), 0.0
 
     def done(self, q_arm: np.ndarray, qd_arm: np.ndarray, now: float) -> bool:
         """Whether the commanded motion is done (or nothing was commanded), on a fresh reading: every arm joint at
         rest, and at its target, or (once the driver's time is over, having moved) held back at most `held_back`
         from it. At the end of the margin, an arm held back that still creeps (pressing into what holds it) is
-        done too if at its speed it would not close the gap within another margin."""
+        done too if it has slowed to a creep (PRESSING_SPEED_SHARE of its fastest) at which it would not close the
+        gap within another margin."""
         motion, settle = self.motion, self.settle
         if motion is None:
             return True
         speed = float(np.max(np.abs(qd_arm)))
+        self.peak_speed = max(self.peak_speed, speed)
         gap = float(np.max(np.abs(q_arm - motion.target)))
         elapsed = now - motion.sent_at
         # held back: the arm followed (an arm that never moved has no driver carrying the command out)
         held = gap <= settle.held_back and float(np.max(np.abs(q_arm - motion.start))) >= MIN_MOTION
-        pressing = held and elapsed >= motion.length_s + settle.margin_s and speed * settle.margin_s < gap
+        pressing = (
+            held
+            and elapsed >= motion.length_s + settle.margin_s
+            and speed * settle.margin_s < gap
+            and speed <= PRESSING_SPEED_SHARE * self.peak_speed
+        )
         if speed > settle.velocity and not pressing:
             return False
         if gap <= settle.tolerance or (held and elapsed >= motion.length_s):
@@ -88,7 +100,7 @@ class MotionWatch:
 
     def clear(self) -> None:
         self.motion = self.done_at = None
-        self.gap = float("nan")
+        self.gap, self.peak_speed = float("nan"), 0.0
 
 
 def drive_plan(
