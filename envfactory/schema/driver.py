@@ -70,8 +70,8 @@ class Settle(Model):
     `velocity`, so the observation after it sees an arm at rest, as a simulated step's does. An arm at rest short
     of its target once the driver's time is over, by at most `held_back` (held back by what it pushes, as a
     simulated arm is), has done its motion too, and the step records the gap; so has one held back and still
-    creeping at the end of `margin_s` (pressing into what holds it) too slowly to close its gap within another
-    `margin_s`. Any other motion not done `margin_s` after the driver's time stops the arm and ends the episode
+    creeping or trembling at the end of `margin_s` (pressing into what holds it), slowed to a quarter of its
+    fastest. Any other motion not done `margin_s` after the driver's time stops the arm and ends the episode
     with the reason."""
 
     tolerance: Annotated[Real, Field(gt=0, le=0.2)] = 0.01  # rad

@@ -49,9 +49,8 @@ class MotionWatch:
     def done(self, q_arm: np.ndarray, qd_arm: np.ndarray, now: float) -> bool:
         """Whether the commanded motion is done (or nothing was commanded), on a fresh reading: every arm joint at
         rest, and at its target, or (once the driver's time is over, having moved) held back at most `held_back`
-        from it. At the end of the margin, an arm held back that still creeps (pressing into what holds it) is
-        done too if it has slowed to a creep (PRESSING_SPEED_SHARE of its fastest) at which it would not close the
-        gap within another margin."""
+        from it. At the end of the margin, an arm held back that still creeps or trembles (pressing into what holds
+        it) is done too once it has slowed to PRESSING_SPEED_SHARE of its fastest."""
         motion, settle = self.motion, self.settle
         if motion is None:
             return True
@@ -64,7 +63,6 @@ class MotionWatch:
         pressing = (
             held
             and elapsed >= motion.length_s + settle.margin_s
-            and speed * settle.margin_s < gap
             and speed <= PRESSING_SPEED_SHARE * self.peak_speed
         )
         if speed > settle.velocity and not pressing:
