@@ -61,9 +61,7 @@ class MotionWatch:
         # held back: the arm followed (an arm that never moved has no driver carrying the command out)
         held = gap <= settle.held_back and float(np.max(np.abs(q_arm - motion.start))) >= MIN_MOTION
         pressing = (
-            held
-            and elapsed >= motion.length_s + settle.margin_s
-            and speed <= PRESSING_SPEED_SHARE * self.peak_speed
+            held and elapsed >= motion.length_s + settle.margin_s and speed <= PRESSING_SPEED_SHARE * self.peak_speed
         )
         if speed > settle.velocity and not pressing:
             return False
