@@ -168,7 +168,13 @@ def test_unexpected_error_is_one_line_and_debug_shows_the_traceback(monkeypatch)
 def test_describe_reflects_kwargs_and_overrides():
     on = runner.invoke(app, ["describe", "UR5ePnPSim-v0"]).output
     assert "Lift stage" in on and "multi_goal=True" in on
-    for args in (["-k", "multi_goal=false"], ["multi_goal=false"], ["task.goal.lift.enabled=false"]):
+    for args in (
+        ["-k", "multi_goal=false"],
+        ["multi_goal=false"],
+        ["task.goal.lift.enabled=false"],
+        ["-o", "task.goal.lift.enabled=false"],  # the override spelling of run
+        ["-k", "overrides=[task.goal.lift.enabled=false]"],  # and of evaluate and train
+    ):
         off = runner.invoke(app, ["describe", "UR5ePnPSim-v0", *args])
         assert off.exit_code == 0, off.output
         assert "Lift stage" not in off.output and "multi_goal=False" in off.output, args
@@ -177,6 +183,19 @@ def test_describe_reflects_kwargs_and_overrides():
     assert (
         "delta × 0.03" in coeff.output and "max_joint_delta=0.2" in coeff.output and "delta_coeff=0.03" in coeff.output
     )
+
+
+def test_run_takes_overrides_as_minus_o_and_as_a_kwarg_alike():
+    def run(*args):
+        return runner.invoke(app, ["run", "UR5ePnPSim-v0", "-n", "1", "--policy", "random", *args])
+
+    for override, exit_code in (("task.goal.lift.enabled=false", 0), ("env.no_such_key=3", 1)):
+        minus_o, as_kwarg = run("-o", override), run("-k", f"overrides=[{override}]")
+        assert minus_o.exit_code == as_kwarg.exit_code == exit_code, (minus_o.output, as_kwarg.output)
+        if minus_o.exit_code:  # the error names the override, whichever way it came
+            assert f"override '{override}'" in as_kwarg.output and as_kwarg.output == minus_o.output
+    wrong = run("-k", "overrides=7")
+    assert wrong.exit_code == 1 and "-k overrides=7: write a list of KEY=VALUE overrides" in wrong.output
 
 
 def test_validate_reports_a_user_id_that_clashes_with_a_builtin(tmp_path):

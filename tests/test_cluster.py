@@ -202,6 +202,23 @@ def test_trials_write_their_run_folders_a_summary_and_the_curves(trained):
 
 
 @needs_train
+def test_a_failed_ray_trial_names_its_cause_in_the_summary(tmp_path):
+    """Ray wraps what a trial raised in a task error whose first line names the task and its process, in
+    terminal colours: the summary row gives the trial's own error instead."""
+    group = tmp_path / "group"
+    result = runner.invoke(
+        app,
+        ["train", GOAL_REACH, "--seeds", "0", "--sweep", "policy_kwargs.no_such_option=1", "--out", str(group)]
+        + ["--workers", "1"]
+        + ["--no-progress"],
+    )
+    assert result.exit_code == 1, result.output
+    (row,) = _rows(group / trials.SUMMARY_FILE)
+    assert row["error"].startswith("TypeError: ") and "no_such_option" in row["error"], row["error"]
+    assert "\x1b" not in row["error"] and "ray::" not in row["error"]
+
+
+@needs_train
 def test_a_trained_model_acts_alike_on_the_workers(trained, tmp_path):
     model = trained / "seed1" / "model.zip"
     here, spread = tmp_path / "here.csv", tmp_path / "spread.csv"

@@ -231,14 +231,20 @@ def test_bad_cluster_options_are_named(tmp_path, monkeypatch, args, message):
 
 
 def test_trials_that_fail_are_named_in_the_summary_and_the_others_go_on(tmp_path, monkeypatch):
-    """A name the algorithm does not take is found as each trial builds its model: every trial says so."""
+    """An option the policy network does not take passes every check of the settings (policy_kwargs go to the
+    policy class as they are) and is found as each trial builds its model: every trial says so."""
     monkeypatch.chdir(tmp_path)
-    result = runner.invoke(app, ["train", REACH, "--seeds", "0", "--sweep", "no_such_thing=1,2", "--no-progress"])
+    result = runner.invoke(
+        app, ["train", REACH, "--seeds", "0", "--sweep", "policy_kwargs.no_such_option=1,2", "--no-progress"]
+    )
     text = " ".join(result.output.split())
-    assert result.exit_code == 1 and "2 of 2 trials failed" in text and "no_such_thing" in text, text
+    assert result.exit_code == 1 and "2 of 2 trials failed" in text and "no_such_option" in text, text
     rows = list(csv.DictReader(open(tmp_path / "runs" / f"{REACH}-sac-seeds0" / trials.SUMMARY_FILE)))
-    assert [r["trial"] for r in rows] == ["seed0-no_such_thing=1", "seed0-no_such_thing=2"]
-    assert all("unknown hyperparameter(s) no_such_thing" in r["error"] for r in rows)
+    assert [r["trial"] for r in rows] == [
+        "seed0-policy_kwargs.no_such_option=1",
+        "seed0-policy_kwargs.no_such_option=2",
+    ]
+    assert all(r["error"].startswith("TypeError: ") and "no_such_option" in r["error"] for r in rows), rows
 
 
 def test_sweep_values_keep_their_brackets():

@@ -51,3 +51,42 @@ def test_a_list_without_a_checksum_is_refused(tmp_path):
     copy.write_text(yaml.safe_dump(data, sort_keys=False))
     with pytest.raises(SpecError, match="or it has none"):
         blueprint(ID, _override(copy))
+
+
+def _without_section(text: str, section: str) -> str:
+    """The list with one section's header and rows taken out."""
+    lines, kept, inside = text.splitlines(keepends=True), [], False
+    for line in lines:
+        if line.startswith(f"{section}:"):
+            inside = True
+            continue
+        if inside and line.startswith(("- ", "  ")):
+            continue
+        inside = False
+        kept.append(line)
+    return "".join(kept)
+
+
+@pytest.mark.parametrize(
+    "section, written, complaint",
+    [
+        (
+            "pair_margins",
+            "pair_margins:\n- [base_link_inertia_0, wrist_3_link_0]\n",
+            "is not [shape, shape, margin in m]",
+        ),
+        ("pair_margins", "pair_margins:\n- [base_link_inertia_0, wrist_3_link_0, wide]\n", "margin in m"),
+        ("skipped", "skipped: 5\n", "skipped is not a list of rows [shape, shape, reason]"),
+        ("never_near", "never_near:\n- base_link_inertia_0\n", "never_near row 'base_link_inertia_0' is not"),
+    ],
+)
+def test_a_row_of_another_form_is_named_by_its_line(tmp_path, section, written, complaint):
+    copy = tmp_path / "ur5e.collision.yaml"
+    text = _without_section(SHIPPED.read_text(), section)
+    at = text.index("checksum:")
+    edited = text[:at] + written + text[at:]
+    copy.write_text(edited)
+    line = edited[:at].count("\n") + 1 + (0 if written.endswith(": 5\n") else 1)
+    with pytest.raises(SpecError) as caught:
+        blueprint(ID, _override(copy))
+    assert f"{copy}:{line}: " in str(caught.value) and complaint in str(caught.value), str(caught.value)

@@ -80,3 +80,20 @@ def test_a_timing_log_of_a_sim_id_is_refused(tmp_path):
     result = CliRunner().invoke(app, ["run", "UR5eReacherSim-v0", "-n", "1", "--timing-log", str(tmp_path / "t.jsonl")])
     assert result.exit_code != 0 and "use a Real ID" in result.output
     assert not (tmp_path / "t.jsonl").exists()
+
+
+@pytest.mark.parametrize(
+    "line, complaint",
+    [
+        ('{"joint_reading_age_s": NaN}', "joint_reading_age_s is nan, not a finite time"),
+        ('{"joint_reading_age_s": "0.01"}', "joint_reading_age_s is '0.01', not a finite time"),
+        ('{"joint_reading_age_s": 0.01, "joint_reading_repeated": 3}', "joint_reading_repeated is 3, not 0 or 1"),
+        ('{"joint_reading_age_s": 0.01, "command_latency_s": "late"}', "command_latency_s is 'late', not a time"),
+    ],
+)
+def test_a_log_with_readings_that_are_not_times_is_named_by_line(tmp_path, line, complaint):
+    log = tmp_path / "timing.jsonl"
+    log.write_text('{"joint_reading_age_s": 0.01, "command_latency_s": NaN}\n' + line + "\n")
+    result = CliRunner().invoke(app, ["sensing-spec", str(log), "--id", "UR5eReacherReal-v0"])
+    assert result.exit_code != 0 and (result.exception is None or isinstance(result.exception, SystemExit))
+    assert f"{log}:2: {complaint}" in " ".join(result.output.split()), result.output

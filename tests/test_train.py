@@ -7,6 +7,7 @@ learning itself is measured by devkit/bench/learning.py, not here.
 
 import csv
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -120,7 +121,7 @@ def test_replayed_model_acts_as_the_saved_network(tmp_path):
 
 
 @needs_train
-def test_run_refuses_a_model_trained_on_other_spaces(tmp_path):
+def test_run_and_evaluate_refuse_a_model_trained_on_other_spaces(tmp_path):
     from envfactory.learn.trainer import train
 
     train(
@@ -138,6 +139,14 @@ def test_run_refuses_a_model_trained_on_other_spaces(tmp_path):
     assert result.exit_code == 1
     assert "cannot act in VX300SReacherGoalSim-v0 (action shape (6,)" in result.output
     assert "Traceback" not in result.output
+    # evaluate loads it as run does: a model of another robot is named with the spaces it met
+    result = runner.invoke(
+        app, ["evaluate", "UR5eReacherGoalSim-v0", "--policy", str(tmp_path / "model.zip"), "-n", "1", "--no-progress"]
+    )
+    assert result.exit_code == 1
+    output = " ".join(result.output.split())
+    assert "cannot act in UR5eReacherGoalSim-v0 (action shape" in output and "Observation spaces do not match" in output
+    assert "Traceback" not in output
 
 
 def _tiny_run(folder, *extra_args, steps="240"):
@@ -395,9 +404,17 @@ def test_floats_read_as_yaml_1_2_writes_them():
         ("learning_rate=fast", "learning_rate must be a number, got 'fast'"),
         ("gamma=[0.9]", "gamma must be a number, got [0.9]"),
         ("batch_size=12.5", "batch_size must be a whole number, got 12.5"),
+        # in range for what the algorithm can learn with: SB3 runs each of these, or fails in its first update
+        ("batch_size=0", "batch_size=0 must be a whole number of at least 1"),
+        ("gamma=1.5", "gamma=1.5 must be a discount in (0, 1]"),
+        ("buffer_size=-1", "buffer_size=-1 must be a whole number of at least 1"),
+        ("learning_rate=-0.001", "learning_rate=-0.001 must be a finite number above 0"),
+        ("learning_rate=.nan", "learning_rate=nan must be a finite number above 0"),
+        ("n_timesteps=-5", "n_timesteps=-5 must be a whole number of steps, at least 1"),
+        ("ent_coef=autom", "ent_coef='autom' must be 'auto', 'auto_START' or a finite number"),
     ],
 )
-def test_hyperparameters_of_the_wrong_type_fail_before_training(tmp_path, override, message):
+def test_hyperparameters_of_the_wrong_type_or_range_fail_before_a_run_folder_exists(tmp_path, override, message):
     result = runner.invoke(app, ["train", "VX300SReacherGoalSim-v0", "-p", override, "-o", str(tmp_path / "run")])
     assert result.exit_code == 1
     assert message in result.output and "command line" in result.output
@@ -417,6 +434,64 @@ def test_unknown_hyperparameter_fails_before_training(tmp_path):
     assert result.exit_code == 1
     assert "unknown hyperparameter(s) learning_rat" in result.output and "command line" in result.output
     assert not (tmp_path / "model.zip").exists()
+
+
+@needs_train
+def test_a_sweep_over_an_unknown_name_is_refused_before_any_trial(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    result = runner.invoke(
+        app, ["train", "VX300SReacherGoalSim-v0", "--seeds", "0", "--sweep", "learning_rat=0.1,0.2", "--no-progress"]
+    )
+    assert result.exit_code == 1 and "unknown hyperparameter(s) learning_rat" in " ".join(result.output.split())
+    assert not (tmp_path / "runs").exists()
+
+
+def _user_reach(tmp_path: Path) -> Path:
+    """A user folder with a copy of the UR5e Reach family (its Sim ID renamed), registered for the test."""
+    from test_silent_mistakes import user_folder
+
+    from envfactory.factory import register_specs
+
+    folder = user_folder(tmp_path, "ur5e_reach")
+    added, problems = register_specs(folder)
+    assert added and not problems, problems
+    return folder
+
+
+def test_a_misspelled_block_in_a_user_settings_file_is_named_with_its_line(tmp_path):
+    from envfactory.factory import unregister_folder
+
+    folder = _user_reach(tmp_path)
+    try:
+        (folder / "specs" / "train").mkdir()
+        (folder / "specs" / "train" / "sac.yaml").write_text("ur5e_rech:\n  gamma: 0.9\n")
+        with pytest.raises(
+            HyperparameterError,
+            match=r"sac.yaml:1: block 'ur5e_rech' names no family or env ID "
+            r"\(did you mean 'ur5e_reach'\?\)",
+        ):
+            load("sac", "MyUR5eReacherSim-v0")
+    finally:
+        unregister_folder(folder)
+
+
+def test_a_settings_folder_that_is_never_read_is_named(tmp_path):
+    from envfactory.factory import unregister_folder
+
+    folder = _user_reach(tmp_path)
+    try:
+        (folder / "train").mkdir()
+        (folder / "train" / "sac.yaml").write_text("default:\n  gamma: 0.9\n")
+        with pytest.raises(HyperparameterError, match=r"train: never read \(training settings go beside the family"):
+            load("sac", "MyUR5eReacherSim-v0")
+        (folder / "train").rename(folder / "specs" / "train")
+        (folder / "specs" / "train" / "sac.yaml").rename(folder / "specs" / "train" / "SAC.yml")
+        with pytest.raises(HyperparameterError, match=r"SAC.yml: never read \(a file is named for its algorithm"):
+            load("sac", "MyUR5eReacherSim-v0")
+        (folder / "specs" / "train" / "SAC.yml").rename(folder / "specs" / "train" / "sac.yaml")
+        assert load("sac", "MyUR5eReacherSim-v0").values["gamma"] == 0.9
+    finally:
+        unregister_folder(folder)
 
 
 def test_missing_extra_is_a_clear_error(monkeypatch):

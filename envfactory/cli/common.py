@@ -158,6 +158,18 @@ def known_id(env_id: str) -> None:
         fail(problem)
 
 
+def joined_overrides(kwargs: dict, given: List[str] | None) -> list[str]:
+    """The command's overrides (-o) and those given as `-k overrides=[...]`, taken out of `kwargs`, in one list:
+    both spellings reach the spec the same way."""
+    extra = kwargs.pop("overrides", None)
+    if extra is None:
+        return list(given or [])
+    extra = [extra] if isinstance(extra, str) else extra
+    if not (isinstance(extra, list) and all(isinstance(item, str) for item in extra)):
+        fail(f"-k overrides={extra!r}: write a list of KEY=VALUE overrides, e.g. -k 'overrides=[env.action.ee=true]'")
+    return list(given or []) + extra
+
+
 def parse_kwargs(items: List[str] | None) -> dict:
     kwargs = {}
     for item in items or []:

@@ -27,7 +27,8 @@ from envfactory.learn.demo_replay import DemonstrationError
 from envfactory.learn.demonstrations import collect as run_collection
 from envfactory.learn.demonstrations import record as record_here
 from envfactory.learn.extra import MissingExtra, require
-from envfactory.learn.hyperparams import HyperparameterError, load
+from envfactory.learn.hyperparams import HyperparameterError
+from envfactory.learn.models import checked_hyperparameters
 from envfactory.learn.runs import RunFolderError, RunRecord, fresh_folder
 from envfactory.learn.trainer import BUFFER_FILE, CSV_FILE, META_FILE, MODEL_FILE, PNG_FILE, WALL_PNG_FILE
 from envfactory.learn.trainer import resume as resume_training
@@ -145,7 +146,7 @@ def train(
         known_id(env_id)
         algo, seed = algo or "sac", 0 if seed is None else seed
         try:
-            load(algo, env_id, hyperparameter or ())  # bad names or values fail before anything is built
+            checked_hyperparameters(algo, env_id, hyperparameter or ())  # bad names or values: before anything is built
         except HyperparameterError as exc:
             fail(str(exc))
         asked = out or Path("runs") / f"{env_id}-{algo.lower()}-seed{seed}"

@@ -19,6 +19,7 @@ from envfactory.cli.common import (
     console,
     errors,
     fail,
+    joined_overrides,
     known_id,
     model_file,
     parse_kwargs,
@@ -26,6 +27,7 @@ from envfactory.cli.common import (
 )
 from envfactory.envs.episodes import iter_episodes, success_rate
 from envfactory.experts import make_policy
+from envfactory.learn.models import ModelMismatch
 from envfactory.learn.trainer import load_policy, read_meta
 from envfactory.schema.errors import SpecError
 from envfactory.terms.sensing_from_log import read_log, sensing_terms, sensing_yaml
@@ -79,7 +81,9 @@ def run(
     if allow_real_robot_motion:
         kwargs["allow_real_robot_motion"] = True
     try:
-        env = gym.make(env_id, overrides=override or [], render_mode="rgb_array" if video else None, **kwargs)
+        env = gym.make(
+            env_id, overrides=joined_overrides(kwargs, override), render_mode="rgb_array" if video else None, **kwargs
+        )
     except (SpecError, KeyError, gym.error.Error, BackendError) as exc:
         fail(str(exc).strip("'\""))
     frames, results, failure = [], [], ""
@@ -176,16 +180,9 @@ def _bind_model(path: Path, env, algo: str | None):
 
     try:
         return load_policy(path, env, algo)
-    except Exception as exc:  # SB3 names the mismatching spaces; a zip that is no model lands here too
+    except ModelMismatch as exc:
         env.close()
-        space = env.observation_space
-        shapes = {k: v.shape for k, v in space.spaces.items()} if hasattr(space, "spaces") else space.shape
-        reason = str(exc).splitlines()[0][:160]
-        fail(
-            f"--policy {path}: cannot act in {env.spec.id} (action shape {env.action_space.shape}, observation "
-            f"shapes {shapes}): {type(exc).__name__}: {reason}; a model runs on the ID and kwargs it was "
-            f"trained with (model.json beside it, or -k)"
-        )
+        fail(f"--policy {exc}")
 
 
 # What the table measures: (its title's tail, the footnote under it), by --stop-at-success.

@@ -22,7 +22,8 @@ from typing import Callable
 
 from envfactory.cluster.work import ShippedFolders
 from envfactory.learn.curve import Evaluation, plot
-from envfactory.learn.hyperparams import HyperparameterError, load
+from envfactory.learn.hyperparams import HyperparameterError
+from envfactory.learn.models import checked_hyperparameters
 from envfactory.learn.trainer import train
 
 MARKER_FILE = ".trials"  # in the group folder: the token that proves a worker sees the same folder
@@ -108,7 +109,7 @@ def plan(
         tuple(f"{name}={value}" for name, value in zip(sweep, values)) for values in itertools.product(*sweep.values())
     ] or [()]
     for setting in settings:
-        load(algo, env_id, (*overrides, *setting))  # a bad name or value fails here, naming its source
+        checked_hyperparameters(algo, env_id, (*overrides, *setting))  # a bad name or value fails here, named
     group = group.expanduser().resolve()
     workspace = ShippedFolders.for_ids([env_id])
     token = uuid.uuid4().hex
@@ -175,6 +176,22 @@ def run_trial(trial: Trial, on_evaluation: Callable[[Evaluation], None] | None =
     return TrialOutcome(trial, result.evaluations)
 
 
+ANSI_CODES = re.compile(r"\x1b\[[0-9;]*m")
+
+
+def failure_text(error: BaseException) -> str:
+    """What a failed trial's summary row says: the error at the bottom of the wrappers a cluster adds (a Ray
+    task error names the task and its process on its first line, in terminal colours; its `cause` is what
+    the trial raised), its type and first line, without colour codes."""
+    for _ in range(8):  # a wrapper may wrap a wrapper
+        cause = getattr(error, "cause", None)
+        if not isinstance(cause, BaseException):
+            break
+        error = cause
+    lines = [line.strip() for line in ANSI_CODES.sub("", str(error)).splitlines() if line.strip()]
+    return f"{type(error).__name__}: {lines[0] if lines else 'no message'}"
+
+
 def run_here(trials: list[Trial], on_done: Callable[[TrialOutcome], None] | None = None) -> list[TrialOutcome]:
     """The trials one after another in this process; a failed one is recorded and the others go on, as on a
     cluster."""
@@ -183,7 +200,7 @@ def run_here(trials: list[Trial], on_done: Callable[[TrialOutcome], None] | None
         try:
             outcome = run_trial(trial)
         except Exception as exc:  # reported in the summary, as a failed task is
-            outcome = TrialOutcome(trial, error=f"{type(exc).__name__}: {exc}")
+            outcome = TrialOutcome(trial, error=failure_text(exc))
         outcomes.append(outcome)
         if on_done is not None:
             on_done(outcome)

@@ -14,7 +14,7 @@ from pathlib import Path
 from ray import tune
 from tqdm import tqdm
 
-from envfactory.cluster.trials import Trial, TrialOutcome, run_trial
+from envfactory.cluster.trials import Trial, TrialOutcome, failure_text, run_trial
 from envfactory.learn.curve import read_csv
 from envfactory.learn.loop import CSV_FILE
 
@@ -75,9 +75,7 @@ def run_trials(trials: list[Trial], cpus: int, progress: bool = True) -> list[Tr
     for result in results:
         index = result.config["trial"]
         if result.error is not None:
-            outcomes[index] = TrialOutcome(
-                trials[index], error=f"{type(result.error).__name__}: {result.error}".splitlines()[0]
-            )
+            outcomes[index] = TrialOutcome(trials[index], error=failure_text(result.error))
         else:
             curve = Path(trials[index].folder) / CSV_FILE
             outcomes[index] = TrialOutcome(trials[index], read_csv(curve) if curve.is_file() else [])

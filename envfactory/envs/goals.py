@@ -39,6 +39,24 @@ class GoalSampler:
         solution = self.kinematics.solve_ik(self.home, goal, gripper=self.gripper)
         return solution.success and self.safety.pose_is_clear(solution.q_arm, self.gripper)
 
+    def given(self, goal, where: str) -> np.ndarray:
+        """A goal a caller chose (reset's options["goal"]), refused unless it is a finite point of the goal box:
+        a goal the observation could not hold would be clipped, and one out of reach is no task."""
+        try:
+            point = np.asarray(goal, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"{where}: {goal!r} is not a point x, y, z (task frame, m)") from None
+        if point.shape != (3,):
+            raise ValueError(f"{where}: a goal is 3 numbers x, y, z (task frame, m), got shape {point.shape}")
+        if not np.all(np.isfinite(point)):
+            raise ValueError(f"{where}: {point.tolist()} is not finite")
+        if np.any(point < self.low) or np.any(point > self.high):
+            raise ValueError(
+                f"{where}: {point.tolist()} lies outside the goal box {self.low.tolist()} .. {self.high.tolist()} "
+                "(task.goal.box, task frame, m)"
+            )
+        return point
+
     def sample(self, rng: np.random.Generator, start: np.ndarray) -> tuple[np.ndarray, bool]:
         """A goal and whether sampling failed (every try unreachable, or already achieved from `start`, where
         the achieved point is at reset)."""

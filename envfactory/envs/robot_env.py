@@ -12,6 +12,7 @@ import gymnasium as gym
 import numpy as np
 import pinocchio as pin
 from gymnasium import spaces
+from gymnasium.error import ClosedEnvironmentError
 
 from envfactory.backends import backend_factory
 from envfactory.backends.base import BackendError, EpisodeAbort
@@ -182,6 +183,13 @@ class RobotEnv(gym.Env):
     # ------------------------------------------------------------ gym API
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        self._refuse_if_closed("reset")
+        # checked before anything moves: a real arm is not driven home for a goal that is refused
+        chosen = (
+            self.goals.given(options["goal"], f'{self.blueprint.env_id}.reset(options={{"goal": ...}})')
+            if (options and "goal" in options)
+            else None
+        )
         if seed is None and self._seed_pending is not None:
             seed = self._seed_pending
         self._seed_pending = None
@@ -207,9 +215,8 @@ class RobotEnv(gym.Env):
             tracker.reset()
         start = spawn[self.blueprint.achieved_from][0] if self.blueprint.achieved_from in spawn else self._ee_home
         self._goal, self._goal_failed = self.goals.sample(self.np_random, start)
-        if options and "goal" in options:
-            self._goal = np.asarray(options["goal"], float).reshape(3)
-            self._goal_failed = False
+        if chosen is not None:
+            self._goal, self._goal_failed = chosen, False
         if self.randomizer is not None:
             self.randomizer.reset(self.np_random)  # drawn after spawn and goal: those match an unrandomized env's
             self._sensing_starts = True
@@ -223,6 +230,7 @@ class RobotEnv(gym.Env):
         return observation, self._info(self._state, achieved, out_of_bounds=False, rejection="")
 
     def step(self, action):
+        self._refuse_if_closed("step")
         if self._state is None:
             raise RuntimeError("call reset() before step()")
         state = self._state
@@ -314,7 +322,15 @@ class RobotEnv(gym.Env):
         backend = getattr(self, "backend", None)
         if backend is not None:
             backend.close()
+        self._closed = True
         super().close()
+
+    def _refuse_if_closed(self, call: str) -> None:
+        if getattr(self, "_closed", False):
+            raise ClosedEnvironmentError(
+                f"{self.blueprint.env_id}.{call}() after close(): its {type(self.backend).__name__} is shut; "
+                "make a new env"
+            )
 
     # ------------------------------------------------------------ copies
 

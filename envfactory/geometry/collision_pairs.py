@@ -49,6 +49,7 @@ import yaml
 
 from envfactory.geometry.collision import CollisionModel, PairRules
 from envfactory.geometry.collision.shapes import shape_points
+from envfactory.geometry.collision_pair_rows import malformed_rows
 from envfactory.geometry.safety import SafetyCheck
 from envfactory.schema.errors import suggest
 from envfactory.schema.models import ComposedSpec
@@ -370,6 +371,9 @@ def read_pairs(path: Path, collision: CollisionModel, margin: float) -> PairRule
             f"{path}: the collision pair list is stale for robot {robot!r}: it was generated for "
             f"another robot model or settings; {what}"
         )
+    malformed = malformed_rows(text)
+    if malformed:
+        raise StalePairs(f"{path}:{malformed[0][0]}: {malformed[0][1]}")
     unknown = _unknown_entries(text, data, collision)
     if unknown:
         raise StalePairs(

@@ -25,6 +25,7 @@ import yaml
 
 from envfactory.registration import registry
 from envfactory.registration.registry import BUILTIN_SOURCE
+from envfactory.schema.errors import suggest
 from envfactory.schema.folders import builtin_root
 
 ALGORITHMS = ("sac", "td3", "tqc")
@@ -122,6 +123,36 @@ def parse_overrides(items: list[str]) -> dict:
     return block
 
 
+def _unread_files(family_path: Path, folders: list[Path]) -> list[str]:
+    """Settings files a user put where they are never read: a train/ folder at the spec folder's root when the
+    family files sit in specs/, and files in a read folder named for no algorithm."""
+    found = []
+    root = family_path.parent.parent if family_path.parent.name == "specs" else family_path.parent
+    stray = root / "train"
+    if stray.is_dir() and stray not in folders:
+        found.append(
+            f"{stray}: never read (training settings go beside the family files, in {family_path.parent / 'train'})"
+        )
+    for folder in folders[1:]:
+        for path in sorted(folder.iterdir()):
+            if path.suffix in (".yaml", ".yml") and path.name not in {f"{algo}.yaml" for algo in ALGORITHMS}:
+                found.append(f"{path}: never read (a file is named for its algorithm: {', '.join(ALGORITHMS)}, .yaml)")
+    return found
+
+
+def _unknown_blocks(path: Path, data: dict) -> list[str]:
+    """Blocks of a settings file that name no registered family or ID: a misspelled one would be skipped."""
+    known = registry.records()
+    names = ["default", *sorted({Path(r.family.path).stem for r in known.values()}), *sorted(known)]
+    lines = path.read_text().splitlines()
+    return [
+        f"{path}:{next((n for n, line in enumerate(lines, 1) if line.startswith(f'{key}:')), 1)}: block {key!r} "
+        f"names no family or env ID{suggest(str(key), names)}"
+        for key in data
+        if key not in names
+    ]
+
+
 def load(algo: str, env_id: str, overrides: list[str] | tuple[str, ...] = ()) -> Hyperparameters:
     algo = algo.lower()
     if algo not in ALGORITHMS:
@@ -130,15 +161,20 @@ def load(algo: str, env_id: str, overrides: list[str] | tuple[str, ...] = ()) ->
     family_path = Path(record.family.path)
     values: dict = {}
     sources: list[str] = []
-    for folder in _folders(family_path, record.source == BUILTIN_SOURCE):
+    folders = _folders(family_path, record.source == BUILTIN_SOURCE)
+    problems = _unread_files(family_path, folders) if record.source != BUILTIN_SOURCE else []
+    for folder in folders:
         path = folder / f"{algo}.yaml"
         if not path.is_file():
             continue
         data = _read(path)
+        problems += _unknown_blocks(path, data)
         for key in ("default", family_path.stem, env_id):
             if key in data:
                 values = merge(values, data[key])
                 sources.append(f"{path}: {key}")
+    if problems:
+        raise HyperparameterError("; ".join(problems))
     if not sources:
         raise HyperparameterError(f"no hyperparameters for {algo} ({builtin_folder() / (algo + '.yaml')} missing)")
     if overrides:

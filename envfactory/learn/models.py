@@ -6,13 +6,13 @@ from __future__ import annotations
 
 import copy
 import importlib
-import inspect
 import json
 from pathlib import Path
 
 from envfactory.learn import extra
 from envfactory.learn.bc import CloningSettings, cloning_class
-from envfactory.learn.hyperparams import HyperparameterError, Hyperparameters
+from envfactory.learn.hyperparam_checks import check_algorithm_kwargs, check_trainer_values
+from envfactory.learn.hyperparams import HyperparameterError, Hyperparameters, load
 
 ALGORITHM_CLASSES = {
     "sac": ("stable_baselines3", "SAC"),
@@ -47,41 +47,9 @@ class ModelPolicy:
         return action
 
 
-def _check_types(cls, hyper: Hyperparameters, kwargs: dict) -> None:
-    """Numbers where the constructor's annotation asks for one: on text (or a list) SB3 itself fails deep
-    inside its first update, with no word of which hyperparameter it was."""
-    import typing
-
-    where = f"from {'; '.join(hyper.sources)}"
-    parameters = inspect.signature(cls.__init__).parameters
-    for name, value in kwargs.items():
-        wanted = float if name == "noise_std" else (parameters[name].annotation if name in parameters else None)
-        choices = typing.get_args(wanted) or (wanted,)
-        takes_text = str in choices or wanted in (None, inspect.Parameter.empty)
-        number = isinstance(value, (int, float)) and not isinstance(value, bool)
-        if wanted in (int, float) and not number or (isinstance(value, str) and not takes_text):
-            raise HyperparameterError(
-                f"{hyper.algo}: hyperparameter {name} must be a number, got {value!r} ({type(value).__name__}; {where})"
-            )
-        if wanted is int and isinstance(value, float):
-            if not value.is_integer():
-                raise HyperparameterError(
-                    f"{hyper.algo}: hyperparameter {name} must be a whole number, got {value!r} ({where})"
-                )
-            kwargs[name] = int(value)  # 1e6 written for a count
-
-
 def _algorithm_kwargs(cls, hyper: Hyperparameters, env) -> dict:
     kwargs = copy.deepcopy(hyper.algorithm_kwargs())  # the recorded hyperparameters stay as merged
-    accepted = set(inspect.signature(cls.__init__).parameters)
-    unknown = sorted(set(kwargs) - accepted - {"noise_std"})
-    if unknown:
-        raise HyperparameterError(
-            f"{hyper.algo}: unknown hyperparameter(s) {', '.join(unknown)} (from "
-            f"{'; '.join(hyper.sources)}); {cls.__name__} takes "
-            f"{', '.join(sorted(accepted - {'self', 'env', 'policy'}))}"
-        )
-    _check_types(cls, hyper, kwargs)
+    check_algorithm_kwargs(cls, hyper, kwargs)
     noise_std = kwargs.pop("noise_std", None)
     if noise_std is not None:
         import numpy as np
@@ -123,6 +91,15 @@ def make_model(
     return cls(policy, env, seed=seed, verbose=0, **kwargs), passed
 
 
+def checked_hyperparameters(algo: str, env_id: str, overrides=()) -> Hyperparameters:
+    """The hyperparameters of a run to come, judged against its algorithm before any folder or env is made."""
+    hyper = load(algo, env_id, overrides)
+    extra.require(extra.TRAIN_MODULES, "training")
+    check_algorithm_kwargs(algorithm_class(hyper.algo), hyper, copy.deepcopy(hyper.algorithm_kwargs()))
+    check_trainer_values(hyper)
+    return hyper
+
+
 def save(model, normalizer, folder: Path) -> None:
     model.save(folder / MODEL_FILE)
     if normalizer is not None:
@@ -135,8 +112,13 @@ def read_meta(path: Path) -> dict:
     return json.loads(meta_path.read_text()) if meta_path.is_file() else {}
 
 
+class ModelMismatch(ValueError):
+    """A saved model that cannot act in the env it was given: trained on other spaces, or no model at all."""
+
+
 def load_policy(path: Path, env, algo: str | None = None) -> ModelPolicy:
-    """A saved model, bound to `env` (HER models need the env; SB3 checks the spaces match)."""
+    """A saved model, bound to `env` (HER models need the env); ModelMismatch names the env's spaces and SB3's
+    reason when the model cannot act in it."""
     extra.require(extra.TRAIN_MODULES, "a --policy model")
     algo = (algo or read_meta(path).get("algo") or "").lower()
     if algo not in ALGORITHM_CLASSES:
@@ -150,4 +132,15 @@ def load_policy(path: Path, env, algo: str | None = None) -> ModelPolicy:
 
         normalizer = VecNormalize.load(str(path.parent / NORMALIZER_FILE), DummyVecEnv([lambda: env]))
         normalizer.training = False  # replay reads the statistics, never updates them
-    return ModelPolicy(algorithm_class(algo).load(path, env=env, device="cpu"), normalizer)
+    try:
+        model = algorithm_class(algo).load(path, env=env, device="cpu")
+    except Exception as exc:  # SB3 names the mismatching spaces; a zip that is no model lands here too
+        space = env.observation_space
+        shapes = {k: v.shape for k, v in space.spaces.items()} if hasattr(space, "spaces") else space.shape
+        reason = str(exc).splitlines()[0][:160]
+        raise ModelMismatch(
+            f"{path}: cannot act in {env.spec.id if env.spec else env} (action shape {env.action_space.shape}, "
+            f"observation shapes {shapes}): {type(exc).__name__}: {reason}; a model runs on the ID and kwargs it "
+            f"was trained with (model.json beside it, or -k)"
+        ) from exc
+    return ModelPolicy(model, normalizer)

@@ -18,9 +18,16 @@ from envfactory.learn import extra
 from envfactory.learn.bc import CloningSettings
 from envfactory.learn.curve import CurveWriter, Evaluation
 from envfactory.learn.demo_replay import check_matches, cloning_buffer, fill, open_demonstrations
-from envfactory.learn.hyperparams import load
 from envfactory.learn.loop import BUFFER_FILE, CSV_FILE, PNG_FILE, WALL_PNG_FILE, Part, TrainResult, learn
-from envfactory.learn.models import MODEL_FILE, NORMALIZER_FILE, algorithm_class, load_policy, make_model, read_meta
+from envfactory.learn.models import (
+    MODEL_FILE,
+    NORMALIZER_FILE,
+    algorithm_class,
+    checked_hyperparameters,
+    load_policy,
+    make_model,
+    read_meta,
+)
 from envfactory.learn.runs import RECORD_FILE, RunFolderError, RunRecord, claim
 
 META_FILE = RECORD_FILE
@@ -102,7 +109,7 @@ def train(
     import gymnasium as gym
     import torch
 
-    hyper = load(algo, env_id, overrides)
+    hyper = checked_hyperparameters(algo, env_id, overrides)
     steps = int(steps or hyper.trainer("n_timesteps", 30_000))
     eval_every = int(eval_every or hyper.trainer("eval_every", 5_000))
     eval_episodes = int(eval_episodes or hyper.trainer("eval_episodes", 50))
