@@ -90,3 +90,22 @@ def test_a_row_of_another_form_is_named_by_its_line(tmp_path, section, written, 
     with pytest.raises(SpecError) as caught:
         blueprint(ID, _override(copy))
     assert f"{copy}:{line}: " in str(caught.value) and complaint in str(caught.value), str(caught.value)
+
+
+def test_a_skip_that_claims_structure_the_urdf_does_not_have_is_refused_even_with_its_checksum_redone(tmp_path):
+    """The wrist and the base are not adjacent: marked so, the pair would never be measured. The checksum only
+    proves the generator wrote the list, so the claim itself is checked against the robot's own model."""
+    from envfactory.geometry.collision_pairs import checksum
+
+    data = yaml.safe_load(SHIPPED.read_text())
+    data["skipped"].append(["base_link_inertia_0", "wrist_1_link_0", "adjacent"])
+    data["checksum"] = checksum(data)
+    copy = tmp_path / "ur5e.collision.yaml"
+    copy.write_text(yaml.safe_dump(data, sort_keys=False, default_flow_style=None, width=120))
+    with pytest.raises(SpecError) as caught:
+        blueprint(ID, _override(copy))
+    message = " ".join(str(caught.value).split())
+    assert (
+        "skips base_link_inertia_0 and wrist_1_link_0 as 'adjacent', which the robot's model finds to be neither"
+        in message
+    ), message

@@ -149,3 +149,71 @@ def test_collision_pairs_writes_a_missing_list(tmp_path):
     assert pairs.is_file()
     after = run("validate", str(folder))
     assert after.returncode == 0, after.stderr + after.stdout
+
+
+def test_a_simulation_only_robot_needs_no_ros_section(tmp_path):
+    """A robot without a real path declares no topics: its Sim IDs register, make and step; a Real ID on it is
+    refused by name."""
+    folder = _robot_folder(tmp_path, packages="  packages: {arm_description: ..}\n")
+    robot = folder / "robots" / "myarm.yaml"
+    text = re.sub(r"^ros:.*\n(?:[ #].*\n|\n)*", "", robot.read_text(), flags=re.M)
+    robot.write_text(re.sub(r"^joint_states_topic:.*\n", "", text, flags=re.M))
+    assert "ros:" not in robot.read_text() and "topic" not in robot.read_text()
+    try:
+        added, problems = register_specs(folder)
+        assert problems == [] and added == ["MyArmReach-v0"]
+        env = gym.make("MyArmReach-v0")
+        env.reset(seed=0)
+        env.step(env.action_space.sample())
+        env.close()
+    finally:
+        unregister_folder(folder)
+    family = folder / "specs" / "myarm_reach.yaml"
+    family.write_text(family.read_text().replace("{backend: sim}", "{backend: rosbridge}"))
+    added, problems = register_specs(folder)
+    assert added == [] and "robot 'myarm' declares no 'ros:' block" in str(problems[0])
+
+
+def _two_links(ixx: float, iyy: float, izz: float) -> str:
+    return f"""<robot name="probe">
+  <link name="base">
+    <inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="arm">
+    <inertial><mass value="1"/><inertia ixx="{ixx}" iyy="{iyy}" izz="{izz}" ixy="0" ixz="0" iyz="0"/></inertial>
+  </link>
+  <joint name="j" type="revolute"><parent link="base"/><child link="arm"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+</robot>"""
+
+
+@pytest.mark.parametrize("moments", [(0.1, 0.001, 0.001), (0.002, 0.002, 0.002), (0.01, 0.01, 0.02)])
+def test_inertias_are_judged_as_mujoco_judges_them(tmp_path, moments):
+    """The oracle is MuJoCo's own compiler: a body it refuses is refused at validate, one it takes passes."""
+    mujoco = pytest.importorskip("mujoco")
+    from envfactory.compiler.inertia_checks import inertia_problems
+
+    urdf = tmp_path / "probe.urdf"
+    urdf.write_text(_two_links(*moments))
+    try:
+        mujoco.MjModel.from_xml_string(urdf.read_text())
+        engine_refuses = False
+    except ValueError:
+        engine_refuses = True
+    problems = inertia_problems(urdf)
+    assert bool(problems) == engine_refuses, (moments, problems)
+    if problems:
+        assert problems[0].startswith(f"{urdf}:4: link 'arm': principal moments") and "triangle" in problems[0]
+
+
+def test_a_robot_whose_urdf_breaks_an_inertia_is_refused_at_validate(tmp_path):
+    folder = _robot_folder(tmp_path, packages="  packages: {arm_description: ..}\n")
+    urdf = folder / "robots" / "assets" / "arm.urdf"
+    text = urdf.read_text()
+    first = re.search(r'<inertia ixx="[^"]*"', text)
+    urdf.write_text(text[: first.start()] + '<inertia ixx="5.0"' + text[first.end() :])
+    added, problems = register_specs(folder)
+    assert added == []
+    message = " ".join(str(problems[0]).split())
+    assert (
+        "robot.model.parts.0.urdf" in message and "arm.urdf:" in message and "break the triangle inequality" in message
+    )

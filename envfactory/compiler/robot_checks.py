@@ -15,10 +15,11 @@ import numpy as np
 import pinocchio as pin
 
 from envfactory.compiler.expert_points import expert_points
+from envfactory.compiler.inertia_checks import inertia_problems
 from envfactory.geometry.collision_pairs import INPUTS, PADDING, WHAT_CHANGED, StalePairs, pairs_file
 from envfactory.geometry.frames import nearest_top_down
 from envfactory.geometry.robot_model import RobotGeometry, robot_geometry
-from envfactory.geometry.urdf_assembly import AssemblyError, assemble
+from envfactory.geometry.urdf_assembly import AssemblyError, assemble, resolve_part_path
 from envfactory.schema.errors import suggest
 from envfactory.schema.folders import builtin_root, folder_of
 from envfactory.schema.models import ComposedSpec
@@ -99,7 +100,11 @@ def _problems(spec: ComposedSpec, asset_root: Path) -> list[tuple[str, str]]:
         model = pin.buildModelFromUrdf(str(urdf))
     except Exception as exc:  # Pinocchio raises plain RuntimeError/ValueError with its own text
         return [("robot.model", f"Pinocchio cannot load the assembled URDF: {exc}")]
-    problems = _name_problems(spec, model)
+    problems = _name_problems(spec, model) + [
+        (f"robot.model.parts.{index}.urdf", problem)
+        for index, part in enumerate(spec.robot.model.parts)
+        for problem in inertia_problems(resolve_part_path(part, asset_root, f"robot.model.parts.{index}"))
+    ]
     if problems:
         return problems
     problems = _padding_problems(spec, model) + _gripper_direction_problems(spec, model)

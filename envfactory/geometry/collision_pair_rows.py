@@ -1,5 +1,7 @@
-"""The rows of a collision pair list as the generator writes them: a hand-edited row of another form is named by
-its line before any entry is read (a short row would otherwise fail deep inside as an IndexError)."""
+"""The rows of a collision pair list checked before they are used: their form as the generator writes them (a
+hand-edited row of another form is named by its line, where a short one would fail deep inside as an
+IndexError), and the structure a skip claims, against the robot's own model (a skip marked `adjacent` for two
+links that are not would switch a real self-collision pair off, once its checksum was recomputed)."""
 
 from __future__ import annotations
 
@@ -37,3 +39,16 @@ def malformed_rows(text: str) -> list[tuple[int, str]]:
             ):
                 found.append((node.start_mark.line + 1, f"{key.value} row {row!r} is not {shape}"))
     return sorted(found)
+
+
+def misreported_structure(skipped: dict[frozenset, str], collision, reasons) -> list[str]:
+    """The skips whose structural reason (one of `reasons`) is not the one the robot's collision model exempts
+    that pair for, from its URDF (rigidly joined, adjacent, the gripper's own mechanism)."""
+    names = [shape.name for shape in collision.shapes]
+    structural = {frozenset((names[a], names[b])): why for a, b, why in collision.self_pairs if why}
+    return sorted(
+        f"{' and '.join(sorted(key))} as {why!r}, which the robot's model finds "
+        + (f"{structural[key]!r}" if key in structural else "to be neither (a pair to measure)")
+        for key, why in skipped.items()
+        if why in reasons and structural.get(key) != why
+    )

@@ -49,7 +49,7 @@ import yaml
 
 from envfactory.geometry.collision import CollisionModel, PairRules
 from envfactory.geometry.collision.shapes import shape_points
-from envfactory.geometry.collision_pair_rows import malformed_rows
+from envfactory.geometry.collision_pair_rows import malformed_rows, misreported_structure
 from envfactory.geometry.safety import SafetyCheck
 from envfactory.schema.errors import suggest
 from envfactory.schema.models import ComposedSpec
@@ -405,6 +405,9 @@ def read_pairs(path: Path, collision: CollisionModel, margin: float) -> PairRule
             f"{path}: the collision pair list skips pairs neither exempt by structure nor proven apart: "
             f"{'; '.join(unproven)}. Such pairs are measured now"
         )
+    misreported = misreported_structure(skipped, collision, STRUCTURAL)
+    if misreported:
+        raise StalePairs(f"{path}: the collision pair list skips {'; '.join(misreported)}")
     margins = {frozenset(entry[:2]): float(entry[2]) for entry in data.get("pair_margins", [])}
     odd = sorted(
         " and ".join(sorted(key))

@@ -246,7 +246,8 @@ class RobotSpec(Model):
     # round as it is now: what manipulation needs of an arm whose home points the gripper forward.
     ee_mode_orientation: Literal["held", "top_down"] = "held"
     joint_states: list[JointStateEntry] = Field(min_length=1)
-    joint_states_topic: str
+    # where the real path reads the joint states; a simulation-only robot (no `ros:` block) needs none
+    joint_states_topic: str | None = None
     gripper: GripperSpec | None = None
     arm_force: Effort = 150.0  # N·m per arm joint, unless the joint declares its own effort
     arm_max_velocity: Velocity = 3.15  # rad/s per arm joint, unless the joint declares its own velocity
@@ -256,6 +257,13 @@ class RobotSpec(Model):
     # a twin log: joined to every task's randomization sensing terms (a task's own of the same name wins), so a
     # policy trained with randomize=True meets them before the arm does
     sensing: dict[str, SensingRef] = {}
+
+    @property
+    def joint_states_source(self) -> str:
+        """What the observation tables name as the joint readings' source: the topic, where there is one."""
+        if self.joint_states_topic:
+            return self.joint_states_topic
+        return self.ros.joint_states.topic if self.ros is not None else "joint_states"
 
     @property
     def state_names(self) -> list[str]:

@@ -130,7 +130,7 @@ def goal_distance(state, params):
     size=joint_state_count,
     bounds=lambda layout, params, size: box_bounds(layout.boxes.joint_positions),
     describe=lambda layout, params: Description(
-        "Current joint positions", f"{layout.robot.joint_states_topic}.position", _joint_units(layout, False)
+        "Current joint positions", f"{layout.robot.joint_states_source}.position", _joint_units(layout, False)
     ),
     unit="rad or m per joint",
 )
@@ -155,7 +155,7 @@ def previous_action(state, params):
     size=joint_state_count,
     bounds=lambda layout, params, size: box_bounds(layout.boxes.joint_velocities),
     describe=lambda layout, params: Description(
-        "Current joint velocities", f"{layout.robot.joint_states_topic}.velocity", _joint_units(layout, True)
+        "Current joint velocities", f"{layout.robot.joint_states_source}.velocity", _joint_units(layout, True)
     ),
     unit="rad/s or m/s per joint",
 )
