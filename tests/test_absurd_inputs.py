@@ -46,3 +46,67 @@ def test_a_chosen_goal_inside_the_box_is_the_episodes_goal():
     np.testing.assert_allclose(env.unwrapped.goal, chosen)
     np.testing.assert_allclose(observation["desired_goal"], chosen, atol=1e-6)
     env.close()
+
+
+def _expert_run(engine: str, overrides: list[str], episodes: int = 2) -> tuple[list[dict], int]:
+    """The last info of each of the Push expert's episodes on the VX300S, and how many left the physics."""
+    from envfactory.experts import make_policy
+
+    env = gym.make("VX300SPushSim-v0", engine=engine, randomize=True, overrides=overrides)
+    policy, infos = make_policy("scripted", env), []
+    for seed in range(episodes):
+        observation, _ = env.reset(seed=seed)
+        policy.reset()
+        done = False
+        while not done:
+            observation, _, terminated, truncated, info = env.step(policy(observation))
+            done = terminated or truncated
+        infos.append(info)
+    breaks = env.unwrapped.sim_limits.breaks
+    env.close()
+    return infos, breaks
+
+
+def test_a_simulation_that_leaves_its_physics_ends_the_episode_with_the_reason():
+    """A damping at the top of its bound (100 N m s/rad) makes PyBullet joints read about 100 rad/s, 30 times
+    the VX300S's limits: the episode ends there, counted, instead of an observation clipped to look valid."""
+    infos, breaks = _expert_run("pybullet", ["task.randomization.events.arm_damping.params.range=[100,100]"])
+    for info in infos:
+        assert info["abort_reason"].startswith("the simulation left its limits: joint "), info.get("abort_reason")
+        assert "rad/s, over 4 times its declared velocity bound (3.15 rad/s)" in info["abort_reason"]
+    assert breaks == len(infos)
+
+
+def test_the_shipped_randomization_stays_within_the_physics():
+    """The shipped damping range (0 to 0.5) never trips the check, on either engine."""
+    for engine in ("pybullet", "mujoco"):
+        infos, breaks = _expert_run(engine, [])
+        assert breaks == 0 and not any("abort_reason" in info for info in infos), (engine, infos)
+
+
+@pytest.mark.parametrize(
+    "override, complaint",
+    [
+        (
+            "+task.randomization.events.more_damping={term: arm_damping, params: {range: [0.0, 0.2]}}",
+            "task.randomization.events.more_damping: sets arm_damping, as event 'arm_damping' does",
+        ),
+        (
+            "+task.randomization.events.cube_mass_again={term: object_mass, params: {object: cube, range: [0.1, 0.2]}}",
+            "sets object_mass of cube, as event 'cube_mass' does",
+        ),
+        (
+            "+task.randomization.events.arm_damping.every={seconds: 0.1}",
+            "every 0.1 s is shorter than the action cycle (0.5 s)",
+        ),
+    ],
+)
+def test_events_that_the_engine_cannot_keep_are_refused_naming_the_override(override, complaint):
+    from envfactory.factory import blueprint
+    from envfactory.schema.errors import SpecError
+
+    with pytest.raises(SpecError) as caught:
+        blueprint("VX300SPushSim-v0", [override], randomize=True)
+    message = " ".join(str(caught.value).split())
+    assert f"override '{override}'" in message and complaint in message, message
+    blueprint("VX300SPushSim-v0", ["+task.randomization.events.arm_damping.every={seconds: 0.5}"], randomize=True)

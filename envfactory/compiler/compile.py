@@ -182,6 +182,7 @@ def _randomization(
             declared.events, EVENTS, f"{path}.events", "event", layout, found, inert
         )
     )
+    _check_events(events, spec.env.timing.action_cycle_time, f"{path}.events", found)
     sensed = replace(layout, observation_slots=policy_slots(observation, goal_env))
     robot_sensing = {name: ref for name, ref in spec.robot.sensing.items() if name not in declared.sensing}
     sensing = tuple(
@@ -199,6 +200,28 @@ def _randomization(
     elif declared.enabled and not (events or sensing) and not found:
         found.add(f"{path}.enabled", "randomization is on but declares no events and no sensing terms")
     return events, sensing
+
+
+def _check_events(events: tuple[EventSlot, ...], cycle: float, path: str, found: Findings) -> None:
+    """An engine holds one value per quantity, so two events on one would report a value it does not hold; and
+    events are sampled between steps, so an interval shorter than the action cycle cannot be kept."""
+    first_of: dict[tuple[str, str], str] = {}
+    for event in events:
+        key = (event.bound.quantity, event.bound.target)
+        if key in first_of:
+            what = f"{key[0]} of {key[1]}" if key[1] else key[0]
+            found.add(
+                f"{path}.{event.name}",
+                f"sets {what}, as event {first_of[key]!r} does: the engine holds one value, so one of the two "
+                f"would be reported and not applied; keep one event per quantity",
+            )
+        first_of.setdefault(key, event.name)
+        if event.every is not None and event.every.seconds is not None and event.every.seconds < cycle:
+            found.add(
+                f"{path}.{event.name}.every.seconds",
+                f"every {event.every.seconds:g} s is shorter than the action cycle ({cycle:g} s): events are sampled "
+                f"between steps, so it could only fire once a step; write every: {{steps: 1}}, or seconds >= {cycle:g}",
+            )
 
 
 def _check_info_keys(spec: ComposedSpec, rewards, terminations, found: Findings) -> None:

@@ -24,6 +24,7 @@ from envfactory.envs.goals import GoalSampler
 from envfactory.envs.managers import ImageManager, ObservationManager, RewardManager, TerminationManager
 from envfactory.envs.objects import ObjectSpawner, ObjectTracker
 from envfactory.envs.randomization import Randomizer
+from envfactory.envs.sim_limits import SimulationLimits
 from envfactory.geometry.frames import TaskFrame
 from envfactory.geometry.object_press import ObjectPressGuard
 from envfactory.geometry.robot_model import robot_geometry
@@ -105,6 +106,8 @@ class RobotEnv(gym.Env):
             spec, geometry.urdf, self.task_frame, render_mode, **backend_options
         )
         self.backend.attach_geometry(self.safety.collision)
+        # a simulator can leave its physics; a real arm's readings have their own checks on the real path
+        self.sim_limits = SimulationLimits(spec.robot) if blueprint.backend != "rosbridge" else None
         self.randomizer = (
             Randomizer(blueprint, self.backend, self._timing.action_cycle_time) if blueprint.randomized else None
         )
@@ -258,6 +261,8 @@ class RobotEnv(gym.Env):
                     self.backend.command_gripper(command.gripper)
             self.backend.advance(self._timing.action_cycle_time)
             self._state = self._read_state(previous)
+            if self.sim_limits is not None:
+                self.sim_limits.check(self._state)
         except EpisodeAbort as exc:
             # stale or malformed readings, an arm that does not follow: the backend stopped it; the episode ends
             log.warning("%s: episode aborted: %s", self.blueprint.env_id, exc)
