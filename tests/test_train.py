@@ -607,3 +607,30 @@ def test_a_model_trained_in_simulation_runs_on_the_real_id_without_its_simulatio
     assert "simulation-only kwargs are left out: engine='mujoco', randomize=True" in " ".join(result.output.split())
     assert "over 1 episodes" in result.output
     assert len(stand_in.received) > sent  # evaluate drove it too
+
+
+@needs_train
+def test_a_run_of_a_user_id_remembers_its_spec_folder_for_resume_and_run(tmp_path):
+    """A later process (here: the folder unregistered again) resumes the run and replays its model without
+    being given --specs: the run folder records where its ID is declared."""
+    from envfactory.factory import unregister_folder
+
+    folder = _user_reach(tmp_path)
+    run = tmp_path / "run"
+    common = ["--eval-every", "120", "--eval-episodes", "1", "--no-progress"]
+    try:
+        result = runner.invoke(
+            app, ["train", "MyUR5eReacherSim-v0", "--steps", "120", "-o", str(run), *common, *TINY[:6]]
+        )
+        assert result.exit_code == 0, result.output
+        assert json.loads((run / "model.json").read_text())["spec_folder"] == str(folder)
+    finally:
+        unregister_folder(folder)
+    try:
+        resumed = runner.invoke(app, ["train", "--resume", str(run), "--steps", "240", "--no-progress"])
+        assert resumed.exit_code == 0, resumed.output
+        unregister_folder(folder)
+        replayed = runner.invoke(app, ["run", "MyUR5eReacherSim-v0", "-n", "1", "--policy", str(run / "model.zip")])
+        assert replayed.exit_code == 0, replayed.output
+    finally:
+        unregister_folder(folder)

@@ -28,6 +28,8 @@ from envfactory.cli.common import (
 from envfactory.envs.episodes import iter_episodes, success_rate
 from envfactory.experts import make_policy
 from envfactory.learn.models import ModelMismatch
+from envfactory.learn.runs import RunFolderError
+from envfactory.learn.spec_folders import register_recorded
 from envfactory.learn.trainer import load_policy, read_meta
 from envfactory.schema.errors import SpecError
 from envfactory.terms.sensing_from_log import read_log, sensing_terms, sensing_yaml
@@ -69,11 +71,12 @@ def run(
     import gymnasium as gym
     from rich.progress import Progress
 
-    known_id(env_id)
-    kwargs = parse_kwargs(kwarg)
     saved = None
     if policy not in ("scripted", "random"):
-        saved, trained_kwargs = _saved_policy(policy)
+        saved, trained_kwargs = _saved_policy(policy)  # a user ID's spec folder, recorded with the model, joins
+    known_id(env_id)
+    kwargs = parse_kwargs(kwarg)
+    if saved is not None:
         # the env it was trained on (a Real ID without what only a simulator has), unless -k says otherwise
         kwargs = {**real_arm_kwargs(env_id, trained_kwargs), **kwargs}
     if video is not None:
@@ -172,7 +175,13 @@ def _saved_policy(path_text: str) -> tuple[Path, dict]:
     """A model file saved by `envfactory train` and the env kwargs it was trained with."""
 
     path = model_file(path_text, "'scripted', 'random'")
-    return path, dict(read_meta(path).get("env_kwargs", {}))
+    meta = read_meta(path)
+    if meta.get("env_id"):
+        try:
+            register_recorded(meta, path)
+        except RunFolderError as exc:
+            fail(str(exc))
+    return path, dict(meta.get("env_kwargs", {}))
 
 
 def _bind_model(path: Path, env, algo: str | None):

@@ -29,6 +29,7 @@ from envfactory.learn.models import (
     read_meta,
 )
 from envfactory.learn.runs import RECORD_FILE, RunFolderError, RunRecord, claim
+from envfactory.learn.spec_folders import recorded_folder, register_recorded
 
 META_FILE = RECORD_FILE
 # what the CLI and `run --policy` take from here
@@ -140,6 +141,7 @@ def train(
             folder,
             {
                 "env_id": env_id,
+                "spec_folder": recorded_folder(env_id),
                 "algo": hyper.algo,
                 "seed": seed,
                 "steps": steps,
@@ -196,6 +198,7 @@ def resume(
 
     record = RunRecord.read(folder)
     data = record.data
+    register_recorded(data, folder)
     for name in (MODEL_FILE, BUFFER_FILE) + ((NORMALIZER_FILE,) if data.get("normalize") else ()):
         if not (folder / name).is_file():
             why = (
