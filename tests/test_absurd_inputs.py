@@ -110,3 +110,19 @@ def test_events_that_the_engine_cannot_keep_are_refused_naming_the_override(over
     message = " ".join(str(caught.value).split())
     assert f"override '{override}'" in message and complaint in message, message
     blueprint("VX300SPushSim-v0", ["+task.randomization.events.arm_damping.every={seconds: 0.5}"], randomize=True)
+
+
+def test_a_mass_range_typed_in_grams_is_refused_against_the_robots_payload_naming_the_override():
+    """[50, 90] meant grams: as kilograms the cube would weigh up to 90 kg in a 4 cm box (the expert then fails
+    every episode). The VX300S is rated for 0.75 kg; the error names the override that wrote the range."""
+    from envfactory.factory import blueprint
+    from envfactory.schema.errors import SpecError
+
+    typed = "+task.randomization.events.cube_mass.params.range=[50,90]"
+    with pytest.raises(SpecError) as caught:
+        blueprint("VX300SPushSim-v0", ["~task.randomization.events.cube_mass.params.scale", typed], randomize=True)
+    message = " ".join(str(caught.value).split())
+    assert f"override '{typed}': task.randomization.events.cube_mass: samples up to 90 kg" in message, message
+    assert "rated payload of 0.75 kg (robot.payload); looks like grams" in message
+    with pytest.raises(SpecError, match=r"task.objects.cube.mass: weighs 2 kg, over robot rx200's rated payload"):
+        blueprint("RX200PushSim-v0", ["task.objects.cube.mass=2"])

@@ -183,6 +183,7 @@ def _randomization(
         )
     )
     _check_events(events, spec.env.timing.action_cycle_time, f"{path}.events", found)
+    _check_masses(spec, events, f"{path}.events", found)
     sensed = replace(layout, observation_slots=policy_slots(observation, goal_env))
     robot_sensing = {name: ref for name, ref in spec.robot.sensing.items() if name not in declared.sensing}
     sensing = tuple(
@@ -221,6 +222,27 @@ def _check_events(events: tuple[EventSlot, ...], cycle: float, path: str, found:
                 f"{path}.{event.name}.every.seconds",
                 f"every {event.every.seconds:g} s is shorter than the action cycle ({cycle:g} s): events are sampled "
                 f"between steps, so it could only fire once a step; write every: {{steps: 1}}, or seconds >= {cycle:g}",
+            )
+
+
+def _check_masses(spec: ComposedSpec, events: tuple[EventSlot, ...], path: str, found: Findings) -> None:
+    """No object, nor any mass an event samples, heavier than the robot's rated payload."""
+    payload, robot = spec.robot.payload, spec.robot.name
+    if payload is None:
+        return
+    heaviest = [(f"task.objects.{name}.mass", "weighs", thing.mass) for name, thing in spec.task.objects.items()]
+    heaviest += [
+        (f"{path}.{e.name}", "samples up to", e.bound.high) for e in events if e.bound.quantity == "object_mass"
+    ]
+    for where, verb, kilograms in heaviest:
+        if kilograms > payload:
+            grams = kilograms / 1000.0 <= payload and kilograms >= 10 * payload  # 50 g typed as 50
+            found.add(
+                where,
+                f"{verb} {kilograms:g} kg, over robot {robot}'s rated payload of {payload:g} kg (robot.payload)"
+                + (
+                    f"; looks like grams: masses are in kg ({kilograms:g} g = {kilograms / 1000:g} kg)" if grams else ""
+                ),
             )
 
 

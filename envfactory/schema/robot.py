@@ -250,6 +250,8 @@ class RobotSpec(Model):
     joint_states_topic: str | None = None
     gripper: GripperSpec | None = None
     arm_force: Effort = 150.0  # N·m per arm joint, unless the joint declares its own effort
+    # kg: the maker's rated payload; a task object heavier than it (or a mass event reaching past it) is refused
+    payload: Annotated[Positive, Field(le=1000.0)] | None = None
     arm_max_velocity: Velocity = 3.15  # rad/s per arm joint, unless the joint declares its own velocity
     safety: RobotSafety = RobotSafety()
     ros: RosSpec | None = None

@@ -89,7 +89,12 @@ class SourceMap:
         self.notes[path] = (origin, line)
 
     def locate(self, path: str) -> Problem:
-        """A Problem shell at the nearest recorded ancestor of `path`."""
+        """A Problem shell at what set `path`: an override or kwarg that set it or a value below it (the file's
+        line wrote only the rest), else the nearest recorded ancestor."""
+        below = sorted(key for key in self.notes if key.startswith(path + "."))
+        if below:
+            origin, line = self.notes[below[0]]
+            return Problem(path, "", file=origin, line=line)
         probe = path
         while True:
             if probe in self.notes:
