@@ -7,7 +7,6 @@ learning itself is measured by devkit/bench/learning.py, not here.
 
 import csv
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -446,52 +445,42 @@ def test_a_sweep_over_an_unknown_name_is_refused_before_any_trial(tmp_path, monk
     assert not (tmp_path / "runs").exists()
 
 
-def _user_reach(tmp_path: Path) -> Path:
+@pytest.fixture
+def user_reach(tmp_path):
     """A user folder with a copy of the UR5e Reach family (its Sim ID renamed), registered for the test."""
     from test_silent_mistakes import user_folder
 
-    from envfactory.factory import register_specs
+    from envfactory.factory import register_specs, unregister_folder
 
     folder = user_folder(tmp_path, "ur5e_reach")
     added, problems = register_specs(folder)
     assert added and not problems, problems
-    return folder
+    yield folder
+    unregister_folder(folder)
 
 
-def test_a_misspelled_block_in_a_user_settings_file_is_named_with_its_line(tmp_path):
-    from envfactory.factory import unregister_folder
-
-    folder = _user_reach(tmp_path)
-    try:
-        (folder / "specs" / "train").mkdir()
-        (folder / "specs" / "train" / "sac.yaml").write_text("ur5e_rech:\n  gamma: 0.9\n")
-        with pytest.raises(
-            HyperparameterError,
-            match=r"sac.yaml:1: block 'ur5e_rech' names no family or env ID "
-            r"\(did you mean 'ur5e_reach'\?\)",
-        ):
-            load("sac", "MyUR5eReacherSim-v0")
-    finally:
-        unregister_folder(folder)
+def test_a_misspelled_block_in_a_user_settings_file_is_named_with_its_line(user_reach):
+    (user_reach / "specs" / "train").mkdir()
+    (user_reach / "specs" / "train" / "sac.yaml").write_text("ur5e_rech:\n  gamma: 0.9\n")
+    with pytest.raises(
+        HyperparameterError,
+        match=r"sac.yaml:1: block 'ur5e_rech' names no family or env ID \(did you mean 'ur5e_reach'\?\)",
+    ):
+        load("sac", "MyUR5eReacherSim-v0")
 
 
-def test_a_settings_folder_that_is_never_read_is_named(tmp_path):
-    from envfactory.factory import unregister_folder
-
-    folder = _user_reach(tmp_path)
-    try:
-        (folder / "train").mkdir()
-        (folder / "train" / "sac.yaml").write_text("default:\n  gamma: 0.9\n")
-        with pytest.raises(HyperparameterError, match=r"train: never read \(training settings go beside the family"):
-            load("sac", "MyUR5eReacherSim-v0")
-        (folder / "train").rename(folder / "specs" / "train")
-        (folder / "specs" / "train" / "sac.yaml").rename(folder / "specs" / "train" / "SAC.yml")
-        with pytest.raises(HyperparameterError, match=r"SAC.yml: never read \(a file is named for its algorithm"):
-            load("sac", "MyUR5eReacherSim-v0")
-        (folder / "specs" / "train" / "SAC.yml").rename(folder / "specs" / "train" / "sac.yaml")
-        assert load("sac", "MyUR5eReacherSim-v0").values["gamma"] == 0.9
-    finally:
-        unregister_folder(folder)
+def test_a_settings_folder_that_is_never_read_is_named(user_reach):
+    train = user_reach / "specs" / "train"
+    (user_reach / "train").mkdir()
+    (user_reach / "train" / "sac.yaml").write_text("default:\n  gamma: 0.9\n")
+    with pytest.raises(HyperparameterError, match=r"train: never read \(training settings go beside the family"):
+        load("sac", "MyUR5eReacherSim-v0")
+    (user_reach / "train").rename(train)
+    (train / "sac.yaml").rename(train / "SAC.yml")
+    with pytest.raises(HyperparameterError, match=r"SAC.yml: never read \(a file is named for its algorithm"):
+        load("sac", "MyUR5eReacherSim-v0")
+    (train / "SAC.yml").rename(train / "sac.yaml")
+    assert load("sac", "MyUR5eReacherSim-v0").values["gamma"] == 0.9
 
 
 def test_missing_extra_is_a_clear_error(monkeypatch):
@@ -610,27 +599,19 @@ def test_a_model_trained_in_simulation_runs_on_the_real_id_without_its_simulatio
 
 
 @needs_train
-def test_a_run_of_a_user_id_remembers_its_spec_folder_for_resume_and_run(tmp_path):
+def test_a_run_of_a_user_id_remembers_its_spec_folder_for_resume_and_run(user_reach, tmp_path):
     """A later process (here: the folder unregistered again) resumes the run and replays its model without
     being given --specs: the run folder records where its ID is declared."""
     from envfactory.factory import unregister_folder
 
-    folder = _user_reach(tmp_path)
     run = tmp_path / "run"
     common = ["--eval-every", "120", "--eval-episodes", "1", "--no-progress"]
-    try:
-        result = runner.invoke(
-            app, ["train", "MyUR5eReacherSim-v0", "--steps", "120", "-o", str(run), *common, *TINY[:6]]
-        )
-        assert result.exit_code == 0, result.output
-        assert json.loads((run / "model.json").read_text())["spec_folder"] == str(folder)
-    finally:
-        unregister_folder(folder)
-    try:
-        resumed = runner.invoke(app, ["train", "--resume", str(run), "--steps", "240", "--no-progress"])
-        assert resumed.exit_code == 0, resumed.output
-        unregister_folder(folder)
-        replayed = runner.invoke(app, ["run", "MyUR5eReacherSim-v0", "-n", "1", "--policy", str(run / "model.zip")])
-        assert replayed.exit_code == 0, replayed.output
-    finally:
-        unregister_folder(folder)
+    result = runner.invoke(app, ["train", "MyUR5eReacherSim-v0", "--steps", "120", "-o", str(run), *common, *TINY[:6]])
+    assert result.exit_code == 0, result.output
+    assert json.loads((run / "model.json").read_text())["spec_folder"] == str(user_reach)
+    unregister_folder(user_reach)
+    resumed = runner.invoke(app, ["train", "--resume", str(run), "--steps", "240", "--no-progress"])
+    assert resumed.exit_code == 0, resumed.output
+    unregister_folder(user_reach)
+    replayed = runner.invoke(app, ["run", "MyUR5eReacherSim-v0", "-n", "1", "--policy", str(run / "model.zip")])
+    assert replayed.exit_code == 0, replayed.output

@@ -54,7 +54,7 @@ def _moments_problem(values: list[float]) -> str:
     shown = ", ".join(f"{moment:.4g}" for moment in moments)
     if moments[0] < -TOLERANCE * scale:
         return f"principal moments {shown} kg·m²: a negative one (the inertia is not positive semi-definite)"
-    if moments[0] + moments[1] < moments[2] * (1 - TOLERANCE) - TOLERANCE * 1e-9:
+    if moments[0] + moments[1] < moments[2] - TOLERANCE * scale:
         return (
             f"principal moments {shown} kg·m² break the triangle inequality ({moments[0]:.4g} + {moments[1]:.4g} < "
             f"{moments[2]:.4g}): no rigid body has them; MuJoCo refuses the body, PyBullet's dynamics go wrong"

@@ -7,16 +7,14 @@ from __future__ import annotations
 
 import yaml
 
+from envfactory.schema.numbers import is_number
+
 # What a row of each section holds, as the generator writes it.
 ROW_FORMS = {
     "skipped": ("[shape, shape, reason]", lambda row: isinstance(row[2], str)),
-    "pair_margins": ("[shape, shape, margin in m]", lambda row: _is_number(row[2])),
+    "pair_margins": ("[shape, shape, margin in m]", lambda row: is_number(row[2])),
     "never_near": ("[shape, shape]", lambda row: True),
 }
-
-
-def _is_number(value) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def malformed_rows(text: str) -> list[tuple[int, str]]:

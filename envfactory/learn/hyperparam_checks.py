@@ -10,10 +10,11 @@ import math
 import typing
 
 from envfactory.learn.hyperparams import HyperparameterError, Hyperparameters
+from envfactory.schema.numbers import is_number
 
 
 def _number(value) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    return is_number(value) and math.isfinite(value)
 
 
 def _whole(value) -> bool:
@@ -101,7 +102,7 @@ def _check_types(cls, hyper: Hyperparameters, kwargs: dict) -> None:
         wanted = float if name == "noise_std" else (parameters[name].annotation if name in parameters else None)
         choices = typing.get_args(wanted) or (wanted,)
         takes_text = str in choices or wanted in (None, inspect.Parameter.empty)
-        number = isinstance(value, (int, float)) and not isinstance(value, bool)
+        number = is_number(value)
         if wanted in (int, float) and not number or (isinstance(value, str) and not takes_text):
             raise HyperparameterError(
                 f"{hyper.algo}: hyperparameter {name} must be a number, got {value!r} ({type(value).__name__}; {where})"

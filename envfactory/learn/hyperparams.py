@@ -144,13 +144,15 @@ def _unknown_blocks(path: Path, data: dict) -> list[str]:
     """Blocks of a settings file that name no registered family or ID: a misspelled one would be skipped."""
     known = registry.records()
     names = ["default", *sorted({Path(r.family.path).stem for r in known.values()}), *sorted(known)]
+    unknown = [key for key in data if key not in names]
+    if not unknown:
+        return []
     lines = path.read_text().splitlines()
-    return [
-        f"{path}:{next((n for n, line in enumerate(lines, 1) if line.startswith(f'{key}:')), 1)}: block {key!r} "
-        f"names no family or env ID{suggest(str(key), names)}"
-        for key in data
-        if key not in names
-    ]
+    found = []
+    for key in unknown:
+        line = next((number for number, text in enumerate(lines, 1) if text.startswith(f"{key}:")), 1)
+        found.append(f"{path}:{line}: block {key!r} names no family or env ID{suggest(str(key), names)}")
+    return found
 
 
 def load(algo: str, env_id: str, overrides: list[str] | tuple[str, ...] = ()) -> Hyperparameters:

@@ -15,8 +15,13 @@ from pydantic import AfterValidator, BeforeValidator, Field
 from envfactory.schema.tree import leaves
 
 
+def is_number(value: Any) -> bool:
+    """A real number as a file or a log gives it: an int or a float, not a bool (YAML's true is no count)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
 def _plain_number(value: Any) -> Any:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+    if not is_number(value):
         raise ValueError("Input should be a valid number, not a bool or a string")
     return float(value)
 

@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from envfactory.schema.numbers import is_number
+
 JOINT_OBSERVATIONS = ["joint_positions", "joint_velocities"]  # the observation terms that read /joint_states
 
 
@@ -36,21 +38,17 @@ def read_log(path: Path) -> list[dict[str, float]]:
     return records
 
 
-def _is_number(value) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
 def _check_fields(record: dict, where: str) -> None:
     """The fields the terms are drawn from: an age is a finite time, a repeat a share, a latency a time or
     null/NaN (no motion seen to start that step)."""
     age = record["joint_reading_age_s"]
-    if not (_is_number(age) and math.isfinite(age) and age >= 0):
+    if not (is_number(age) and math.isfinite(age) and age >= 0):
         raise ValueError(f"{where}: joint_reading_age_s is {age!r}, not a finite time in seconds (>= 0)")
     repeated = record.get("joint_reading_repeated", 0.0)
-    if not (_is_number(repeated) and 0.0 <= repeated <= 1.0):
+    if not (is_number(repeated) and 0.0 <= repeated <= 1.0):
         raise ValueError(f"{where}: joint_reading_repeated is {repeated!r}, not 0 or 1")
     latency = record.get("command_latency_s")
-    if latency is not None and not (_is_number(latency) and (math.isnan(latency) or 0 <= latency < math.inf)):
+    if latency is not None and not (is_number(latency) and (math.isnan(latency) or 0 <= latency < math.inf)):
         raise ValueError(f"{where}: command_latency_s is {latency!r}, not a time in seconds (or null)")
 
 
