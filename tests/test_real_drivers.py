@@ -144,6 +144,27 @@ def test_the_watchdog_judges_a_move_against_the_profile_the_driver_runs(twin, ma
     assert 5.0 < time.monotonic() - started < 6.0
 
 
+def test_after_its_profile_a_servo_holds_the_goal_at_its_own_top_speed(twin):
+    """xs_sdk at its stock 2 s profile moves the waist 0.4 rad (0.2 rad/s). Pushed back to where it started once
+    the profile is over (a cube it presses on, say), the servo's position loop returns it at the motor's top
+    speed, as a Dynamixel does after its profile, not at the profile's pace (which would take 2 s again)."""
+    import pybullet as p
+
+    stand_in = twin("rx200", "reach")
+    sim, waist = stand_in.sim, stand_in.arm_in_states[0]
+    start = sim.read_joints().position[stand_in.arm_in_states]
+    target = start.copy()
+    target[0] += 0.4
+    stand_in.driver.move_arm(target, stand_in.group_move_s)
+    assert wait_for(lambda: abs(sim.read_joints().position[waist] - target[0]) < 0.01, timeout=4.0)
+    time.sleep(0.2)  # the profile is over and the hold has begun
+    with sim._lock:
+        p.resetJointState(sim.body, sim._arm[0], float(start[0]), 0.0, physicsClientId=sim.client)
+    pushed_back = time.monotonic()
+    assert wait_for(lambda: abs(sim.read_joints().position[waist] - target[0]) < 0.02, timeout=0.8)
+    assert time.monotonic() - pushed_back < 0.8  # at the profile's 0.2 rad/s the way back takes 2 s
+
+
 # ------------------------------------------------------------------ ur_robot_driver
 
 

@@ -38,6 +38,10 @@ class DeclaredDriver:
         self.twin, self.ros, self.sim = twin, twin.ros, twin.sim
         self.group_move_s = stock_move_s if stock_move_s is not None else self.ros.arm_command.profile_time_s
         self.gripper = twin.spec.robot.gripper
+        self._hold_lock = threading.Lock()
+        self._hold: threading.Timer | None = None
+        self._commands = 0  # arm commands so far: a hold is for the command it was set for only
+        self._stopped = False  # closed: the twin is shutting down its simulation
 
     # what it publishes
     def joint_state(self, position: np.ndarray, velocity: np.ndarray) -> tuple[list[str], np.ndarray, np.ndarray]:
@@ -60,10 +64,29 @@ class DeclaredDriver:
         self.move_arm(target, duration)
 
     def move_arm(self, target, duration: float) -> None:
-        if target is None:  # the stop: hold where the arm is now
-            target = self.sim.read_joints().position[self.twin.arm_in_states]
-            duration = MIN_MOVE_S
-        self.sim.command_joints(target, max(duration, MIN_MOVE_S))
+        with self._hold_lock:
+            if self._stopped:
+                return
+            if target is None:  # the stop: hold where the arm is now
+                target = self.sim.read_joints().position[self.twin.arm_in_states]
+                duration = MIN_MOVE_S
+            duration = max(duration, MIN_MOVE_S)
+            self._commands += 1
+            if self._hold is not None:
+                self._hold.cancel()
+            self.sim.command_joints(target, duration)
+            # Once its profile is over, a servo's position loop holds the goal with all the torque and speed it
+            # has (a Dynamixel's profile has ended at the goal; UR's trajectory controller holds its last point).
+            # A joint pushed back by what it presses on then returns at its own top speed, not at the pace of
+            # the profile it was given.
+            self._hold = threading.Timer(duration, self._hold_goal, (target, self._commands))
+            self._hold.daemon = True
+            self._hold.start()
+
+    def _hold_goal(self, target, command: int) -> None:
+        with self._hold_lock:
+            if command == self._commands and not self._stopped:
+                self.sim.hold_joints(target)
 
     def on_gripper(self, msg: dict) -> None:
         self.sim.command_gripper(
@@ -71,7 +94,10 @@ class DeclaredDriver:
         )
 
     def close(self) -> None:
-        pass
+        with self._hold_lock:
+            self._stopped = True
+            if self._hold is not None:
+                self._hold.cancel()
 
 
 # ---------------------------------------------------------------------------------------------------- xs_sdk
@@ -352,6 +378,7 @@ class NedRos(DeclaredDriver):
         )
 
     def close(self) -> None:
+        super().close()
         with self._wake:
             self._closed = True
             self._wake.notify()

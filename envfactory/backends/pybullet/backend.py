@@ -327,19 +327,30 @@ class PyBulletBackend:
             self._fast.commanded_arm(q_arm_target, duration)
 
     def _program_arm(self, q_arm_target, duration: float) -> None:
-        c = self.client
-        current = np.array([s[0] for s in p.getJointStates(self.body, self._arm, physicsClientId=c)])
+        current = np.array([s[0] for s in p.getJointStates(self.body, self._arm, physicsClientId=self.client)])
         travel = np.abs(np.asarray(q_arm_target, float) - current)
         length = max(duration, float(np.max(travel / np.asarray(self._velocities, float))))
-        for joint, target, distance, effort in zip(self._arm, q_arm_target, travel, self._efforts):
-            speed = max(distance / length, 1e-3)
+        self._drive_arm(q_arm_target, np.maximum(travel / length, 1e-3))
+
+    def hold_joints(self, q_arm_target) -> None:
+        """Drive the arm to `q_arm_target` and hold it there with each motor's full speed and effort, with no
+        motion profile: what a servo's position loop does once its profile has ended (the twin's drivers)."""
+        with self._lock:
+            self._pending_arm = None
+            self._drive_arm(q_arm_target, np.asarray(self._velocities, float))
+            if self._fast is not None:
+                self._fast.commanded_arm(q_arm_target, 0.0)
+
+    def _drive_arm(self, q_arm_target, speeds) -> None:
+        c = self.client
+        for joint, target, speed, effort in zip(self._arm, q_arm_target, speeds, self._efforts):
             p.setJointMotorControl2(
                 self.body,
                 joint,
                 p.POSITION_CONTROL,
                 targetPosition=float(target),
                 force=effort,
-                maxVelocity=speed,
+                maxVelocity=float(speed),
                 positionGain=self._position_gain,
                 physicsClientId=c,
             )
