@@ -48,14 +48,18 @@ def test_a_chosen_goal_inside_the_box_is_the_episodes_goal():
     env.close()
 
 
-def _expert_run(engine: str, overrides: list[str], episodes: int = 2) -> tuple[list[dict], int]:
-    """The last info of each of the Push expert's episodes on the VX300S, and how many left the physics."""
+def _expert_run(engine: str, episodes: int = 2, forced_damping: float | None = None) -> tuple[list[dict], int]:
+    """The last info of each of the Push expert's episodes on the VX300S, and how many left the physics.
+    `forced_damping` is set on the engine itself after each reset, past what a spec may declare."""
     from envfactory.experts import make_policy
+    from envfactory.step_state import PhysicsChange
 
-    env = gym.make("VX300SPushSim-v0", engine=engine, randomize=True, overrides=overrides)
+    env = gym.make("VX300SPushSim-v0", engine=engine, randomize=True)
     policy, infos = make_policy("scripted", env), []
     for seed in range(episodes):
         observation, _ = env.reset(seed=seed)
+        if forced_damping is not None:
+            env.unwrapped.backend.apply_physics(PhysicsChange("arm_damping", "", forced_damping))
         policy.reset()
         done = False
         while not done:
@@ -68,9 +72,10 @@ def _expert_run(engine: str, overrides: list[str], episodes: int = 2) -> tuple[l
 
 
 def test_a_simulation_that_leaves_its_physics_ends_the_episode_with_the_reason():
-    """A damping at the top of its bound (100 N m s/rad) makes PyBullet joints read about 100 rad/s, 30 times
-    the VX300S's limits: the episode ends there, counted, instead of an observation clipped to look valid."""
-    infos, breaks = _expert_run("pybullet", ["task.randomization.events.arm_damping.params.range=[100,100]"])
+    """A damping of 100 N m s/rad (which a spec may not declare for the VX300S: see below) makes PyBullet joints
+    read about 100 rad/s, 30 times the VX300S's limits: the episode ends there, counted, instead of an
+    observation clipped to look valid."""
+    infos, breaks = _expert_run("pybullet", forced_damping=100.0)
     for info in infos:
         assert info["abort_reason"].startswith("the simulation left its limits: joint "), info.get("abort_reason")
         assert "rad/s, over 4 times its declared velocity bound (3.15 rad/s)" in info["abort_reason"]
@@ -80,7 +85,7 @@ def test_a_simulation_that_leaves_its_physics_ends_the_episode_with_the_reason()
 def test_the_shipped_randomization_stays_within_the_physics():
     """The shipped damping range (0 to 0.5) never trips the check, on either engine."""
     for engine in ("pybullet", "mujoco"):
-        infos, breaks = _expert_run(engine, [])
+        infos, breaks = _expert_run(engine)
         assert breaks == 0 and not any("abort_reason" in info for info in infos), (engine, infos)
 
 
@@ -112,6 +117,36 @@ def test_events_that_the_engine_cannot_keep_are_refused_naming_the_override(over
     blueprint("VX300SPushSim-v0", ["+task.randomization.events.arm_damping.every={seconds: 0.5}"], randomize=True)
 
 
+@pytest.mark.parametrize(
+    "env_id, high, complaint",
+    [
+        (
+            "VX300SPushSim-v0",
+            100,
+            "arm_damping up to 100 N m s/rad would take 314 N m from joint waist at its rated speed of 3.14 rad/s, "
+            "over its rated effort of 20 N m (the robot's URDF limits): its motor could never drive it; for robot "
+            "vx300s, at most 6.37 N m s/rad",
+        ),
+        (  # the RX200's light wrist: PyBullet's joints blow up at 2 (31 rad/s measured)
+            "RX200PushSim-v0",
+            2,
+            "would take 6.28 N m from joint wrist_angle at its rated speed of 3.14 rad/s",
+        ),
+        ("RX200PushSim-v0", 0.5, "from joint wrist_rotate"),  # the shipped tasks' 0.5: the RX200 families cap it
+    ],
+)
+def test_a_damping_its_motors_could_not_drive_through_is_refused(env_id, high, complaint):
+    from envfactory.factory import blueprint
+    from envfactory.schema.errors import SpecError
+
+    override = f"task.randomization.events.arm_damping.params.range=[0,{high}]"
+    with pytest.raises(SpecError) as caught:
+        blueprint(env_id, [override])
+    message = " ".join(str(caught.value).split())
+    assert f"override '{override}'" in message and complaint in message, message
+    assert blueprint("RX200PushSim-v0", randomize=True).events  # the RX200 families' own range, 0 to 0.3
+
+
 def test_a_mass_range_typed_in_grams_is_refused_against_the_robots_payload_naming_the_override():
     """[50, 90] meant grams: as kilograms the cube would weigh up to 90 kg in a 4 cm box (the expert then fails
     every episode). The VX300S is rated for 0.75 kg; the error names the override that wrote the range."""
@@ -126,3 +161,94 @@ def test_a_mass_range_typed_in_grams_is_refused_against_the_robots_payload_namin
     assert "rated payload of 0.75 kg (robot.payload); looks like grams" in message
     with pytest.raises(SpecError, match=r"task.objects.cube.mass: weighs 2 kg, over robot rx200's rated payload"):
         blueprint("RX200PushSim-v0", ["task.objects.cube.mass=2"])
+
+
+@pytest.mark.parametrize(
+    "override, complaint",
+    [
+        (  # 0.5 rad of encoder noise: the UR5e joint columns span 4π, 1% of which is 0.126 rad
+            "task.randomization.sensing.joint_noise.params.std=0.5",
+            "noise spreading 0.5 (std 0.5, bias_std 0, drift_std 0 over 100 steps) on 'joint_positions' (rad) is "
+            "over 1% of its columns' typical range (12.6): at most 0.126",
+        ),
+        (  # half a metre of cube-tracker error
+            "task.randomization.sensing.cube_noise.params.std=0.5",
+            "on 'object_position' (m) is over 1% of its columns' typical range (2.41): at most 0.0241",
+        ),
+        (  # a drift that walks 10 cm over the episode
+            "+task.randomization.sensing.cube_noise.params.drift_std=0.01",
+            "drift_std 0.01 over 100 steps) on 'object_position' (m)",
+        ),
+    ],
+)
+def test_noise_is_judged_against_the_range_of_the_observation_it_blurs(override, complaint):
+    from envfactory.factory import blueprint
+    from envfactory.schema.errors import SpecError
+
+    with pytest.raises(SpecError) as caught:
+        blueprint("UR5ePushSim-v0", [override], randomize=True)
+    message = " ".join(str(caught.value).split())
+    assert f"override '{override}'" in message and complaint in message, message
+
+
+def test_the_shipped_noise_is_plausible_on_every_robot():
+    from envfactory.factory import blueprint
+
+    for env_id in ("UR5ePushSim-v0", "VX300SPnPSim-v0", "RX200ReacherSim-v0", "NED2PushSim-v0"):
+        assert blueprint(env_id, randomize=True).sensing
+
+
+@pytest.mark.parametrize(
+    "override, engine, complaint",
+    [
+        (  # PyBullet's rate on a MuJoCo make
+            "sim.physics_hz=2000",
+            "mujoco",
+            "sim.physics_hz: only pybullet reads sim.physics_hz, and this ID runs on mujoco (its own is "
+            "sim.mujoco.physics_hz): the value would go unused",
+        ),
+        (  # MuJoCo's rate on a PyBullet make
+            "sim.mujoco.physics_hz=1000",
+            None,
+            "only mujoco reads sim.mujoco.physics_hz, and this ID runs on pybullet (its own is sim.physics_hz)",
+        ),
+        (
+            "sim.motor_position_gain=0.5",
+            "mujoco",
+            "only pybullet reads sim.motor_position_gain, and this ID runs on mujoco:",
+        ),
+    ],
+)
+def test_a_setting_for_this_make_that_its_engine_never_reads_is_refused(override, engine, complaint):
+    from envfactory.schema.errors import SpecError
+
+    kwargs = {} if engine is None else {"engine": engine}
+    with pytest.raises(SpecError) as caught:
+        gym.make("UR5ePushSim-v0", overrides=[override], **kwargs)
+    message = " ".join(str(caught.value).split())
+    assert complaint in message and f"override '{override}'" in message, message
+
+
+def test_a_family_that_writes_both_engines_settings_serves_both(tmp_path):
+    """The shipped families write MuJoCo's rate (and the RX200's PyBullet solver iterations) beside the other
+    engine's: the engine kwarg picks one, and neither make is refused."""
+    from envfactory.factory import blueprint
+
+    for engine in ("pybullet", "mujoco"):
+        assert blueprint("RX200PushSim-v0", engine=engine).backend == engine
+        assert blueprint("UR5ePushSim-v0", engine=engine).backend == engine
+
+
+def test_a_family_that_chooses_an_engine_and_writes_only_the_others_rate_is_refused(tmp_path):
+    """`engine: mujoco` beside `physics_hz: 2000` (PyBullet's): the rate would be silently unused."""
+    from test_silent_mistakes import line_of, refusal, user_folder
+
+    folder = user_folder(
+        tmp_path,
+        "ur5e_push",
+        edits=[("specs/ur5e_push.yaml", "  mujoco: {physics_hz: 320}", "  engine: mujoco\n  physics_hz: 2000")],
+    )
+    family = folder / "specs" / "ur5e_push.yaml"
+    message = refusal(folder)
+    assert f"{family}:{line_of(family, 'physics_hz: 2000')}" in message, message
+    assert "sim.physics_hz: only pybullet reads sim.physics_hz, and this ID runs on mujoco" in message

@@ -1,5 +1,6 @@
 from pathlib import Path
 
+import pytest
 from typer.testing import CliRunner
 
 from envfactory.cli.app import app
@@ -173,7 +174,7 @@ def test_describe_reflects_kwargs_and_overrides():
         ["multi_goal=false"],
         ["task.goal.lift.enabled=false"],
         ["-o", "task.goal.lift.enabled=false"],  # the override spelling of run
-        ["-k", "overrides=[task.goal.lift.enabled=false]"],  # and of evaluate and train
+        ["-k", "overrides=[task.goal.lift.enabled=false]"],  # the kwarg spelling, still taken
     ):
         off = runner.invoke(app, ["describe", "UR5ePnPSim-v0", *args])
         assert off.exit_code == 0, off.output
@@ -196,6 +197,33 @@ def test_run_takes_overrides_as_minus_o_and_as_a_kwarg_alike():
             assert f"override '{override}'" in as_kwarg.output and as_kwarg.output == minus_o.output
     wrong = run("-k", "overrides=7")
     assert wrong.exit_code == 1 and "-k overrides=7: write a list of KEY=VALUE overrides" in wrong.output
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["run", "UR5eReacherSim-v0", "-n", "1"],
+        ["describe", "UR5eReacherSim-v0"],
+        ["evaluate", "UR5eReacherSim-v0", "-n", "1"],
+        ["train", "UR5eReacherSim-v0", "--steps", "10"],
+        ["collect", "UR5eReacherSim-v0", "-n", "1"],
+        ["safety-view", "UR5eReacherSim-v0"],
+    ],
+    ids=lambda command: command[0],
+)
+def test_every_command_that_makes_an_env_takes_minus_o_and_names_a_bad_override(command, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # a train or collect that got as far as writing would write here
+    result = runner.invoke(app, [*command, "-o", "env.no_such_key=3"])
+    message = " ".join(result.output.split())
+    assert result.exit_code == 1 and "override 'env.no_such_key=3'" in message, message
+    assert "Traceback" not in message and list(tmp_path.iterdir()) == []
+
+
+def test_minus_o_was_trains_run_folder_and_says_where_that_went():
+    result = runner.invoke(app, ["train", "UR5eReacherSim-v0", "-o", "runs/mine"])
+    message = " ".join(result.output.split())
+    assert result.exit_code == 1 and "-o 'runs/mine': an override is KEY=VALUE" in message, message
+    assert "a run folder or an output file is given with --out" in message
 
 
 def test_validate_reports_a_user_id_that_clashes_with_a_builtin(tmp_path):

@@ -106,7 +106,7 @@ def test_a_dataset_from_other_kwargs_is_refused_before_a_run_folder_exists(tmp_p
             str(dataset),
             "-k",
             "delta_coeff=0.02",
-            "-o",
+            "--out",
             str(out),
             "--steps",
             "120",
@@ -121,7 +121,7 @@ def test_a_dataset_from_other_kwargs_is_refused_before_a_run_folder_exists(tmp_p
 
 def test_an_unknown_dataset_is_named(tmp_path, monkeypatch):
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path))
-    result = runner.invoke(app, ["train", ENV_ID, "--demos", "nobody/nothing-v0", "-o", str(tmp_path / "run")])
+    result = runner.invoke(app, ["train", ENV_ID, "--demos", "nobody/nothing-v0", "--out", str(tmp_path / "run")])
     assert result.exit_code == 1
     assert "--demos nobody/nothing-v0: no such dataset" in result.output and "envfactory collect" in result.output
     assert not (tmp_path / "run").exists()
@@ -213,7 +213,7 @@ def test_train_with_demos_records_the_dataset_and_resumes_with_it(tmp_path, data
             str(dataset),
             "--steps",
             "120",
-            "-o",
+            "--out",
             str(out),
             *common,
             *[w for item in TINY for w in ("-p", item)],
@@ -247,7 +247,7 @@ def test_the_demos_block_is_checked(tmp_path, dataset):
     with pytest.raises(HyperparameterError, match="bc_weight=-1 must be a number >= 0"):
         CloningSettings.from_hyperparameters(load("sac", ENV_ID, ["demos.bc_weight=-1"]))
     result = runner.invoke(
-        app, ["train", ENV_ID, "--demos", str(dataset), "-p", "demos.q_filter=maybe", "-o", str(tmp_path / "run")]
+        app, ["train", ENV_ID, "--demos", str(dataset), "-p", "demos.q_filter=maybe", "--out", str(tmp_path / "run")]
     )
     assert result.exit_code == 1 and "q_filter='maybe' must be true or false" in result.output
     assert not (tmp_path / "run").exists()

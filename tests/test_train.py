@@ -57,7 +57,7 @@ def test_train_saves_a_model_and_a_curve_that_run_replays(tmp_path, algo):
             "--eval-episodes",
             "2",
             "--no-progress",
-            "-o",
+            "--out",
             str(folder),
             *TINY,
         ],
@@ -161,7 +161,7 @@ def _tiny_run(folder, *extra_args, steps="240"):
             "--eval-episodes",
             "1",
             "--no-progress",
-            "-o",
+            "--out",
             str(folder),
             *TINY,
             *extra_args,
@@ -414,7 +414,7 @@ def test_floats_read_as_yaml_1_2_writes_them():
     ],
 )
 def test_hyperparameters_of_the_wrong_type_or_range_fail_before_a_run_folder_exists(tmp_path, override, message):
-    result = runner.invoke(app, ["train", "VX300SReacherGoalSim-v0", "-p", override, "-o", str(tmp_path / "run")])
+    result = runner.invoke(app, ["train", "VX300SReacherGoalSim-v0", "-p", override, "--out", str(tmp_path / "run")])
     assert result.exit_code == 1
     assert message in result.output and "command line" in result.output
     assert not (tmp_path / "run").exists()
@@ -422,14 +422,16 @@ def test_hyperparameters_of_the_wrong_type_or_range_fail_before_a_run_folder_exi
 
 @needs_train
 def test_her_learning_starts_within_the_first_episode_is_refused(tmp_path):
-    result = runner.invoke(app, ["train", "VX300SReacherGoalSim-v0", "-p", "learning_starts=50", "-o", str(tmp_path)])
+    result = runner.invoke(
+        app, ["train", "VX300SReacherGoalSim-v0", "-p", "learning_starts=50", "--out", str(tmp_path)]
+    )
     assert result.exit_code == 1
     assert "learning_starts=50 must exceed the episode limit of VX300SReacherGoalSim-v0 (100 steps)" in result.output
 
 
 @needs_train
 def test_unknown_hyperparameter_fails_before_training(tmp_path):
-    result = runner.invoke(app, ["train", "VX300SReacherGoalSim-v0", "-p", "learning_rat=0.1", "-o", str(tmp_path)])
+    result = runner.invoke(app, ["train", "VX300SReacherGoalSim-v0", "-p", "learning_rat=0.1", "--out", str(tmp_path)])
     assert result.exit_code == 1
     assert "unknown hyperparameter(s) learning_rat" in result.output and "command line" in result.output
     assert not (tmp_path / "model.zip").exists()
@@ -606,7 +608,9 @@ def test_a_run_of_a_user_id_remembers_its_spec_folder_for_resume_and_run(user_re
 
     run = tmp_path / "run"
     common = ["--eval-every", "120", "--eval-episodes", "1", "--no-progress"]
-    result = runner.invoke(app, ["train", "MyUR5eReacherSim-v0", "--steps", "120", "-o", str(run), *common, *TINY[:6]])
+    result = runner.invoke(
+        app, ["train", "MyUR5eReacherSim-v0", "--steps", "120", "--out", str(run), *common, *TINY[:6]]
+    )
     assert result.exit_code == 0, result.output
     assert json.loads((run / "model.json").read_text())["spec_folder"] == str(user_reach)
     unregister_folder(user_reach)

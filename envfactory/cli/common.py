@@ -158,9 +158,23 @@ def known_id(env_id: str) -> None:
         fail(problem)
 
 
+OVERRIDE_HELP = "Spec override as KEY=VALUE (Hydra syntax), repeatable; -k 'overrides=[...]' is the same"
+
+
+def override_option():
+    """-o/--override: the one spelling of a spec override on every command that makes an env."""
+    return typer.Option(None, "--override", "-o", help=OVERRIDE_HELP)
+
+
 def joined_overrides(kwargs: dict, given: List[str] | None) -> list[str]:
     """The command's overrides (-o) and those given as `-k overrides=[...]`, taken out of `kwargs`, in one list:
     both spellings reach the spec the same way."""
+    for item in given or []:
+        if "=" not in item and not item.startswith("~"):
+            fail(
+                f"-o {item!r}: an override is KEY=VALUE (e.g. -o env.action.ee=true); a run folder or an "
+                f"output file is given with --out"
+            )
     extra = kwargs.pop("overrides", None)
     if extra is None:
         return list(given or [])
@@ -168,6 +182,18 @@ def joined_overrides(kwargs: dict, given: List[str] | None) -> list[str]:
     if not (isinstance(extra, list) and all(isinstance(item, str) for item in extra)):
         fail(f"-k overrides={extra!r}: write a list of KEY=VALUE overrides, e.g. -k 'overrides=[env.action.ee=true]'")
     return list(given or []) + extra
+
+
+def make_kwargs(kwarg: List[str] | None, override: List[str] | None, trained: dict | None = None) -> dict:
+    """gym.make's kwargs from a command's -k and -o, over the kwargs a model was trained with (`trained`): a -k
+    replaces a trained kwarg, and overrides of either spelling follow the trained ones (a later one wins), all as
+    gym.make's one `overrides` kwarg (which a trained model records like any other kwarg)."""
+    kwargs = parse_kwargs(kwarg)
+    overrides = joined_overrides(kwargs, override)
+    base = dict(trained or {})
+    every = joined_overrides(base, None) + overrides
+    merged = {**base, **kwargs}
+    return {**merged, "overrides": every} if every else merged
 
 
 def parse_kwargs(items: List[str] | None) -> dict:

@@ -26,8 +26,9 @@ from envfactory.cli.common import (
     fail,
     is_real,
     known_id,
+    make_kwargs,
     model_file,
-    parse_kwargs,
+    override_option,
     real_arm_kwargs,
 )
 from envfactory.cluster import trials as trial_runs
@@ -105,6 +106,7 @@ def evaluate(
     episodes: int = typer.Option(20, "--episodes", "-n", min=1, help="Episodes per ID"),
     seed: int = typer.Option(0, help="Seed of the first episode; episode i uses seed + i, on every ID"),
     kwarg: List[str] = typer.Option(None, "--kwarg", "-k", help=KWARG_HELP),
+    override: List[str] = override_option(),
     out_csv: Optional[Path] = typer.Option(
         None,
         "--csv",
@@ -127,11 +129,12 @@ def evaluate(
     if out_csv is not None:
         check_output(out_csv, (".csv",))
     source = _policy_source(policy, algo)
-    given = parse_kwargs(kwarg)
-    if allow_real_robot_motion:
-        given["allow_real_robot_motion"] = True
-    # -k over the kwargs a model was trained with, which a Real ID takes without the simulation-only ones
-    per_id = {name: {**real_arm_kwargs(name, source.trained_kwargs()), **given} for name in env_id}
+    gate = {"allow_real_robot_motion": True} if allow_real_robot_motion else {}
+    # -k and -o over the kwargs a model was trained with, which a Real ID takes without the simulation-only ones
+    per_id = {
+        name: {**make_kwargs(kwarg, override, real_arm_kwargs(name, source.trained_kwargs())), **gate}
+        for name in env_id
+    }
     try:  # the spec folders travel only to other processes: here the IDs are known already
         workspace = ShippedFolders() if size is None else ShippedFolders.for_ids(list(env_id))
     except FolderCopyError as exc:

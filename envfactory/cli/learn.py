@@ -10,7 +10,7 @@ from typing import List, Optional
 
 import typer
 
-from envfactory.cli.common import KWARG_HELP, command, console, errors, fail, known_id, parse_kwargs
+from envfactory.cli.common import KWARG_HELP, command, console, errors, fail, known_id, make_kwargs, override_option
 from envfactory.cli.evaluate import (
     SEEDS_HELP,
     SWEEP_HELP,
@@ -57,7 +57,6 @@ def train(
     out: Optional[Path] = typer.Option(
         None,
         "--out",
-        "-o",
         help="Run folder (default: runs/ID-ALGO-seedN); one "
         "holding an earlier run is never overwritten: the "
         "run goes to NAME-2, NAME-3...",
@@ -66,6 +65,7 @@ def train(
         None, "--hyperparameter", "-p", help="Override as name=value (dotted names nest), repeatable"
     ),
     kwarg: List[str] = typer.Option(None, "--kwarg", "-k", help=KWARG_HELP + " (over the hyperparameters' env_kwargs)"),
+    override: List[str] = override_option(),
     eval_every: Optional[int] = typer.Option(None, min=1, help="Evaluate every this many steps"),
     eval_episodes: Optional[int] = typer.Option(None, min=1, help="Episodes per evaluation"),
     demos: Optional[str] = typer.Option(
@@ -105,7 +105,7 @@ def train(
             out,
             tuple(hyperparameter or ()),
             steps,
-            parse_kwargs(kwarg),
+            make_kwargs(kwarg, override),
             eval_every,
             eval_episodes,
             demos,
@@ -133,6 +133,7 @@ def train(
                 "--out": out,
                 "-p": hyperparameter,
                 "-k": kwarg,
+                "-o": override,
                 "--eval-every": eval_every,
                 "--eval-episodes": eval_episodes,
                 "--demos": demos,
@@ -166,7 +167,7 @@ def train(
             seed=seed,
             steps=steps,
             overrides=tuple(hyperparameter or ()),
-            env_kwargs=parse_kwargs(kwarg),
+            env_kwargs=make_kwargs(kwarg, override),
             eval_every=eval_every,
             eval_episodes=eval_episodes,
             demos=demos,
@@ -237,6 +238,7 @@ def collect(
     ),
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace a dataset of the same ID"),
     kwarg: List[str] = typer.Option(None, "--kwarg", "-k", help=KWARG_HELP),
+    override: List[str] = override_option(),
     author: Optional[str] = typer.Option(
         None, "--author", help="Recorded in the dataset's metadata (left out if not given)"
     ),
@@ -256,7 +258,7 @@ def collect(
     known_id(env_id)
     _require(extra.COLLECT_MODULES, "envfactory collect")
 
-    kwargs = parse_kwargs(kwarg)
+    kwargs = make_kwargs(kwarg, override)
     simulated_only(env_id, "collect")
     size = cluster_size(workers, address)
     pool = None if size is None else cluster_module("pool", "collect --workers/--address")

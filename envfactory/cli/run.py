@@ -19,10 +19,10 @@ from envfactory.cli.common import (
     console,
     errors,
     fail,
-    joined_overrides,
     known_id,
+    make_kwargs,
     model_file,
-    parse_kwargs,
+    override_option,
     real_arm_kwargs,
 )
 from envfactory.envs.episodes import iter_episodes, success_rate
@@ -47,7 +47,7 @@ def run(
     algo: Optional[str] = typer.Option(None, help="Algorithm of a --policy model with no model.json beside it"),
     seed: int = typer.Option(0, help="Seed of the first episode; episode i uses seed + i"),
     video: Optional[Path] = typer.Option(None, help="Record the episodes to this video file (e.g. out.mp4)"),
-    override: List[str] = typer.Option(None, "--override", "-o", help="Hydra override, repeatable"),
+    override: List[str] = override_option(),
     kwarg: List[str] = typer.Option(None, "--kwarg", "-k", help=KWARG_HELP),
     allow_real_robot_motion: bool = allow_real_option(),
     stop_at_success: bool = typer.Option(
@@ -75,18 +75,14 @@ def run(
     if policy not in ("scripted", "random"):
         saved, trained_kwargs = _saved_policy(policy)  # a user ID's spec folder, recorded with the model, joins
     known_id(env_id)
-    kwargs = parse_kwargs(kwarg)
-    if saved is not None:
-        # the env it was trained on (a Real ID without what only a simulator has), unless -k says otherwise
-        kwargs = {**real_arm_kwargs(env_id, trained_kwargs), **kwargs}
+    # the env a model was trained on (a Real ID without what only a simulator has), unless -k or -o say otherwise
+    kwargs = make_kwargs(kwarg, override, real_arm_kwargs(env_id, trained_kwargs) if saved is not None else None)
     if video is not None:
         check_output(video, VIDEO_SUFFIXES)
     if allow_real_robot_motion:
         kwargs["allow_real_robot_motion"] = True
     try:
-        env = gym.make(
-            env_id, overrides=joined_overrides(kwargs, override), render_mode="rgb_array" if video else None, **kwargs
-        )
+        env = gym.make(env_id, render_mode="rgb_array" if video else None, **kwargs)
     except (SpecError, KeyError, gym.error.Error, BackendError) as exc:
         fail(str(exc).strip("'\""))
     frames, results, failure = [], [], ""

@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from envfactory import factory
-from envfactory.cli.common import KWARG_HELP, command, console, fail, known_id, parse_kwargs
+from envfactory.cli.common import KWARG_HELP, command, console, fail, known_id, make_kwargs, override_option
 from envfactory.cli.lookup import robot_ids, unknown_robot
 from envfactory.geometry.robot_model import regenerate_pairs
 from envfactory.registration import registry
@@ -87,16 +87,17 @@ def collision_pairs(
 @command("safety-view")
 def safety_view(
     env_id: str,
-    out: Path = typer.Option(Path("safety.png"), "--out", "-o", help="PNG to write"),
+    out: Path = typer.Option(Path("safety.png"), "--out", help="PNG to write"),
     joints: str = typer.Option("", help="Comma-separated arm joint values (default: home)"),
     kwarg: list[str] = typer.Option(None, "--kwarg", "-k", help=KWARG_HELP),
+    override: list[str] = override_option(),
 ):
     """Render the arm with its checked collision shapes, coloured by clearance (red near, green clear)."""
 
     known_id(env_id)
     if not out.parent.exists():
         fail(f"--out {out}: the folder {out.parent} does not exist")
-    compiled = factory.blueprint(env_id, **parse_kwargs(kwarg))
+    compiled = factory.blueprint(env_id, **make_kwargs(kwarg, override))
     q_arm = None
     if joints:
         try:

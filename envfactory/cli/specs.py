@@ -9,7 +9,7 @@ import typer
 from rich.table import Table
 
 from envfactory import factory
-from envfactory.cli.common import KWARG_HELP, command, console, errors, fail, joined_overrides, known_id, parse_kwargs
+from envfactory.cli.common import KWARG_HELP, command, console, errors, fail, known_id, make_kwargs, override_option
 from envfactory.compiler.scene_checks import height_summary
 from envfactory.registration import registry, user_config
 from envfactory.registration.user_config import config_file
@@ -116,15 +116,14 @@ def _list_sources() -> None:
 def describe(
     env_id: str,
     overrides: List[str] = typer.Argument(None, help="Hydra overrides, e.g. env.action.ee=true (or -o)"),
-    override: List[str] = typer.Option(None, "--override", "-o", help="Hydra override, repeatable"),
+    override: List[str] = override_option(),
     kwarg: List[str] = typer.Option(None, "--kwarg", "-k", help=KWARG_HELP),
 ):
     """The observation index table, action table, reward terms and goal box of an ID."""
 
     known_id(env_id)
-    kwargs = parse_kwargs(kwarg)
-    every = joined_overrides(kwargs, [*(overrides or ()), *(override or ())])
-    render_description(factory.blueprint(env_id, every, **kwargs), console)
+    kwargs = make_kwargs(kwarg, [*(overrides or ()), *(override or ())])
+    render_description(factory.blueprint(env_id, **kwargs), console)
 
 
 @command()

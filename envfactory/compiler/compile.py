@@ -377,6 +377,7 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
         action.policy_low,
         action.policy_high,
         derived_boxes(spec, loaded.file_of("robot.model").parent),
+        episode_steps=spec.registration.max_episode_steps,
     )
     observation = _observation(spec, layout, found)
     reward_set = "sparse" if spec.env.reward_type == "Sparse" else "dense"
@@ -395,6 +396,7 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
     events, sensing = _randomization(spec, layout, observation, goal_env, env_id, backend, found)
     if backend in SIMULATORS:
         sim_checks.check_physics_rate(spec, backend, found)
+        sim_checks.check_engine_settings(backend, found)
         sim_checks.check_display(spec, backend, found)
     if not found:
         robot_checks.check(spec, loaded.file_of("robot.model").parent, found, loaded.family.path, env_id)

@@ -1,11 +1,20 @@
-"""What a simulated ID needs beyond a valid spec: a physics rate that resolves its fastest motion, and a
-display for the PyBullet window it asks for."""
+"""What a simulated ID needs beyond a valid spec: a physics rate that resolves its fastest motion, settings its
+engine reads, and a display for the PyBullet window it asks for."""
 
 from __future__ import annotations
 
 from envfactory.backends.base import window_impossible
 from envfactory.schema.models import ComposedSpec
+from envfactory.schema.settings import MujocoSettings, SimSettings
 from envfactory.schema.sources import Findings
+
+# The settings only one engine reads; `sim.engine` and `sim.fidelity` serve both.
+ENGINE_SETTINGS = {
+    "pybullet": tuple(
+        f"sim.{name}" for name in SimSettings.model_fields if name not in ("engine", "fidelity", "mujoco")
+    ),
+    "mujoco": tuple(f"sim.mujoco.{name}" for name in MujocoSettings.model_fields),
+}
 
 # Physics steps the fastest motion of a step must span. Motors and contacts are integrated once per physics
 # step: a joint that crosses its range in fewer steps overshoots its limit (at 1 Hz the UR5e's Robotiq knuckle
@@ -55,6 +64,34 @@ def check_physics_rate(spec: ComposedSpec, engine: str, found: Findings) -> None
             f"limits and held objects sink into the table; valid: {path.rsplit('.', 1)[-1]} >= "
             f"{floor:.4g} (the default is 240 Hz)",
         )
+
+
+def check_engine_settings(engine: str, found: Findings) -> None:
+    """Refuse a setting only the other engine reads where it can only have been meant for this one: set for this
+    make (an override or kwarg), or written in the file that chose this engine when that file writes nothing for
+    it. A file that writes both engines' settings serves both (the engine kwarg picks one)."""
+    sources = found.sources
+    engine_file = sources.locations.get("sim.engine", (None,))[0] if "sim.engine" not in sources.notes else None
+    writes_own = engine_file is not None and any(
+        sources.locations.get(path, (None,))[0] == engine_file for path in ENGINE_SETTINGS[engine]
+    )
+    for other, paths in ENGINE_SETTINGS.items():
+        if other == engine:
+            continue
+        for path in paths:
+            this_make = [key for key in sources.notes if key != "sim" and (path == key or path.startswith(key + "."))]
+            in_engine_file = not writes_own and sources.locations.get(path, (None,))[0] == engine_file
+            if not this_make and not (engine_file is not None and in_engine_file):
+                continue
+            leaf = path.rsplit(".", 1)[1]
+            own = next((mine for mine in ENGINE_SETTINGS[engine] if mine.rsplit(".", 1)[1] == leaf), None)
+            found.add(
+                path,
+                f"only {other} reads {path}, and this ID runs on {engine}"
+                + (f" (its own is {own})" if own else "")
+                + ": the value would go unused; set it for the engine that runs, or run on "
+                f"{other} (engine={other})",
+            )
 
 
 def check_display(spec: ComposedSpec, engine: str, found: Findings) -> None:

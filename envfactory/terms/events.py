@@ -102,7 +102,21 @@ def _bind_table_friction(layout: TermContext, params: Sampled) -> SampledQuantit
 
 
 def _bind_arm_damping(layout: TermContext, params: Sampled) -> SampledQuantity:
-    return _resolve(params, "arm_damping", "", None, "N m s/rad", (0.0, 100.0))
+    """Checked against each arm joint: a damping whose torque at the joint's rated speed exceeds its rated effort
+    leaves a motor that could never reach that speed. Past it PyBullet's joints blow up (measured on the expert,
+    full physics: the RX200, whose wrist_rotate allows 0.32, reads 31 rad/s at 2 and none at 1; the VX300S,
+    which allows 6.4, is calm at 20 and reads 100 rad/s at 100)."""
+    bound = _resolve(params, "arm_damping", "", None, "N m s/rad", (0.0, 100.0))
+    robot = layout.robot
+    for joint, effort, speed in zip(robot.arm_joints, robot.arm_efforts, robot.arm_velocities):
+        if bound.high * speed > effort:
+            raise ValueError(
+                f"arm_damping up to {bound.high:g} N m s/rad would take {bound.high * speed:.3g} N m from joint "
+                f"{joint.name} at its rated speed of {speed:g} rad/s, over its rated effort of {effort:g} N m (the "
+                f"robot's URDF limits): its motor could never drive it; for robot {robot.name}, at most "
+                f"{min(e / v for e, v in zip(robot.arm_efforts, robot.arm_velocities)):.3g} N m s/rad"
+            )
+    return bound
 
 
 def _bind_gripper_force(layout: TermContext, params: Sampled) -> SampledQuantity:

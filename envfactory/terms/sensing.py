@@ -83,7 +83,38 @@ def _bind_columns(layout: TermContext, params: Columns) -> tuple[np.ndarray, Col
     return _columns(layout, params), params
 
 
-@sensing_term(params=Noise, bind=_bind_columns, unit="the columns' own")
+# Noise is judged against the range its observation term declares: a sensor whose error spreads over more than
+# this share of the term's typical column range (13 mm of a 1.3 m position box, 0.06 rad of a 2π joint range) no
+# longer reports the state, and whatever a policy learns under it is not the task. The shipped sensors use a
+# tenth of it or less.
+NOISE_RANGE_SHARE = 0.01
+
+
+def _bind_noise(layout: TermContext, params: Noise) -> tuple[np.ndarray, Noise]:
+    """The columns, once the noise's spread over an episode (white, bias and drift together) is found plausible
+    for each observation term it touches (ValueError names the term, the spread and the range it was judged by)."""
+    columns = _columns(layout, params)
+    steps = layout.episode_steps
+    spread = float(np.sqrt(params.std**2 + params.bias_std**2 + params.drift_std**2 * steps))
+    for slot in layout.observation_slots:
+        if params.observations and slot.name not in params.observations:
+            continue
+        widths = np.asarray(slot.high, float) - np.asarray(slot.low, float)
+        widths = widths[np.isfinite(widths) & (widths > 0)]
+        if not widths.size:
+            continue
+        typical = float(np.median(widths))
+        if spread > NOISE_RANGE_SHARE * typical:
+            raise ValueError(
+                f"noise spreading {spread:.3g} (std {params.std:g}, bias_std {params.bias_std:g}, drift_std "
+                f"{params.drift_std:g} over {steps} steps) on {slot.name!r} ({slot.description.unit}) is over "
+                f"{NOISE_RANGE_SHARE:.0%} of its columns' typical range ({typical:.3g}): at most "
+                f"{NOISE_RANGE_SHARE * typical:.3g}; a sensor that noisy hides the state it reports"
+            )
+    return columns, params
+
+
+@sensing_term(params=Noise, bind=_bind_noise, unit="the columns' own")
 def observation_noise(bound: tuple[np.ndarray, Noise]) -> NoiseSensor:
     """Gaussian noise on the named observation terms' columns: white per step, plus a per-episode bias that may
     drift as a random walk."""
