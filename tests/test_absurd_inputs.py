@@ -9,6 +9,15 @@ import pytest
 from gymnasium.error import ClosedEnvironmentError
 
 import envfactory  # noqa: F401  (registers the IDs)
+from envfactory.factory import blueprint
+from envfactory.schema.errors import SpecError
+
+
+def refusal(env_id: str, overrides: list[str], **kwargs) -> str:
+    """The message compiling `env_id` with these overrides and kwargs is refused with, on one line."""
+    with pytest.raises(SpecError) as caught:
+        blueprint(env_id, overrides, **kwargs)
+    return " ".join(str(caught.value).split())
 
 
 @pytest.mark.parametrize("engine", ["pybullet", "mujoco"])
@@ -107,12 +116,7 @@ def test_the_shipped_randomization_stays_within_the_physics():
     ],
 )
 def test_events_that_the_engine_cannot_keep_are_refused_naming_the_override(override, complaint):
-    from envfactory.factory import blueprint
-    from envfactory.schema.errors import SpecError
-
-    with pytest.raises(SpecError) as caught:
-        blueprint("VX300SPushSim-v0", [override], randomize=True)
-    message = " ".join(str(caught.value).split())
+    message = refusal("VX300SPushSim-v0", [override], randomize=True)
     assert f"override '{override}'" in message and complaint in message, message
     blueprint("VX300SPushSim-v0", ["+task.randomization.events.arm_damping.every={seconds: 0.5}"], randomize=True)
 
@@ -136,13 +140,8 @@ def test_events_that_the_engine_cannot_keep_are_refused_naming_the_override(over
     ],
 )
 def test_a_damping_its_motors_could_not_drive_through_is_refused(env_id, high, complaint):
-    from envfactory.factory import blueprint
-    from envfactory.schema.errors import SpecError
-
     override = f"task.randomization.events.arm_damping.params.range=[0,{high}]"
-    with pytest.raises(SpecError) as caught:
-        blueprint(env_id, [override])
-    message = " ".join(str(caught.value).split())
+    message = refusal(env_id, [override])
     assert f"override '{override}'" in message and complaint in message, message
     assert blueprint("RX200PushSim-v0", randomize=True).events  # the RX200 families' own range, 0 to 0.3
 
@@ -150,13 +149,8 @@ def test_a_damping_its_motors_could_not_drive_through_is_refused(env_id, high, c
 def test_a_mass_range_typed_in_grams_is_refused_against_the_robots_payload_naming_the_override():
     """[50, 90] meant grams: as kilograms the cube would weigh up to 90 kg in a 4 cm box (the expert then fails
     every episode). The VX300S is rated for 0.75 kg; the error names the override that wrote the range."""
-    from envfactory.factory import blueprint
-    from envfactory.schema.errors import SpecError
-
     typed = "+task.randomization.events.cube_mass.params.range=[50,90]"
-    with pytest.raises(SpecError) as caught:
-        blueprint("VX300SPushSim-v0", ["~task.randomization.events.cube_mass.params.scale", typed], randomize=True)
-    message = " ".join(str(caught.value).split())
+    message = refusal("VX300SPushSim-v0", ["~task.randomization.events.cube_mass.params.scale", typed], randomize=True)
     assert f"override '{typed}': task.randomization.events.cube_mass: samples up to 90 kg" in message, message
     assert "rated payload of 0.75 kg (robot.payload); looks like grams" in message
     with pytest.raises(SpecError, match=r"task.objects.cube.mass: weighs 2 kg, over robot rx200's rated payload"):
@@ -182,18 +176,11 @@ def test_a_mass_range_typed_in_grams_is_refused_against_the_robots_payload_namin
     ],
 )
 def test_noise_is_judged_against_the_range_of_the_observation_it_blurs(override, complaint):
-    from envfactory.factory import blueprint
-    from envfactory.schema.errors import SpecError
-
-    with pytest.raises(SpecError) as caught:
-        blueprint("UR5ePushSim-v0", [override], randomize=True)
-    message = " ".join(str(caught.value).split())
+    message = refusal("UR5ePushSim-v0", [override], randomize=True)
     assert f"override '{override}'" in message and complaint in message, message
 
 
 def test_the_shipped_noise_is_plausible_on_every_robot():
-    from envfactory.factory import blueprint
-
     for env_id in ("UR5ePushSim-v0", "VX300SPnPSim-v0", "RX200ReacherSim-v0", "NED2PushSim-v0"):
         assert blueprint(env_id, randomize=True).sensing
 
@@ -220,20 +207,13 @@ def test_the_shipped_noise_is_plausible_on_every_robot():
     ],
 )
 def test_a_setting_for_this_make_that_its_engine_never_reads_is_refused(override, engine, complaint):
-    from envfactory.schema.errors import SpecError
-
-    kwargs = {} if engine is None else {"engine": engine}
-    with pytest.raises(SpecError) as caught:
-        gym.make("UR5ePushSim-v0", overrides=[override], **kwargs)
-    message = " ".join(str(caught.value).split())
+    message = refusal("UR5ePushSim-v0", [override], **({} if engine is None else {"engine": engine}))
     assert complaint in message and f"override '{override}'" in message, message
 
 
 def test_a_family_that_writes_both_engines_settings_serves_both(tmp_path):
     """The shipped families write MuJoCo's rate (and the RX200's PyBullet solver iterations) beside the other
     engine's: the engine kwarg picks one, and neither make is refused."""
-    from envfactory.factory import blueprint
-
     for engine in ("pybullet", "mujoco"):
         assert blueprint("RX200PushSim-v0", engine=engine).backend == engine
         assert blueprint("UR5ePushSim-v0", engine=engine).backend == engine
@@ -241,7 +221,8 @@ def test_a_family_that_writes_both_engines_settings_serves_both(tmp_path):
 
 def test_a_family_that_chooses_an_engine_and_writes_only_the_others_rate_is_refused(tmp_path):
     """`engine: mujoco` beside `physics_hz: 2000` (PyBullet's): the rate would be silently unused."""
-    from test_silent_mistakes import line_of, refusal, user_folder
+    from test_silent_mistakes import line_of, user_folder
+    from test_silent_mistakes import refusal as folder_refusal
 
     folder = user_folder(
         tmp_path,
@@ -249,6 +230,6 @@ def test_a_family_that_chooses_an_engine_and_writes_only_the_others_rate_is_refu
         edits=[("specs/ur5e_push.yaml", "  mujoco: {physics_hz: 320}", "  engine: mujoco\n  physics_hz: 2000")],
     )
     family = folder / "specs" / "ur5e_push.yaml"
-    message = refusal(folder)
+    message = folder_refusal(folder)
     assert f"{family}:{line_of(family, 'physics_hz: 2000')}" in message, message
     assert "sim.physics_hz: only pybullet reads sim.physics_hz, and this ID runs on mujoco" in message
