@@ -103,9 +103,9 @@ def _bind_table_friction(layout: TermContext, params: Sampled) -> SampledQuantit
 
 def _bind_arm_damping(layout: TermContext, params: Sampled) -> SampledQuantity:
     """Checked against each arm joint: a damping whose torque at the joint's rated speed exceeds its rated effort
-    leaves a motor that could never reach that speed. Past it PyBullet's joints blow up (measured on the expert,
-    full physics: the RX200, whose wrist_rotate allows 0.32, reads 31 rad/s at 2 and none at 1; the VX300S,
-    which allows 6.4, is calm at 20 and reads 100 rad/s at 100)."""
+    leaves a motor that could never reach that speed. Past it PyBullet's joints blow up (measured with the
+    shipped Push experts, full physics: an arm whose lightest wrist allows 0.32 reads 31 rad/s at 2 and stays
+    calm at 1; one that allows 6.4 is calm at 20 and reads 100 rad/s at 100)."""
     bound = _resolve(params, "arm_damping", "", None, "N m s/rad", (0.0, 100.0))
     robot = layout.robot
     for joint, effort, speed in zip(robot.arm_joints, robot.arm_efforts, robot.arm_velocities):
