@@ -79,9 +79,11 @@ def check_engine_settings(engine: str, found: Findings) -> None:
         if other == engine:
             continue
         for path in paths:
-            this_make = [key for key in sources.notes if key != "sim" and (path == key or path.startswith(key + "."))]
-            in_engine_file = not writes_own and sources.locations.get(path, (None,))[0] == engine_file
-            if not this_make and not (engine_file is not None and in_engine_file):
+            this_make = any(key != "sim" and (path == key or path.startswith(key + ".")) for key in sources.notes)
+            in_engine_file = (
+                engine_file is not None and not writes_own and sources.locations.get(path, (None,))[0] == engine_file
+            )
+            if not (this_make or in_engine_file):
                 continue
             leaf = path.rsplit(".", 1)[1]
             own = next((mine for mine in ENGINE_SETTINGS[engine] if mine.rsplit(".", 1)[1] == leaf), None)

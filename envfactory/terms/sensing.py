@@ -85,8 +85,8 @@ def _bind_columns(layout: TermContext, params: Columns) -> tuple[np.ndarray, Col
 
 # Noise is judged against the range its observation term declares: a sensor whose error spreads over more than
 # this share of the term's typical column range (13 mm of a 1.3 m position box, 0.06 rad of a 2π joint range) no
-# longer reports the state, and whatever a policy learns under it is not the task. The shipped sensors use a
-# tenth of it or less.
+# longer reports the state, and whatever a policy learns under it is not the task. The shipped cube tracker's
+# spread is 0.0028 m, about a tenth of the UR5e's 0.024 m limit.
 NOISE_RANGE_SHARE = 0.01
 
 
