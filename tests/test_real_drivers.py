@@ -359,3 +359,33 @@ def test_the_twin_puts_the_cube_back_where_it_is_asked_as_a_person_would(twin, m
         assert any(reason in error for error in stand_in.server.errors), stand_in.server.errors
     with pytest.raises(RuntimeError, match=r"did not place ball at \[0\.5, 0\.1, 0\.8\]"):
         place_object(stand_in.port, "ball", [0.5, 0.1, 0.8])  # the client a benchmark or rehearsal script calls
+
+
+def test_the_twin_brings_the_arm_clear_by_hand_when_asked_as_a_person_would(twin, make):
+    """When the env refuses to drive a real arm home ("bring the arm clear by hand"), a person moves it in
+    freedrive; the twin's place_arm service does it, the Real ID reads the arm there a second later, and its next
+    reset drives home from there. Anything else is refused with the reason."""
+    from envfactory.twin.twin import ARM_SERVICE, place_arm
+
+    stand_in = twin("ur5e", "push")
+    env = make_real(make, "UR5ePushReal-v0", stand_in)
+    env.reset(seed=0)
+    home = np.array(stand_in.spec.robot.home, float)
+    where = home + [0.3, -0.2, 0.1, 0.0, 0.2, -0.4]
+    place_arm(stand_in.port, where, 0.3)
+    time.sleep(1.0)
+    backend = env.unwrapped.backend
+    reading = backend.read_joints().position
+    assert np.allclose(reading[env.unwrapped._arm_in_states], where, atol=2e-3), (reading, where)
+    assert abs(reading[env.unwrapped._gripper_in_states] - 0.3) < 2e-3
+    env.reset(seed=1)  # and the env drives it home from there
+    assert np.allclose(backend.read_joints().position[env.unwrapped._arm_in_states], home, atol=0.02)
+    for args, reason in [
+        ({"position": [0.0] * 5, "gripper": 0.3}, "is not one value for each of the 6 arm joints"),
+        ({"position": list(home + [0, 0, 0, 0, 0, 9.0]), "gripper": 0.3}, "outside the limits of ['wrist_3_joint']"),
+        ({"position": list(home), "gripper": 1.5}, "gripper 1.5 lies outside its range [0.0, 0.8]"),
+    ]:
+        assert call_service(stand_in, ARM_SERVICE, args)["result"] is False
+        assert any(reason in error for error in stand_in.server.errors), stand_in.server.errors
+    with pytest.raises(RuntimeError, match=r"did not place the arm at \[0\.0, 0\.0, 0\.0, 0\.0, 0\.0\]"):
+        place_arm(stand_in.port, [0.0] * 5, 0.3)

@@ -12,7 +12,9 @@ each side's success and mean episode length (steps), the real path's watchdog an
 the mean wall time of a step (from its first command to its observation) and of its motion (command to target).
 Parity: the real success is at least 90% of the simulated one, in episodes at most 1.5
 times as long, with no watchdog abort. Any other abort (an arm held back from its target by what it pushes, past
-`ros.settle.held_back`) stops the arm and counts as a failed episode; the table counts them.
+`ros.settle.held_back`) stops the arm and counts as a failed episode; the table counts them. A reset the env
+refuses (the move home cannot be proven clear) counts among them too: the twin's place_arm service then stands
+in for the person who brings the arm home by hand, and the episode starts from there.
 
     python -m devkit.bench.real_parity RUN_FOLDER [RUN_FOLDER ...] [--episodes 20] [--first-seed 30000]
                                      [--markdown [PATH]]
@@ -38,7 +40,7 @@ from devkit.bench.sb3_replay import replay_arguments, sb3_class
 from devkit.report import Report
 from envfactory.backends.base import BackendError
 from envfactory.factory import simulation_only_kwargs
-from envfactory.twin.twin import POSE_HZ, place_object
+from envfactory.twin.twin import POSE_HZ, place_arm, place_object
 
 PARITY_SUCCESS, PARITY_LENGTH = 0.9, 1.5
 PLACED_S = 5 / POSE_HZ
@@ -87,14 +89,33 @@ def _put_back_objects(env, port: int) -> None:
     backend.reset = reset
 
 
-def _episodes(env, model, seeds: range) -> dict:
+def _clear_by_hand(env, port: int):
+    """When the env refuses to drive the arm home, a person brings it there by hand (freedrive) and the reset is
+    asked again; here the twin's place_arm service does it, with the gripper at its reset value."""
+    unwrapped = env.unwrapped
+    spec = unwrapped.blueprint.spec
+    gripper = None
+    if spec.robot.gripper is not None:
+        gripper = spec.robot.gripper.open if spec.gripper_at_reset is None else spec.gripper_at_reset
+
+    def bring_home() -> None:
+        place_arm(port, unwrapped.home, gripper)
+        time.sleep(PLACED_S)
+
+    return bring_home
+
+
+def _episodes(env, model, seeds: range, clear_by_hand=None) -> dict:
     successes, lengths, aborts, steps, motions = 0, [], [], [], []
     for seed in seeds:
         try:
             observation, info = env.reset(seed=seed)
-        except BackendError as refused:  # the arm stays where it is: the remaining episodes count as failed
+        except BackendError as refused:
             aborts.append(f"reset {seed} refused: {refused}")
-            break
+            if clear_by_hand is None:
+                break  # the arm stays where it is: the remaining episodes count as failed
+            clear_by_hand()
+            observation, info = env.reset(seed=seed)
         terminated = truncated = False
         length = 0
         while not (terminated or truncated):
@@ -168,7 +189,8 @@ def main() -> None:
         try:
             real_env = gym.make(real_id, rosbridge_port=port, allow_real_robot_motion=True, **real_kwargs)
             _put_back_objects(real_env, port)
-            real = _episodes(real_env, model_class.load(folder / "model.zip", env=real_env, device="cpu"), seeds)
+            model = model_class.load(folder / "model.zip", env=real_env, device="cpu")
+            real = _episodes(real_env, model, seeds, _clear_by_hand(real_env, port))
             real_env.close()
         finally:
             twin.terminate()

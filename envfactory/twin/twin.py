@@ -28,8 +28,9 @@ from envfactory.twin.drivers import DRIVERS, DeclaredDriver, UrRobotDriver
 from envfactory.twin.server import Faults, Node, Received, RosbridgeServer, ServiceReply
 
 POSE_HZ = 30.0
-# Only the twin has it: a real scene's objects are put back by a person.
+# Only the twin has them: a person puts a real scene's objects back, and brings a real arm clear by hand.
 PLACE_SERVICE, PLACE_TYPE = "/envfactory_twin/place_object", "envfactory_twin/PlaceObject"
+ARM_SERVICE, ARM_TYPE = "/envfactory_twin/place_arm", "envfactory_twin/PlaceArm"
 
 
 def _sim_id(robot: str, task: str) -> str:
@@ -183,8 +184,14 @@ class Twin:
             Node("/cube_tracker", publishes={t.topic: typed(t.topic, t.type) for t in ros.object_poses.values()})
         )
         self.server.add_node(
-            Node("/envfactory_twin", services={PLACE_SERVICE: (PLACE_TYPE, self._place_object)}),
-            {PLACE_TYPE: ({"name": "string", "position": "float64[]"}, {})},
+            Node(
+                "/envfactory_twin",
+                services={PLACE_SERVICE: (PLACE_TYPE, self._place_object), ARM_SERVICE: (ARM_TYPE, self._place_arm)},
+            ),
+            {
+                PLACE_TYPE: ({"name": "string", "position": "float64[]"}, {}),
+                ARM_TYPE: ({"position": "float64[]", "gripper": "float64"}, {}),
+            },
         )
 
     # ------------------------------------------------------------------ what it publishes
@@ -236,6 +243,27 @@ class Twin:
         self.sim.place_objects({name: (np.asarray(position, float), np.array([0.0, 0.0, 0.0, 1.0]))})
         return ServiceReply(True, {})
 
+    def _place_arm(self, request: dict) -> ServiceReply:
+        """The person who brings the arm clear by hand (freedrive) when the env refuses to drive it home: the arm
+        at rest at joint positions (action order) within its limits, the gripper at a value in its range; its
+        driver then holds it there."""
+        position, robot = list(request.get("position") or []), self.spec.robot
+        joints = robot.arm_joints
+        if len(position) != len(joints) or not all(math.isfinite(value) for value in position):
+            return ServiceReply(False, f"position {position} is not one value for each of the {len(joints)} arm joints")
+        outside = [j.name for j, value in zip(joints, position) if not j.lower <= value <= j.upper]
+        if outside:
+            return ServiceReply(False, f"position {position} lies outside the limits of {outside}")
+        gripper = request.get("gripper")
+        if robot.gripper is not None:
+            bounds = sorted((robot.gripper.open, robot.gripper.closed))
+            if not (isinstance(gripper, (int, float)) and bounds[0] <= gripper <= bounds[1]):
+                return ServiceReply(False, f"gripper {gripper} lies outside its range {bounds}")
+        q_arm = np.asarray(position, float)
+        self.sim.place_arm(q_arm, None if robot.gripper is None else float(gripper))
+        self.driver.move_arm(q_arm, 0.0)  # a new goal where the arm now is: no earlier goal pulls it back
+        return ServiceReply(True, {})
+
     def _on_command(self, topic: str, msg: dict) -> None:
         if self.faults.ignore_commands:
             return  # taken, never executed: a controller that is not running
@@ -248,14 +276,25 @@ class Twin:
 def place_object(port: int, name: str, position, host: str = "127.0.0.1") -> None:
     """Ask a running twin (in any process) to put a task object at rest at `position` (task frame), as a person
     puts the cube back between real episodes."""
+    args = {"name": name, "position": [float(value) for value in position]}
+    _call_twin(port, host, PLACE_SERVICE, args, f"place {name} at {args['position']}")
+
+
+def place_arm(port: int, q_arm, gripper: float | None, host: str = "127.0.0.1") -> None:
+    """Ask a running twin (in any process) to put its arm at rest at `q_arm` (action order) and the gripper at
+    `gripper`, as a person brings a real arm clear by hand."""
+    args = {"position": [float(value) for value in q_arm], "gripper": None if gripper is None else float(gripper)}
+    _call_twin(port, host, ARM_SERVICE, args, f"place the arm at {args['position']}")
+
+
+def _call_twin(port: int, host: str, service: str, args: dict, what: str) -> None:
     from websockets.sync.client import connect
 
-    args = {"name": name, "position": [float(value) for value in position]}
     with connect(f"ws://{host}:{port}") as websocket:
-        websocket.send(json.dumps({"op": "call_service", "service": PLACE_SERVICE, "args": args, "id": "place"}))
+        websocket.send(json.dumps({"op": "call_service", "service": service, "args": args, "id": service}))
         while True:
             reply = json.loads(websocket.recv(timeout=5.0))
             if reply.get("op") == "service_response":
                 break
     if not reply.get("result"):
-        raise RuntimeError(f"the twin at port {port} did not place {name} at {args['position']}: {reply.get('values')}")
+        raise RuntimeError(f"the twin at port {port} did not {what}: {reply.get('values')}")

@@ -297,6 +297,16 @@ class PyBulletBackend:
             self._remove_objects(objects)
             self._add_objects(objects)
 
+    def place_arm(self, q_arm, gripper: float | None) -> None:
+        """Put the arm at rest at `q_arm` and the gripper at `gripper`, held there: what a person does to a real
+        arm by hand (freedrive) when it must be brought clear."""
+        if self._fast is not None:
+            raise BackendError("the arm is placed by hand only in full physics; fast cycles place it at reset")
+        with self._lock:
+            q_arm = np.asarray(q_arm, float)
+            self._set_joint_state(q_arm, gripper)
+            self._hold(q_arm, gripper)
+
     def _remove_objects(self, names) -> None:
         for name in list(names):
             if name in self.objects:
