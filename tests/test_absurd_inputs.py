@@ -82,12 +82,13 @@ def _expert_run(engine: str, episodes: int = 2, forced_damping: float | None = N
 
 def test_a_simulation_that_leaves_its_physics_ends_the_episode_with_the_reason():
     """A damping of 100 N m s/rad (which a spec may not declare for the VX300S: see below) makes PyBullet joints
-    read about 100 rad/s, 30 times the VX300S's limits: the episode ends there, counted, instead of an
-    observation clipped to look valid."""
+    read about 100 rad/s, 30 times the VX300S's limits, and flings the cube out of the scene: the episode ends
+    there, counted, instead of an observation clipped to look valid."""
     infos, breaks = _expert_run("pybullet", forced_damping=100.0)
     for info in infos:
-        assert info["abort_reason"].startswith("the simulation left its limits: joint "), info.get("abort_reason")
-        assert "rad/s, over 4 times its declared velocity bound (3.15 rad/s)" in info["abort_reason"]
+        reason = info.get("abort_reason", "")
+        assert reason.startswith("the simulation left its limits: "), reason
+        assert "over 4 times its declared velocity bound (3.15 rad/s)" in reason or "out of the scene" in reason
     assert breaks == len(infos)
 
 

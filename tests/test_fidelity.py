@@ -36,10 +36,10 @@ def test_the_reference_replays_from_a_saved_state():
         env.action_space.seed(1)
         backend = env.unwrapped.backend
         backend.command_joints(env.unwrapped.state.q_arm + 0.1, 0.2)
-        saved = p.saveState(physicsClientId=backend.client)
+        saved = backend.save_state()
         readings = []
         for _ in range(2):
-            p.restoreState(saved, physicsClientId=backend.client)
+            backend.restore_state(saved)
             backend.advance(0.5)
             readings.append(read_scene(env))
         # a restored state replays to within 0.1 µm (the contact cache of a fresh cube is rebuilt):
@@ -71,14 +71,14 @@ def test_a_dropped_cube_replays_from_a_saved_state():
                 return np.array(p.getBasePositionAndOrientation(cube, physicsClientId=client)[0])
 
             def watched(seconds):
-                saved, start = p.saveState(physicsClientId=client), cube_position()
+                saved, start = backend.save_state(), cube_position()
                 advance(seconds)
                 end = cube_position()
                 if end[2] < start[2] - 0.03:  # it fell: replay the cycle from where it began
-                    p.restoreState(saved, physicsClientId=client)
+                    backend.restore_state(saved)
                     advance(seconds)
                     replays.append(np.abs(cube_position() - end).max())
-                p.removeState(saved, physicsClientId=client)
+                backend.drop_state(saved)
 
             backend.advance = watched
             for _ in range(100):

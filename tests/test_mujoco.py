@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import envfactory  # noqa: F401  (registers the IDs)
+from devkit.oracles.cross_engine import MujocoJudge
 from envfactory.backends.base import BackendError
 from envfactory.backends.mujoco.backend import MujocoBackend
 from envfactory.registration import registry
@@ -143,17 +144,6 @@ def test_a_scene_at_rest_costs_no_substeps_and_ends_where_full_dynamics_does():
     assert np.linalg.norm(cube - reference_cube) < 5e-5
 
 
-def _moving_robot_geoms(model) -> list[int]:
-    moving = np.zeros(model.nbody, dtype=bool)
-    for body in range(1, model.nbody):  # parents come before children
-        moving[body] = model.body_jntnum[body] > 0 or moving[model.body_parentid[body]]
-    return [
-        g
-        for g in range(model.ngeom)
-        if model.body(model.geom_bodyid[g]).name.startswith("robot/") and moving[model.geom_bodyid[g]]
-    ]
-
-
 def _closest_approach(env_id: str, seed: int, steps: int, saturated: bool = False) -> tuple[float, int]:
     """The smallest distance MuJoCo measures between a moving robot geom and a scene obstacle, over every substep of
     every accepted step (MuJoCo's own distance queries judge, not the safety check's coal), and how many steps were
@@ -166,8 +156,7 @@ def _closest_approach(env_id: str, seed: int, steps: int, saturated: bool = Fals
     unwrapped = env.unwrapped
     model, backend = unwrapped.backend.model, unwrapped.backend
     scratch = mujoco.MjData(model)
-    robot = _moving_robot_geoms(model)
-    obstacles = [g for g in range(model.ngeom) if (model.geom(g).name or "").startswith("obstacle:")]
+    judge = MujocoJudge(model, 0.1)
     nq = model.nq
     rng = np.random.default_rng(seed)
     closest, accepted = np.inf, 0
@@ -186,9 +175,7 @@ def _closest_approach(env_id: str, seed: int, steps: int, saturated: bool = Fals
             for row in backend.cycles._states[0][::4]:
                 scratch.qpos[:] = row[1 : 1 + nq]
                 mujoco.mj_kinematics(model, scratch)
-                for geom in robot:
-                    for obstacle in obstacles:
-                        closest = min(closest, mujoco.mj_geomDistance(model, scratch, geom, obstacle, 0.1, None))
+                closest = min(closest, judge.lowest_in(scratch)[0])
     finally:
         env.close()
     return closest, accepted

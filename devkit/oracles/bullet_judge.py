@@ -20,8 +20,9 @@ class BulletJudge:
         self.env = env
         self.margin = margin
         backend = env.backend
-        self.sim_client, self.sim_body = backend.client, backend.body
-        self.sim_obstacles = list(backend.obstacle_bodies)
+        if hasattr(backend, "client"):  # PyBullet runs the env: its scene can be measured in place
+            self.sim_client, self.sim_body = backend.client, backend.body
+            self.sim_obstacles = list(backend.obstacle_bodies)
         # a second client holds the same robot and scene, posed along commanded motions
         self.client = p.connect(p.DIRECT)
         spec = env.blueprint.spec
@@ -74,20 +75,29 @@ class BulletJudge:
     def close(self):
         p.disconnect(self.client)
 
-    def _lowest(self, client, body, obstacles) -> tuple[float, str]:
+    def _lowest(self, client, body, obstacles, self_pairs: bool = True) -> tuple[float, str]:
         lowest, what = np.inf, ""
         for link in set(self.moving):
             for obstacle in obstacles:
                 for point in p.getClosestPoints(body, obstacle, self.margin, linkIndexA=link, physicsClientId=client):
                     if point[8] < lowest:
                         lowest, what = point[8], f"link {link} / body {obstacle}"
-        for a, b in self.self_pairs:
+        for a, b in self.self_pairs if self_pairs else ():
             for point in p.getClosestPoints(
                 body, body, self.margin, linkIndexA=a, linkIndexB=b, physicsClientId=client
             ):
                 if point[8] < lowest:
                     lowest, what = point[8], f"links {a} / {b}"
         return lowest, what
+
+    def posed_by_name(self, joints: dict[str, float]) -> tuple[float, str]:
+        """The lowest clearance from the obstacles (below the margin, else inf) in the judge's own client, the
+        robot posed joint by joint by URDF name (a pose another engine simulated)."""
+        for name, value in joints.items():
+            if name in self.joint_index:
+                p.resetJointState(self.body, self.joint_index[name], float(value), physicsClientId=self.client)
+        p.performCollisionDetection(physicsClientId=self.client)
+        return self._lowest(self.client, self.body, self.obstacles, self_pairs=False)
 
     def simulated(self) -> tuple[float, str]:
         """The lowest clearance in the simulated scene now (below the margin, else inf)."""

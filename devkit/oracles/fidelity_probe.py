@@ -21,7 +21,6 @@ from dataclasses import dataclass, field
 
 import gymnasium as gym
 import numpy as np
-import pybullet as p
 
 from envfactory.experts import make_policy
 from envfactory.geometry.kinematics import quaternion_to_matrix
@@ -95,16 +94,15 @@ class _BulletSnapshot:
         self.backend, self.fast = backend, backend._fast
 
     def save(self):
-        return p.saveState(physicsClientId=self.backend.client), self.backend._sim_time
+        return self.backend.save_state()
 
     def restore(self, saved) -> None:
-        state, self.backend._sim_time = saved
-        p.restoreState(state, physicsClientId=self.backend.client)
-        p.removeState(state, physicsClientId=self.backend.client)
+        self.backend.restore_state(saved)
+        self.backend.drop_state(saved)
 
     def play_full(self, advance, seconds: float) -> None:
         # the fast player programs the arm's motors when a cycle first steps the physics: the reference,
-        # which steps every cycle, gives them the command first (the motors' targets survive restoreState)
+        # which steps every cycle, gives them the command first (restore gives the fast one it back)
         self.backend.program_pending_arm()
         self.backend._fast = None
         try:

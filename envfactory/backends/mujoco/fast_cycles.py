@@ -27,7 +27,7 @@ from mujoco import rollout
 from envfactory.backends.at_rest import GRIPPER_REST, JOINT_REST, OBJECT_REST, OBJECT_SPIN_REST, CycleCounts
 from envfactory.backends.mujoco.held import Carry
 from envfactory.backends.mujoco.model import ROBOT_PREFIX
-from envfactory.backends.synchronous import synchronous_length
+from envfactory.backends.synchronous import Profile, synchronous_length
 from envfactory.geometry.object_clearance import NEAR_CONTACT, ObjectClearance, bounding_radius
 from envfactory.geometry.obstacles import scene_obstacles
 from envfactory.schema.models import ComposedSpec
@@ -61,33 +61,6 @@ def robot_at_rest(data, arm_dof, gripper_dof: int | None) -> bool:
     if gripper_dof is not None and not abs(data.qvel[gripper_dof]) < GRIPPER_REST:
         return False
     return all(abs(speed) < JOINT_REST for speed in data.qvel[arm_dof].tolist())  # a few numbers: plain floats
-
-
-class Profile:
-    """A joint-synchronous straight line from `start` to `end`, beginning at `t0` and lasting `length` s: every
-    joint covers the same fraction of its way at every instant, so the arm never leaves the line. `smooth`:
-    the quintic timing law (an arm's point-to-point move); else constant speed (a gripper's finger drive).
-    `start` and `end`: arrays of joint values, or plain floats for one joint (the gripper's)."""
-
-    def __init__(self, start: np.ndarray, end: np.ndarray, t0: float, length: float, smooth: bool = True):
-        self.start, self.end, self.t0, self.length, self.smooth = start, end, t0, max(length, 1e-9), smooth
-
-    def at(self, time):
-        """(position, velocity, acceleration) at `time`, a float or an array of times (then one row each)."""
-        if isinstance(time, float):  # one instant, every kinematic cycle: plain numbers cost less than numpy's
-            tau = min(max((time - self.t0) / self.length, 0.0), 1.0)
-        else:
-            tau = np.clip((np.asarray(time, float) - self.t0) / self.length, 0.0, 1.0)[..., None]
-        if self.smooth:
-            fraction = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau * tau)
-            rate = 30.0 * tau * tau * (1.0 - tau) ** 2 / self.length
-            change = 60.0 * tau * (1.0 - tau) * (1.0 - 2.0 * tau) / (self.length * self.length)
-        elif isinstance(tau, float):
-            fraction, rate, change = tau, (1.0 / self.length if tau < 1.0 else 0.0), 0.0
-        else:
-            fraction, rate, change = tau, np.where(tau < 1.0, 1.0 / self.length, 0.0), np.zeros_like(tau)
-        way = self.end - self.start
-        return self.start + fraction * way, rate * way, change * way
 
 
 def _as_slice(indices: np.ndarray):

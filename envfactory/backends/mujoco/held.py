@@ -20,6 +20,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from envfactory.backends.synchronous import quintic
 from envfactory.geometry.object_clearance import NEAR_CONTACT
 from envfactory.geometry.obstacles import Obstacle
 
@@ -30,11 +31,6 @@ MIN_PIECE = 1.0 / 16
 # Samples of the profile's timing law at which the held point's acceleration is taken (second differences)
 DEMAND_SAMPLES = 11
 GRAVITY = np.array([0.0, 0.0, -9.81])
-
-
-def quintic(tau: np.ndarray) -> np.ndarray:
-    """The share of the way covered at each elapsed fraction: the timing law of the arm's profiles."""
-    return tau**3 * (10.0 - 15.0 * tau + 6.0 * tau * tau)
 
 
 def _pose(data, body: int) -> tuple[np.ndarray, np.ndarray]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from pathlib import Path
@@ -22,6 +23,7 @@ from envfactory.backends.base import (
 from envfactory.backends.driver_readings import DriverReadings
 from envfactory.backends.pybullet import scene
 from envfactory.backends.pybullet.fast_cycles import FastCycles, GripperResponse, Rig, record_gripper_response
+from envfactory.backends.synchronous import Profile, synchronous_length
 from envfactory.backends.view import RENDER_SIZE
 from envfactory.geometry.frames import TaskFrame, base_rotation
 from envfactory.geometry.object_clearance import ObjectClearance, bounding_radius
@@ -80,6 +82,9 @@ class PyBulletBackend:
             raise
         self._fast: FastCycles | None = None  # sim.fidelity fast, once attach_geometry gives the shapes
         self._pending_arm: tuple[np.ndarray, float] | None = None  # a command the arm's motors do not have yet
+        # the motors' (targets, speeds) for each substep of the motion under way, and the next row to play
+        self._arm_rows: tuple[list, list] | None = None
+        self._arm_row = 0
         self._object_radii: dict[int, float] = {}
         self._thread = None
         if self.realtime:
@@ -120,6 +125,8 @@ class PyBulletBackend:
         link_index = {info[12].decode(): info[0] for info in infos}
         self._arm = [index[j.name] for j in self.robot.arm_joints]
         self._efforts, self._velocities = self.robot.arm_efforts, self.robot.arm_velocities
+        self._position_gains = [self._position_gain] * len(self._arm)
+        self._velocity_gains = [1.0] * len(self._arm)  # the profile's speed is fed forward in full
         self._driver_readings = DriverReadings(self.robot)
         self._state_joints = [index[e.urdf_joint] for e in self.robot.joint_states]
         # Unactuated joints would otherwise hold still under PyBullet's default velocity motors.
@@ -151,12 +158,12 @@ class PyBulletBackend:
             self.client,
             self.body,
             self._arm,
-            np.asarray(self._velocities, float),
             limits,
             self._gripper,
             self.dt,
             self._set_joint_state,
             self.program_pending_arm,
+            self._substep,
         )
         response = None
         if self._gripper is not None:
@@ -223,14 +230,15 @@ class PyBulletBackend:
             self._drive_gripper(self.robot.gripper.open if gripper is None else gripper)
 
     def _hold_arm(self, q_arm) -> None:
-        self._pending_arm = None  # superseded
+        self._pending_arm = self._arm_rows = None  # superseded
         p.setJointMotorControlArray(
             self.body,
             self._arm,
             p.POSITION_CONTROL,
             targetPositions=list(q_arm),
             forces=self._efforts,
-            positionGains=[self._position_gain] * len(self._arm),
+            positionGains=self._position_gains,
+            velocityGains=self._velocity_gains,
             physicsClientId=self.client,
         )
 
@@ -288,6 +296,22 @@ class PyBulletBackend:
                 self._fast.reset(q_arm, gripper_value, has_objects=bool(self.objects))
             self._sim_time = 0.0
 
+    def save_state(self):
+        """What a cycle replayed from here needs: PyBullet's state, which keeps no motor targets, with the clock
+        and the arm's motor plan (the profile's remaining rows, a command not yet programmed)."""
+        with self._lock:
+            state = p.saveState(physicsClientId=self.client)
+            return state, self._sim_time, self._arm_rows, self._arm_row, self._pending_arm
+
+    def restore_state(self, saved) -> None:
+        """Back to a save_state (which stays saved until drop_state)."""
+        with self._lock:
+            state, self._sim_time, self._arm_rows, self._arm_row, self._pending_arm = saved
+            p.restoreState(state, physicsClientId=self.client)
+
+    def drop_state(self, saved) -> None:
+        p.removeState(saved[0], physicsClientId=self.client)
+
     def place_objects(self, objects) -> None:
         """Put the named objects anew, at rest, the arm left as it is: what a person does to a real scene between
         episodes (the twin's scene runs full physics; fast cycles learn of objects only at reset)."""
@@ -320,33 +344,67 @@ class PyBulletBackend:
         }
 
     def command_joints(self, q_arm_target, duration: float) -> None:
-        # The motors move at the speeds that land every joint on its target at the same time: after
-        # `duration`, or later when a joint's speed limit needs longer (then every joint slows in proportion),
-        # so the arm moves along the straight joint-space line the safety check proved, as UR's trajectory
-        # controller and xs_sdk move it. It interpolates the motion without per-substep calls.
-        # One call per joint: setJointMotorControlArray takes no speed limit, and
-        # setJointMotorControlMultiDofArray's maxVelocities do not reach 1-DoF motors
-        # (measured: the arm then moves at its full speed).
+        # Every joint follows the joint-synchronous profile along the straight joint-space line the safety check
+        # proved: its motor is given the line's point and speed at every substep (_substep), as MuJoCo's servos
+        # are, and as UR's trajectory controller and xs_sdk move a real arm. A target alone, under a speed limit
+        # per motor, let the heavy joints fall behind the light ones under their effort limits: the UR5e left
+        # the line by up to 14.5 mrad on random joint actions, where its links are proven clear only on it.
+        target = np.asarray(q_arm_target, float)
         with self._lock:
             if self._fast is None:
-                self._program_arm(q_arm_target, duration)
+                self._program_arm(target, duration)
                 return
             # The fast fidelity plays most cycles without a substep, and a motor's target matters only to
             # substeps: the motors are programmed when a cycle first steps the physics (program_pending_arm).
-            self._pending_arm = (np.asarray(q_arm_target, float), duration)
-            self._fast.commanded_arm(q_arm_target, duration)
+            self._pending_arm = (target, duration)
+            self._fast.commanded_arm(target, self._motion_length(self._arm_position(), target, duration))
 
-    def _program_arm(self, q_arm_target, duration: float) -> None:
-        current = np.array([s[0] for s in p.getJointStates(self.body, self._arm, physicsClientId=self.client)])
-        travel = np.abs(np.asarray(q_arm_target, float) - current)
-        length = max(duration, float(np.max(travel / np.asarray(self._velocities, float))))
-        self._drive_arm(q_arm_target, np.maximum(travel / length, 1e-3))
+    def _arm_position(self) -> np.ndarray:
+        return np.array([s[0] for s in p.getJointStates(self.body, self._arm, physicsClientId=self.client)])
+
+    def _motion_length(self, start: np.ndarray, target: np.ndarray, duration: float) -> float:
+        return synchronous_length(start, target, duration, np.asarray(self._velocities, float))
+
+    def _program_arm(self, q_arm_target: np.ndarray, duration: float) -> None:
+        """The motor targets of every substep of the motion from where the arm is, laid out once: the last row
+        (the target, at rest) holds after it."""
+        start = self._arm_position()
+        length = self._motion_length(start, q_arm_target, duration)
+        times = self.dt * np.arange(1, max(1, math.ceil(length / self.dt - 1e-9)) + 1)
+        position, velocity, _ = Profile(start, q_arm_target, 0.0, length).at(times)
+        self._arm_rows, self._arm_row = (position.tolist(), velocity.tolist()), 0
+
+    def _substep(self) -> None:
+        """One physics substep, the arm's motors set to the profile's point and speed at its end first."""
+        rows, c = self._arm_rows, self.client
+        if rows is not None:
+            row = self._arm_row
+            if row == len(rows[0]) - 1:
+                # the target, held as a servo holds its goal once its profile is over: with each motor's full
+                # effort and rated speed, so a joint pushed back by what it presses returns at that speed
+                self._arm_rows = None
+                self._drive_arm(rows[0][row], self._velocities)
+                p.stepSimulation(physicsClientId=c)
+                return
+            p.setJointMotorControlArray(
+                self.body,
+                self._arm,
+                p.POSITION_CONTROL,
+                targetPositions=rows[0][row],
+                targetVelocities=rows[1][row],
+                forces=self._efforts,
+                positionGains=self._position_gains,
+                velocityGains=self._velocity_gains,
+                physicsClientId=c,
+            )
+            self._arm_row = row + 1
+        p.stepSimulation(physicsClientId=c)
 
     def hold_joints(self, q_arm_target) -> None:
         """Drive the arm to `q_arm_target` and hold it there with each motor's full speed and effort, with no
         motion profile: what a servo's position loop does once its profile has ended (the twin's drivers)."""
         with self._lock:
-            self._pending_arm = None
+            self._pending_arm = self._arm_rows = None
             self._drive_arm(q_arm_target, np.asarray(self._velocities, float))
             if self._fast is not None:
                 self._fast.commanded_arm(q_arm_target, 0.0)
@@ -399,13 +457,12 @@ class PyBulletBackend:
             time.sleep(seconds)
             return
         steps = max(1, round(seconds / self.dt))
-        step, c = p.stepSimulation, self.client
         with self._lock:
             if self._fast is not None:
                 self._fast.play(seconds, self._object_radii)
             else:
                 for _ in range(steps):
-                    step(physicsClientId=c)
+                    self._substep()
             self._sim_time += steps * self.dt  # the whole cycle passed, however it was played
 
     def _run_realtime(self) -> None:
@@ -414,7 +471,7 @@ class PyBulletBackend:
             with self._lock:
                 if self._closed:
                     return
-                p.stepSimulation(physicsClientId=self.client)
+                self._substep()
                 self._sim_time += self.dt
             next_tick += self.dt
             delay = next_tick - time.perf_counter()

@@ -132,19 +132,19 @@ def record_gripper_response(
 
 @dataclass(frozen=True)
 class Rig:
-    """What a cycle needs of the backend: the robot body, its arm joints in action order, the joint
-    speed limits the motors respect, the gripper joint, and the backend's joint setter
+    """What a cycle needs of the backend: the robot body, its arm joints in action order, the gripper joint,
+    and the backend's joint setter
     (q_arm, gripper, gripper_speed), which moves the gripper's mimic followers along."""
 
     client: int
     body: int
     arm: list[int]
-    arm_speed_limits: np.ndarray
     arm_limits: np.ndarray  # (2, joints): the lower and upper limits PyBullet holds the arm joints in
     gripper: int | None
     dt: float
     set_joints: Callable[[np.ndarray, float | None, float], None]
     program_motors: Callable[[], None]  # gives the arm's motors the last command: called before any substep
+    substep: Callable[[], None]  # one physics substep, the arm's motors on the commanded profile
 
 
 class FastCycles:
@@ -153,18 +153,19 @@ class FastCycles:
     def __init__(self, rig: Rig, clearance: ObjectClearance, gripper: GripperResponse | None):
         self.rig, self.clearance, self.gripper_response = rig, clearance, gripper
         self.counts = CycleCounts()
-        self.arm_target, self.arm_duration, self.gripper_target = None, 0.0, None
+        self.arm_target, self.arm_motion_s, self.gripper_target = None, 0.0, None
         self.objects_at_rest = False
 
     def reset(self, arm_target, gripper_target: float | None, has_objects: bool) -> None:
         self.arm_target = np.asarray(arm_target, float)
-        self.arm_duration = 0.0
+        self.arm_motion_s = 0.0
         self.gripper_target = gripper_target
         # a freshly spawned object has not been seen resting yet
         self.objects_at_rest = not has_objects
 
-    def commanded_arm(self, target, duration: float) -> None:
-        self.arm_target, self.arm_duration = np.asarray(target, float), duration
+    def commanded_arm(self, target, motion_s: float) -> None:
+        """`motion_s`: how long the motors' profile to `target` lasts."""
+        self.arm_target, self.arm_motion_s = np.asarray(target, float), motion_s
 
     def commanded_gripper(self, value: float) -> None:
         self.gripper_target = float(value)
@@ -199,7 +200,7 @@ class FastCycles:
             if done >= substeps:
                 return self._play_dynamic(substeps, objects, done)
             for _ in range(REST_CHECK_EVERY):
-                p.stepSimulation(physicsClientId=self.rig.client)
+                self.rig.substep()
             done += REST_CHECK_EVERY
             self.objects_at_rest = self._objects_at_rest(objects)
         if done:
@@ -214,13 +215,11 @@ class FastCycles:
 
     def _settles(self, substeps: int) -> bool:
         """Whether the motors land the arm on its target well within the cycle, as the kinematic arm is."""
-        return substeps - np.ceil(self.arm_duration / self.rig.dt) >= SETTLE_SUBSTEPS
+        return substeps - np.ceil(self.arm_motion_s / self.rig.dt) >= SETTLE_SUBSTEPS
 
     def _kinematic_plan(self, q, gripper, substeps: int, objects):
         """Where the cycle ends (arm, gripper, gripper speed) if it may be played kinematically, else None."""
         rig, arm_target = self.rig, self.arm_target
-        if self.arm_duration > 0 and (np.abs(arm_target - q) / rig.arm_speed_limits > self.arm_duration).any():
-            return None  # a joint slower than the commanded timing: its path is the motors' to shape
         low, high = rig.arm_limits
         if (np.minimum(np.minimum(q, arm_target) - low, high - np.maximum(q, arm_target)) < NEAR_LIMIT).any():
             return None  # a joint limit's constraint holds the joint a little off where the motor sends it
@@ -253,17 +252,17 @@ class FastCycles:
         rig = self.rig
         rig.program_motors()
         self.counts.dynamic += 1
-        step, c = p.stepSimulation, rig.client
+        step = rig.substep
         # the commanded motion is over after action_speed; the gripper may run on, the rest test sees it
-        motion = min(substeps, int(np.ceil(self.arm_duration / rig.dt)) + 1)
+        motion = min(substeps, int(np.ceil(self.arm_motion_s / rig.dt)) + 1)
         for _ in range(done, motion):
-            step(physicsClientId=c)
+            step()
         done = max(done, motion)
         resting = False
         while done < substeps:
             chunk = min(REST_CHECK_EVERY, substeps - done)
             for _ in range(chunk):
-                step(physicsClientId=c)
+                step()
             done += chunk
             # at rest at two checks in a row: one slow check can catch a bounce at its turning point
             was_resting, resting = resting, self._objects_at_rest(objects) and self._robot_at_rest()
