@@ -165,38 +165,53 @@ POLICIES = {"random": lambda: _random, "down": lambda: _down, "extremes": lambda
 ADVERSARIAL = ("down", "extremes", "repeated")
 
 
+def drive_policy(env, policy_name: str, steps: int, seed: int, episode_length: int, on_accepted, before_step=None):
+    """Run a policy for `steps` steps, a new episode every `episode_length` (or at its end); `before_step(state,
+    command)` sees each command before it is stepped, `on_accepted(step, state, command)` each accepted one after.
+    Returns (accepted, rejected)."""
+    policy = POLICIES[policy_name]()
+    rng = np.random.default_rng(seed)
+    accepted = rejected = 0
+    env.reset(seed=seed)
+    step_in_episode = 0
+    for step in range(steps):
+        state = env.state
+        action = policy(env, rng, step_in_episode)
+        command = env.actions.translate(action, state)
+        if before_step is not None:
+            before_step(state, command)
+        _, _, terminated, truncated, info = env.step(action)
+        step_in_episode += 1
+        if info["action_rejected"]:
+            rejected += 1
+        else:
+            accepted += 1
+            on_accepted(step, state, command)
+        if terminated or truncated or step_in_episode >= episode_length:
+            env.reset()
+            step_in_episode = 0
+    return accepted, rejected
+
+
 def judge_steps(env, policy_name: str, steps: int, seed: int = 0, episode_length: int = 25) -> dict:
     """Run a policy and judge every accepted step with Bullet: after the step in the simulated scene,
     and along the commanded motion. Counts, and the worst case seen."""
     margin = env.blueprint.spec.env.safety.surface_margin
     judge = BulletJudge(env, margin)
-    policy = POLICIES[policy_name]()
-    rng = np.random.default_rng(seed)
-    result = {"accepted": 0, "rejected": 0, "violations": [], "lowest": np.inf}
-    env.reset(seed=seed)
-    step_in_episode = 0
+    result = {"violations": [], "lowest": np.inf}
+
+    def judged(step, state, command) -> None:
+        gripper_to = state.gripper if command.gripper is None else command.gripper
+        for where, (value, what) in (
+            ("simulated", judge.simulated()),
+            ("commanded", judge.commanded(state.q_arm, command.q_arm, state.gripper, gripper_to)),
+        ):
+            result["lowest"] = min(result["lowest"], value)
+            if value < margin:
+                result["violations"].append((step, where, round(float(value), 4), what))
+
     try:
-        for step in range(steps):
-            state = env.state
-            action = policy(env, rng, step_in_episode)
-            command = env.actions.translate(action, state)
-            _, _, terminated, truncated, info = env.step(action)
-            step_in_episode += 1
-            if info["action_rejected"]:
-                result["rejected"] += 1
-            else:
-                result["accepted"] += 1
-                gripper_to = state.gripper if command.gripper is None else command.gripper
-                for where, (value, what) in (
-                    ("simulated", judge.simulated()),
-                    ("commanded", judge.commanded(state.q_arm, command.q_arm, state.gripper, gripper_to)),
-                ):
-                    result["lowest"] = min(result["lowest"], value)
-                    if value < margin:
-                        result["violations"].append((step, where, round(float(value), 4), what))
-            if terminated or truncated or step_in_episode >= episode_length:
-                env.reset()
-                step_in_episode = 0
+        result["accepted"], result["rejected"] = drive_policy(env, policy_name, steps, seed, episode_length, judged)
     finally:
         judge.close()
     return result

@@ -14,7 +14,7 @@ import mujoco
 import numpy as np
 import pybullet as p
 
-from devkit.oracles.bullet_judge import POLICIES, BulletJudge
+from devkit.oracles.bullet_judge import BulletJudge, drive_policy
 from envfactory.backends.mujoco.model import ROBOT_PREFIX, ROBOT_TYPE, build
 
 
@@ -116,32 +116,22 @@ def judge_end_poses(env, policy_name: str, steps: int, seed: int = 0, episode_le
     step took a joint off the commanded straight line, in rad."""
     margin = env.blueprint.spec.env.safety.surface_margin
     judge = other_engine_judge(env, margin)
-    policy = POLICIES[policy_name]()
-    rng = np.random.default_rng(seed)
-    result = {"accepted": 0, "rejected": 0, "violations": [], "lowest": np.inf, "off_line": None}
+    result = {"violations": [], "lowest": np.inf, "off_line": None}
     line = _LineWatch(env.backend) if hasattr(env.backend, "_substep") else None
-    env.reset(seed=seed)
-    step_in_episode = 0
+
+    def judged(step, state, command) -> None:
+        value, what = judge.lowest(simulated_joints(env.backend))
+        result["lowest"] = min(result["lowest"], value)
+        if value < margin:
+            result["violations"].append((step, round(float(value), 4), what))
+        if line is not None:
+            result["off_line"] = max(result["off_line"] or 0.0, line.worst)
+
+    before = None if line is None else (lambda state, command: line.expect(state.q_arm, command.q_arm))
     try:
-        for step in range(steps):
-            action = policy(env, rng, step_in_episode)
-            if line is not None:
-                line.expect(env.state.q_arm, env.actions.translate(action, env.state).q_arm)
-            _, _, terminated, truncated, info = env.step(action)
-            step_in_episode += 1
-            if info["action_rejected"]:
-                result["rejected"] += 1
-            else:
-                result["accepted"] += 1
-                value, what = judge.lowest(simulated_joints(env.backend))
-                result["lowest"] = min(result["lowest"], value)
-                if value < margin:
-                    result["violations"].append((step, round(float(value), 4), what))
-                if line is not None:
-                    result["off_line"] = max(result["off_line"] or 0.0, line.worst)
-            if terminated or truncated or step_in_episode >= episode_length:
-                env.reset()
-                step_in_episode = 0
+        result["accepted"], result["rejected"] = drive_policy(
+            env, policy_name, steps, seed, episode_length, judged, before
+        )
     finally:
         judge.close()
         if line is not None:
