@@ -61,7 +61,7 @@ def test_speed_limited_moves_arrive_together(env_id):
     spreads, off_line = zip(*moves)
     # joints racing to their targets at their own speed arrived 0.5-1.2 s apart and left the line by
     # 0.5-0.6 rad; synchronised they arrive within 0.15 s. Speed-capped position motors given only the target
-    # still left the line while the heaviest UR5e joints gathered speed under their effort limits (0.28 rad
+    # still left the line while the heaviest UR5e joints gathered speed under their effort limits (0.17 rad
     # here); given the line's point and speed at every substep, the motors keep within 1 mrad of it, as
     # MuJoCo's servos do
     assert max(spreads) < 0.2, spreads

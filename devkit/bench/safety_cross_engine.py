@@ -21,7 +21,7 @@ import time
 import gymnasium as gym
 
 import envfactory
-from devkit.oracles.bullet_judge import POLICIES
+from devkit.oracles.bullet_judge import JUDGED_COLUMNS, POLICIES, judged_cells
 from devkit.oracles.cross_engine import judge_end_poses
 from devkit.report import Report, add_markdown_option
 from envfactory.envs import RobotEnv
@@ -59,10 +59,7 @@ def main() -> None:
             "judged by",
             "mode",
             "policy",
-            "accepted",
-            "refused",
-            "inside margin",
-            "lowest (m)",
+            *JUDGED_COLUMNS,
             "off the line (mrad)",
             "s",
         ],
@@ -89,10 +86,7 @@ def main() -> None:
                         JUDGE[engine],
                         "EE" if ee else "joint",
                         policy,
-                        result["accepted"],
-                        result["rejected"],
-                        len(result["violations"]),
-                        f"{result['lowest']:.4f}",
+                        *judged_cells(result),
                         "-" if result["off_line"] is None else f"{1000 * result['off_line']:.2f}",
                         f"{time.perf_counter() - start:.0f}",
                     )

@@ -12,7 +12,7 @@ import argparse
 import time
 
 import envfactory  # noqa: E402,F401  (registers the IDs)
-from devkit.oracles.bullet_judge import POLICIES, judge_steps
+from devkit.oracles.bullet_judge import JUDGED_COLUMNS, POLICIES, judge_steps, judged_cells
 from devkit.report import Report, add_markdown_option
 from envfactory.envs import RobotEnv  # noqa: E402
 
@@ -34,7 +34,7 @@ def main() -> None:
     args = parser.parse_args()
     report = Report.start(parser, args, __doc__)
     table = report.table(
-        ["ID", "mode", "policy", "accepted", "refused", "inside margin", "lowest (m)", "s"],
+        ["ID", "mode", "policy", *JUDGED_COLUMNS, "s"],
         title=f"{args.steps} steps per ID, mode and policy (seed 7)",
     )
     total = 0
@@ -47,14 +47,7 @@ def main() -> None:
                 env.close()
                 total += len(result["violations"])
                 table.add(
-                    env_id,
-                    "EE" if ee else "joint",
-                    policy,
-                    result["accepted"],
-                    result["rejected"],
-                    len(result["violations"]),
-                    f"{result['lowest']:.4f}",
-                    f"{time.perf_counter() - start:.0f}",
+                    env_id, "EE" if ee else "joint", policy, *judged_cells(result), f"{time.perf_counter() - start:.0f}"
                 )
     report.note(f"accepted steps inside the margin, in all: {total}")
     report.finish()

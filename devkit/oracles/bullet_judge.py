@@ -90,7 +90,7 @@ class BulletJudge:
                     lowest, what = point[8], f"links {a} / {b}"
         return lowest, what
 
-    def posed_by_name(self, joints: dict[str, float]) -> tuple[float, str]:
+    def lowest(self, joints: dict[str, float]) -> tuple[float, str]:
         """The lowest clearance from the obstacles (below the margin, else inf) in the judge's own client, the
         robot posed joint by joint by URDF name (a pose another engine simulated)."""
         for name, value in joints.items():
@@ -163,6 +163,14 @@ class _Repeated:
 
 POLICIES = {"random": lambda: _random, "down": lambda: _down, "extremes": lambda: _extremes, "repeated": _Repeated}
 ADVERSARIAL = ("down", "extremes", "repeated")
+
+
+JUDGED_COLUMNS = ["accepted", "refused", "inside margin", "lowest (m)"]
+
+
+def judged_cells(result: dict) -> list:
+    """A judged run's counts, in JUDGED_COLUMNS' order: what every safety page reports of it."""
+    return [result["accepted"], result["rejected"], len(result["violations"]), f"{result['lowest']:.4f}"]
 
 
 def drive_policy(env, policy_name: str, steps: int, seed: int, episode_length: int, on_accepted, before_step=None):

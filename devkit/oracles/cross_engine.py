@@ -104,9 +104,7 @@ class MujocoJudge:
 def other_engine_judge(env, margin: float):
     """The judge of the engine that did not run this env's steps: lowest(joints) -> (clearance, where)."""
     if hasattr(env.backend, "model"):  # MuJoCo ran them
-        judge = BulletJudge(env, margin)
-        judge.lowest = judge.posed_by_name
-        return judge
+        return BulletJudge(env, margin)
     return MujocoJudge.for_env(env, margin)
 
 

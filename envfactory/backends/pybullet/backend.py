@@ -125,6 +125,7 @@ class PyBulletBackend:
         link_index = {info[12].decode(): info[0] for info in infos}
         self._arm = [index[j.name] for j in self.robot.arm_joints]
         self._efforts, self._velocities = self.robot.arm_efforts, self.robot.arm_velocities
+        self._speed_limits = np.asarray(self._velocities, float)
         self._position_gains = [self._position_gain] * len(self._arm)
         self._velocity_gains = [1.0] * len(self._arm)  # the profile's speed is fed forward in full
         self._driver_readings = DriverReadings(self.robot)
@@ -158,6 +159,7 @@ class PyBulletBackend:
             self.client,
             self.body,
             self._arm,
+            self._speed_limits,
             limits,
             self._gripper,
             self.dt,
@@ -348,7 +350,8 @@ class PyBulletBackend:
         # proved: its motor is given the line's point and speed at every substep (_substep), as MuJoCo's servos
         # are, and as UR's trajectory controller and xs_sdk move a real arm. A target alone, under a speed limit
         # per motor, let the heavy joints fall behind the light ones under their effort limits: the UR5e left
-        # the line by up to 14.5 mrad on random joint actions, where its links are proven clear only on it.
+        # the line by 0.17 rad on the long moves of tests/test_synchronous_motion.py, where its links are proven
+        # clear only on it.
         target = np.asarray(q_arm_target, float)
         with self._lock:
             if self._fast is None:
@@ -357,61 +360,55 @@ class PyBulletBackend:
             # The fast fidelity plays most cycles without a substep, and a motor's target matters only to
             # substeps: the motors are programmed when a cycle first steps the physics (program_pending_arm).
             self._pending_arm = (target, duration)
-            self._fast.commanded_arm(target, self._motion_length(self._arm_position(), target, duration))
-
-    def _arm_position(self) -> np.ndarray:
-        return np.array([s[0] for s in p.getJointStates(self.body, self._arm, physicsClientId=self.client)])
-
-    def _motion_length(self, start: np.ndarray, target: np.ndarray, duration: float) -> float:
-        return synchronous_length(start, target, duration, np.asarray(self._velocities, float))
+            self._fast.commanded_arm(target, duration)
 
     def _program_arm(self, q_arm_target: np.ndarray, duration: float) -> None:
         """The motor targets of every substep of the motion from where the arm is, laid out once: the last row
         (the target, at rest) holds after it."""
-        start = self._arm_position()
-        length = self._motion_length(start, q_arm_target, duration)
+        start = np.array([s[0] for s in p.getJointStates(self.body, self._arm, physicsClientId=self.client)])
+        length = synchronous_length(start, q_arm_target, duration, self._speed_limits)
         times = self.dt * np.arange(1, max(1, math.ceil(length / self.dt - 1e-9)) + 1)
         position, velocity, _ = Profile(start, q_arm_target, 0.0, length).at(times)
         self._arm_rows, self._arm_row = (position.tolist(), velocity.tolist()), 0
 
     def _substep(self) -> None:
         """One physics substep, the arm's motors set to the profile's point and speed at its end first."""
-        rows, c = self._arm_rows, self.client
+        rows = self._arm_rows
         if rows is not None:
             row = self._arm_row
-            if row == len(rows[0]) - 1:
-                # the target, held as a servo holds its goal once its profile is over: with each motor's full
-                # effort and rated speed, so a joint pushed back by what it presses returns at that speed
-                self._arm_rows = None
-                self._drive_arm(rows[0][row], self._velocities)
-                p.stepSimulation(physicsClientId=c)
-                return
-            p.setJointMotorControlArray(
-                self.body,
-                self._arm,
-                p.POSITION_CONTROL,
-                targetPositions=rows[0][row],
-                targetVelocities=rows[1][row],
-                forces=self._efforts,
-                positionGains=self._position_gains,
-                velocityGains=self._velocity_gains,
-                physicsClientId=c,
-            )
             self._arm_row = row + 1
-        p.stepSimulation(physicsClientId=c)
+            if self._arm_row < len(rows[0]):
+                p.setJointMotorControlArray(
+                    self.body,
+                    self._arm,
+                    p.POSITION_CONTROL,
+                    targetPositions=rows[0][row],
+                    targetVelocities=rows[1][row],
+                    forces=self._efforts,
+                    positionGains=self._position_gains,
+                    velocityGains=self._velocity_gains,
+                    physicsClientId=self.client,
+                )
+            else:  # the profile is over: its target is held as the twin's drivers hold theirs (hold_joints)
+                self._arm_rows = None
+                self._hold_target(rows[0][row])
+        p.stepSimulation(physicsClientId=self.client)
 
     def hold_joints(self, q_arm_target) -> None:
         """Drive the arm to `q_arm_target` and hold it there with each motor's full speed and effort, with no
-        motion profile: what a servo's position loop does once its profile has ended (the twin's drivers)."""
+        motion profile: what a servo's position loop does once its profile has ended (the twin's drivers, and
+        the end of every simulated profile)."""
         with self._lock:
             self._pending_arm = self._arm_rows = None
-            self._drive_arm(q_arm_target, np.asarray(self._velocities, float))
+            self._hold_target(q_arm_target)
             if self._fast is not None:
                 self._fast.commanded_arm(q_arm_target, 0.0)
 
-    def _drive_arm(self, q_arm_target, speeds) -> None:
+    def _hold_target(self, q_arm_target) -> None:
+        """Each motor to its target with its full effort, at most its rated speed: a joint pushed back by what it
+        presses returns at that speed."""
         c = self.client
-        for joint, target, speed, effort in zip(self._arm, q_arm_target, speeds, self._efforts):
+        for joint, target, speed, effort in zip(self._arm, q_arm_target, self._velocities, self._efforts):
             p.setJointMotorControl2(
                 self.body,
                 joint,

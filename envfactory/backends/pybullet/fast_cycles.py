@@ -30,6 +30,7 @@ import numpy as np
 import pybullet as p
 
 from envfactory.backends.at_rest import GRIPPER_REST, JOINT_REST, OBJECT_REST, OBJECT_SPIN_REST, CycleCounts
+from envfactory.backends.synchronous import synchronous_length
 from envfactory.geometry.object_clearance import NEAR_CONTACT, ObjectClearance
 
 # After `action_speed` the position motors close the rest of a motion by a factor e about every 9
@@ -132,13 +133,14 @@ def record_gripper_response(
 
 @dataclass(frozen=True)
 class Rig:
-    """What a cycle needs of the backend: the robot body, its arm joints in action order, the gripper joint,
-    and the backend's joint setter
+    """What a cycle needs of the backend: the robot body, its arm joints in action order, their rated speeds, the
+    gripper joint, and the backend's joint setter
     (q_arm, gripper, gripper_speed), which moves the gripper's mimic followers along."""
 
     client: int
     body: int
     arm: list[int]
+    arm_speed_limits: np.ndarray  # the joints' rated speeds, which set how long a commanded motion lasts
     arm_limits: np.ndarray  # (2, joints): the lower and upper limits PyBullet holds the arm joints in
     gripper: int | None
     dt: float
@@ -153,19 +155,22 @@ class FastCycles:
     def __init__(self, rig: Rig, clearance: ObjectClearance, gripper: GripperResponse | None):
         self.rig, self.clearance, self.gripper_response = rig, clearance, gripper
         self.counts = CycleCounts()
-        self.arm_target, self.arm_motion_s, self.gripper_target = None, 0.0, None
+        self.arm_target, self.arm_duration, self.gripper_target = None, 0.0, None
+        self.arm_motion_s = 0.0  # how long the motors' profile to arm_target lasts, once a cycle has read the arm
+        self._motion_known = True
         self.objects_at_rest = False
 
     def reset(self, arm_target, gripper_target: float | None, has_objects: bool) -> None:
         self.arm_target = np.asarray(arm_target, float)
-        self.arm_motion_s = 0.0
+        self.arm_duration = self.arm_motion_s = 0.0
+        self._motion_known = True
         self.gripper_target = gripper_target
         # a freshly spawned object has not been seen resting yet
         self.objects_at_rest = not has_objects
 
-    def commanded_arm(self, target, motion_s: float) -> None:
-        """`motion_s`: how long the motors' profile to `target` lasts."""
-        self.arm_target, self.arm_motion_s = np.asarray(target, float), motion_s
+    def commanded_arm(self, target, duration: float) -> None:
+        self.arm_target, self.arm_duration = np.asarray(target, float), duration
+        self._motion_known = False  # the next cycle reads where the arm starts from anyway
 
     def commanded_gripper(self, value: float) -> None:
         self.gripper_target = float(value)
@@ -177,6 +182,10 @@ class FastCycles:
         Returns the substeps run."""
         substeps = max(1, round(seconds / self.rig.dt))
         q, q_speed = self._arm_state()
+        if not self._motion_known:
+            # the length the backend's profile will take, from the same start (program_pending_arm)
+            self.arm_motion_s = synchronous_length(q, self.arm_target, self.arm_duration, self.rig.arm_speed_limits)
+            self._motion_known = True
         gripper, gripper_speed = self._gripper_state()
         if np.abs(q_speed).max() >= JOINT_REST:  # the arm still moves from the last cycle
             return self._play_dynamic(substeps, objects)
