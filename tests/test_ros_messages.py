@@ -213,3 +213,26 @@ def test_an_arm_pressing_into_what_holds_it_has_done_its_motion_at_the_end_of_th
     assert not watch.done(target - 0.04, creeping, now=0.5)  # never faster than it creeps now: driven slowly
     with pytest.raises(MotionUnfinished, match="fastest joint at 0.020 rad/s"):
         watch.check(target - 0.026, creeping, now=1.21)
+
+
+def test_a_feed_is_stale_only_if_no_message_was_on_its_way():
+    """A long computation of the env's own can keep the receiving thread from taking messages already on the
+    socket: a message that lands within the grace after the limit is read, not taken for a dead feed; a feed
+    with nothing more to deliver is still refused by name."""
+    import threading
+    import time
+
+    from envfactory.backends.base import StaleFeed
+    from envfactory.backends.rosbridge.feeds import RECEIVE_GRACE_S, Feed
+
+    feed = Feed("/joint_states", 0.1, threading.Lock())
+    feed.update((1.0,))
+    time.sleep(0.15)  # past the limit, as after a long proof
+    late = threading.Timer(RECEIVE_GRACE_S / 3, feed.update, ((2.0,),))
+    late.start()
+    values, _ = feed.fresh()
+    late.join()
+    assert values == (2.0,)
+    time.sleep(0.15)
+    with pytest.raises(StaleFeed, match=r"/joint_states is stale: newest message 0\.\d+ s old \(limit 0\.10 s\)"):
+        feed.fresh()
