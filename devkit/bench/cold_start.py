@@ -51,7 +51,10 @@ def main() -> None:
         subprocess.run(["git", "clone", "-q", str(REPO), str(clone)], check=True)
         started = time.perf_counter()
         subprocess.run(["python3", "-m", "venv", str(venv)], check=True)
-        subprocess.run([str(venv / "bin" / "pip"), "install", "-q", "-e", "."], cwd=clone, check=True)
+        pip = [str(venv / "bin" / "pip"), "install", "-q", "-e", "."]
+        done = subprocess.run(pip, cwd=clone, capture_output=True, text=True)
+        if done.returncode != 0:
+            raise SystemExit(f"pip install failed:\n{done.stderr}")
         installed = time.perf_counter() - started
         table = report.table(["run", "first episode row s", "whole command s", "said on stderr"])
         cold_row, cold_total, said = _timed_run(venv, clone, args.episodes)
