@@ -80,7 +80,7 @@ def test_a_point_out_of_reach_is_refused():
 def test_compiled_damped_least_squares_matches_lapack(rows, columns):
     """The IK's compiled step and pseudo-inverse against numpy's LAPACK solve and inverse of the same damped
     normal equations, on random Jacobians from well to badly conditioned (a column scaled down to near zero)."""
-    from envfactory.geometry.damped_least_squares import damped_pseudo_inverse, damped_step
+    from envfactory.geometry.kernels.damped_least_squares import damped_pseudo_inverse, damped_step
 
     rng = np.random.default_rng(rows * 10 + columns)
     for trial in range(100):

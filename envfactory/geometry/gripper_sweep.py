@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from envfactory.geometry.kernels.finger_sweep import swept_box_gap, swept_box_gaps
+from envfactory.geometry.kernels.serving import kernels
 
 
 class GripperSweep:
@@ -91,7 +91,7 @@ class GripperSweep:
         collision._place_frames()
         row = self._row_of_pair[pair]
         return (
-            swept_box_gap(
+            kernels.swept_box_gap(
                 collision._frames,
                 self.mount_joint,
                 self.corners,
@@ -137,7 +137,7 @@ class GripperSweep:
         collision._place_frames()
         rows = self.pair_row[pairs]
         out = np.empty(len(pairs))
-        swept_box_gaps(
+        kernels.swept_box_gaps(
             collision._frames,
             self.mount_joint,
             self.corners,

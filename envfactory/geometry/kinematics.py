@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from envfactory.geometry.damped_least_squares import damped_pseudo_inverse, damped_step
 from envfactory.geometry.frames import TaskFrame, base_rotation, place_base
+from envfactory.geometry.kernels.serving import kernels
 from envfactory.geometry.vectors import length
 from envfactory.schema.models import RobotSpec
 
@@ -166,11 +166,14 @@ class Kinematics:
                 stalled += 1
                 if stalled >= 5:
                     break  # no longer closing in (out of reach, or held at a joint bound): more steps would not help
-            jacobian = pin.computeFrameJacobian(model, data, q, self.ee_frame, pin.LOCAL_WORLD_ALIGNED)[:, self._arm_v]
+            # C order: Pinocchio's Jacobian is column-major, and the kernels are compiled for C-ordered rows alone
+            jacobian = np.ascontiguousarray(
+                pin.computeFrameJacobian(model, data, q, self.ee_frame, pin.LOCAL_WORLD_ALIGNED)[:, self._arm_v]
+            )
             if target_rotation is None:
                 if error < tolerance:
                     return IkResult(q_arm, True, error)
-                step = damped_step(jacobian[:3], position_error, damping)
+                step = kernels.damped_step(jacobian[:3], position_error, damping)
             else:
                 rotation_error = pin.log3(target_rotation @ placement.rotation.T)
                 turn = length(rotation_error)
@@ -183,7 +186,7 @@ class Kinematics:
                     # the position comes first; the orientation gets what the joints can do without moving the point
                     step = self._prioritised_step(jacobian, position_error, rotation_weight * rotation_error, damping)
                 else:
-                    step = damped_step(
+                    step = kernels.damped_step(
                         np.vstack([jacobian[:3], rotation_weight * jacobian[3:]]),
                         np.concatenate([position_error, rotation_weight * rotation_error]),
                         damping,
@@ -201,8 +204,8 @@ class Kinematics:
         """A joint step that closes the position error, plus the orientation step projected onto the joint
         motions that leave the point where it is (damped least squares for both)."""
         position_rows, rotation_rows = jacobian[:3], jacobian[3:]
-        inverse = damped_pseudo_inverse(position_rows, damping)
+        inverse = kernels.damped_pseudo_inverse(position_rows, damping)
         first = inverse @ position_error
         null = np.eye(jacobian.shape[1]) - inverse @ position_rows
-        second = damped_step(rotation_rows @ null, rotation_error - rotation_rows @ first, damping)
+        second = kernels.damped_step(rotation_rows @ null, rotation_error - rotation_rows @ first, damping)
         return first + null @ second

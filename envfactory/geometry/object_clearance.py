@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from envfactory.geometry.collision import CollisionModel
-from envfactory.geometry.kernels.spheres import motion_clear_of_spheres
+from envfactory.geometry.kernels.serving import kernels
 
 # Closer than this to a movable object, a motion gets full dynamics. Bullet builds contact points
 # within its 2 cm breaking threshold but pushes only on a gap closed within one substep (a few mm
@@ -51,7 +51,7 @@ class ObjectClearance:
             # every pose is judged over the gripper's whole range: its middle, less half its sweep (the reserve)
             coordinates[self.arm] = (gripper_from + gripper_to) / 2
         joints = collision._joints
-        clear = motion_clear_of_spheres(
+        clear = kernels.motion_clear_of_spheres(
             coordinates,
             q_from,
             np.asarray(q_to, float) - q_from,

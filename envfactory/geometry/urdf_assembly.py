@@ -220,3 +220,20 @@ def _root_link(root: ET.Element, where: str) -> str:
     if len(roots) != 1:
         raise AssemblyError(where, f"a URDF part must have one root link, found {roots}")
     return roots[0]
+
+
+def without_visuals(urdf_path: Path) -> Path:
+    """The assembled URDF less its <visual> elements, for a simulator that draws nothing: PyBullet parses every
+    visual mesh it is given (12 MB of OBJ on the UR5e), about 40 MB and 0.3 s a load, and they change no contact
+    and no mass."""
+    urdf_path = Path(urdf_path)
+    key = f"no-visuals:{urdf_path}"
+    if key not in _assembled:
+        root = ET.parse(urdf_path).getroot()
+        for link in root.findall("link"):
+            for visual in link.findall("visual"):
+                link.remove(visual)
+        path = _output_dir() / f"{urdf_path.stem}-no-visuals.urdf"
+        ET.ElementTree(root).write(path, encoding="unicode")
+        _assembled[key] = path
+    return _assembled[key]

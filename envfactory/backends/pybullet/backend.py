@@ -28,6 +28,7 @@ from envfactory.backends.view import RENDER_SIZE
 from envfactory.geometry.frames import TaskFrame, base_rotation
 from envfactory.geometry.object_clearance import ObjectClearance, bounding_radius
 from envfactory.geometry.obstacles import TABLE_TOP, scene_obstacles
+from envfactory.geometry.urdf_assembly import without_visuals
 from envfactory.schema.models import CameraSpec, ComposedSpec
 
 # The gripper's recorded step response, per robot and physics settings: recorded once per process.
@@ -59,6 +60,8 @@ class PyBulletBackend:
         self._position_gain = spec.sim.motor_position_gain
         self.realtime = spec.env.timing.realtime
         mode = p.GUI if (spec.env.gui or render_mode == "human") and not headless else p.DIRECT
+        # a session that shows nothing loads no visual meshes; rgb_array frames, the GUI and camera terms need them
+        self._draws = render_mode is not None or mode == p.GUI or spec.env.observation.camera_images
         if mode == p.GUI and window_impossible():
             asked = "render_mode='human'" if render_mode == "human" else "gui=True (env.gui)"
             raise BackendError(
@@ -111,7 +114,7 @@ class PyBulletBackend:
         x, y, z, w = pin.Quaternion(base_rotation(self.robot)).coeffs()
         # Self-collision stays off: the gripper's linkage links overlap by design.
         self.body = p.loadURDF(
-            str(urdf_path),
+            str(urdf_path if self._draws else without_visuals(urdf_path)),
             basePosition=mount.tolist(),
             baseOrientation=[x, y, z, w],
             useFixedBase=True,

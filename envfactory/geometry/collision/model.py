@@ -22,10 +22,8 @@ import pinocchio as pin
 from envfactory.geometry.collision.shapes import BOX_ROUNDING, Shape, box_of, capsule_of
 from envfactory.geometry.collision.structure import Structure
 from envfactory.geometry.gripper_sweep import GripperSweep
-from envfactory.geometry.kernels.bisection import capsule_motion_unproven
-from envfactory.geometry.kernels.joints import JointTable, joint_frames
-from envfactory.geometry.kernels.motion import motion_proof
-from envfactory.geometry.kernels.pose import capsule_bounds, shape_sphere_gaps
+from envfactory.geometry.kernels.joints import JointTable
+from envfactory.geometry.kernels.serving import kernels
 from envfactory.geometry.kinematics import Kinematics
 from envfactory.geometry.obstacles import Obstacle
 
@@ -221,7 +219,7 @@ class CollisionModel:
     def _place_frames(self) -> None:
         if not self._frames_current:
             joints = self._joints
-            joint_frames(
+            kernels.joint_frames(
                 self._coordinates,
                 joints.parent,
                 joints.placement,
@@ -238,7 +236,7 @@ class CollisionModel:
         they overlap: a lower bound on the gap between anything inside them."""
         self._place_frames()
         out = np.empty(len(shapes))
-        shape_sphere_gaps(
+        kernels.shape_sphere_gaps(
             self._frames,
             self._shape_joint,
             self._local_ends,
@@ -254,7 +252,7 @@ class CollisionModel:
         """A lower bound on the clearance of every measured pair at the current pose."""
         self._place_frames()
         out = np.empty(self.pair_count)
-        capsule_bounds(
+        kernels.capsule_bounds(
             self._frames,
             self._shape_joint,
             self._local_ends,
@@ -294,7 +292,7 @@ class CollisionModel:
             coordinates[len(q_from)] = gripper
         unproven = np.empty(len(pairs), dtype=np.bool_)
         joints = self._joints
-        capsule_motion_unproven(
+        kernels.capsule_motion_unproven(
             coordinates,
             q_from,
             way,
@@ -349,7 +347,7 @@ class CollisionModel:
         unproven = np.empty(count, dtype=np.bool_)
         last_q, last_bound, beyond = last if last is not None else (q_from, start, 0.0)
         joints = self._joints
-        outcome, moves = motion_proof(
+        outcome, moves = kernels.motion_proof(
             self._coordinates,
             q_from,
             way,

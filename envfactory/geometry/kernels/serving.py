@@ -1,0 +1,173 @@
+"""Which form of the compiled kernels answers a call: numba's machine code once its cache holds them, and until
+then the same Python source run by the interpreter.
+
+Compiling the kernels takes a minute or more on a cold cache (numba's type inference of the inlined proof), and
+a newcomer's first command would sit silent for all of it. So a process that finds the cache cold starts one
+background warm-up (warmup.py, deduplicated across processes by a file lock), and meanwhile calls the kernels'
+own Python functions, with the kernel-to-kernel calls inside them rebound to each other rather than to numba's
+dispatchers. Same source, same float64 arithmetic: the verdicts are the compiled ones (tests/test_kernel_serving.py
+holds them equal), at about a hundredth of the speed. Once warmup.py marks the cache ready, the next call
+switches the process to the compiled kernels for good.
+
+ENVFACTORY_KERNELS chooses otherwise: `compiled` compiles in the calling process if it must (the old way, and
+what warmup.py itself runs), `interpreted` never compiles.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import os
+import subprocess
+import sys
+import time
+import types
+from pathlib import Path
+
+import numba
+from numba.core.dispatcher import Dispatcher
+
+KERNEL_MODULES = ("joints", "pose", "finger_sweep", "motion", "bisection", "spheres", "damped_least_squares")
+# the kernels called from outside the package; the rest are called only by these
+ENTRY_POINTS = {
+    "joint_frames": "joints",
+    "capsule_bounds": "pose",
+    "shape_sphere_gaps": "pose",
+    "swept_box_gap": "finger_sweep",
+    "swept_box_gaps": "finger_sweep",
+    "motion_proof": "motion",
+    "capsule_motion_unproven": "bisection",
+    "motion_clear_of_spheres": "spheres",
+    "damped_step": "damped_least_squares",
+    "damped_pseudo_inverse": "damped_least_squares",
+}
+MODES = ("auto", "compiled", "interpreted")
+READY_FILE = "envfactory-kernels.ready"
+LOCK_FILE = "envfactory-kernels.lock"
+LOG_FILE = "envfactory-kernels.log"
+CHECK_EVERY_S = 1.0
+
+
+def kernel_modules() -> list[types.ModuleType]:
+    return [importlib.import_module(f"{__package__}.{name}") for name in KERNEL_MODULES]
+
+
+def compiled_kernels() -> dict[str, Dispatcher]:
+    return {
+        name: getattr(importlib.import_module(f"{__package__}.{module}"), name) for name, module in ENTRY_POINTS.items()
+    }
+
+
+def interpreted_kernels() -> dict[str, types.FunctionType]:
+    """The kernels' Python functions, each module's copied into a namespace of its own in which every dispatcher
+    (its own and those imported from sibling modules) is replaced by its Python twin, so no call inside them
+    reaches numba's compiler."""
+    modules = kernel_modules()
+    namespaces = {module.__name__: dict(vars(module)) for module in modules}
+    twins: dict[int, types.FunctionType] = {}
+    for module in modules:
+        namespace = namespaces[module.__name__]
+        for value in vars(module).values():
+            if isinstance(value, Dispatcher) and value.py_func.__module__ == module.__name__:
+                source = value.py_func
+                twins[id(value)] = types.FunctionType(
+                    source.__code__, namespace, source.__name__, source.__defaults__, source.__closure__
+                )
+    for namespace in namespaces.values():
+        for name, value in namespace.items():
+            if isinstance(value, Dispatcher):
+                namespace[name] = twins[id(value)]
+    return {name: twins[id(dispatcher)] for name, dispatcher in compiled_kernels().items()}
+
+
+def cache_folder() -> Path:
+    """Where numba keeps these kernels' cache (beside the source, or its user-wide folder when that is read-only)."""
+    return Path(compiled_kernels()["motion_proof"]._cache._cache_path)
+
+
+def source_stamp() -> dict[str, object]:
+    """What the cache was built from: numba invalidates a kernel's entries when its file's time or size changes."""
+    stamp: dict[str, object] = {"numba": numba.__version__, "python": sys.version.split()[0]}
+    for module in kernel_modules():
+        info = os.stat(module.__file__)
+        stamp[Path(module.__file__).name] = [info.st_mtime, info.st_size]
+    return stamp
+
+
+def cache_is_ready(folder: Path | None = None) -> bool:
+    try:
+        marked = json.loads(((folder or cache_folder()) / READY_FILE).read_text())
+    except (OSError, ValueError):
+        return False
+    return marked == json.loads(json.dumps(source_stamp()))
+
+
+def start_warmup(folder: Path) -> Path:
+    """Starts warmup.py in its own session, so it finishes the cache even if this process ends first."""
+    folder.mkdir(parents=True, exist_ok=True)
+    log = folder / LOG_FILE
+    with open(log, "a") as out:
+        subprocess.Popen(
+            [sys.executable, "-m", f"{__package__}.warmup"],
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            start_new_session=True,
+            env={**os.environ, "ENVFACTORY_KERNELS": "compiled"},
+        )
+    return log
+
+
+class KernelServer:
+    """`kernels.motion_proof(...)` and the other entry points, served in the form the mode and the cache allow.
+    Attributes are set on first use; in the interim form each call checks the cache at most once a second."""
+
+    def __init__(self) -> None:
+        self.mode = os.environ.get("ENVFACTORY_KERNELS", "auto")
+        if self.mode not in MODES:
+            raise ValueError(f"ENVFACTORY_KERNELS={self.mode!r}: expected one of {', '.join(MODES)}")
+        self.form = ""  # "compiled" or "interpreted" once chosen
+        self._next_check = 0.0
+
+    def __getattr__(self, name: str):
+        if name not in ENTRY_POINTS:
+            raise AttributeError(name)
+        self._choose()
+        return self.__dict__[name]
+
+    def _choose(self) -> None:
+        if self.mode == "compiled" or (self.mode == "auto" and cache_is_ready()):
+            self._serve(compiled_kernels(), "compiled")
+            return
+        twins = interpreted_kernels()
+        if self.mode == "interpreted":
+            self._serve(twins, "interpreted")
+            return
+        folder = cache_folder()
+        log = start_warmup(folder)
+        print(
+            "envfactory: compiling the safety kernels in the background, once per install (a minute or two; "
+            f"log: {log}). Until then the same kernels run interpreted: the same verdicts, slower steps.",
+            file=sys.stderr,
+            flush=True,
+        )
+        self._serve({name: self._interim(name, twin, folder) for name, twin in twins.items()}, "interpreted")
+
+    def _serve(self, functions: dict, form: str) -> None:
+        self.__dict__.update(functions)
+        self.form = form
+
+    def _interim(self, name: str, twin, folder: Path):
+        def call(*args):
+            now = time.monotonic()
+            if now >= self._next_check:
+                self._next_check = now + CHECK_EVERY_S
+                if cache_is_ready(folder):
+                    self._serve(compiled_kernels(), "compiled")
+                    return self.__dict__[name](*args)
+            return twin(*args)
+
+        return call
+
+
+kernels = KernelServer()

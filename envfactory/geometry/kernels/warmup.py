@@ -1,0 +1,66 @@
+"""Fills numba's cache with every kernel entry point at the argument types the envs call it with, then marks the
+cache ready for serving.py. Started by serving.py in the background on a cold cache; one at a time per cache
+folder (a second warm-up finds the lock taken and leaves). Run it by hand to warm a cache ahead of time:
+
+    python -m envfactory.geometry.kernels.warmup
+"""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import sys
+import time
+
+from numba.types import boolean, float64, int64
+
+from envfactory.geometry.kernels import serving
+
+# C-contiguous arrays of 1 to 4 dimensions; tests/test_kernel_serving.py checks that every Sim ID, in joint and EE
+# mode, calls the entry points with exactly these types (a new type would compile in the calling process)
+F1, F2, F3, F4 = float64[::1], float64[:, ::1], float64[:, :, ::1], float64[:, :, :, ::1]
+I1, B1 = int64[::1], boolean[::1]
+TREE = (I1, F3, I1, F2, I1, F1)  # JointTable: parent, placement, kind, axis, coordinate, gain
+SIGNATURES = {
+    "joint_frames": [(F1, *TREE, F3)],
+    "capsule_bounds": [(F3, I1, F3, F1, F3, F2, F1, I1, F2, F2, I1, I1, F1)],
+    "shape_sphere_gaps": [(F3, I1, F3, F1, I1, F1, float64, F1)],
+    "swept_box_gap": [(F3, I1, F4, int64, int64, int64, int64, F2, F2, int64, int64, F3)],
+    "swept_box_gaps": [(F3, I1, F4, int64, int64, I1, I1, F2, F2, I1, I1, F3, F1)],
+    "motion_proof": [
+        (F1, F1, F1, float64, float64, F2, F1, boolean, F1, F1, float64, float64, int64, int64, *TREE)
+        + (I1, F3, F3, F2, F1, F1, I1, F2, F2, I1, I1, F1, F1, F1, F1, B1)
+    ],
+    "capsule_motion_unproven": [
+        (F1, F1, F1, I1, F1, F1, F1, F1, F1, int64, int64, *TREE) + (I1, F3, F3, F2, F1, F1, I1, F2, F2, I1, I1, B1)
+    ],
+    "motion_clear_of_spheres": [(F1, F1, F1, *TREE, I1, F3, I1, F1, F2, float64, F2, F1, F1, float64, int64)],
+    "damped_step": [(F2, F1, float64)],
+    "damped_pseudo_inverse": [(F2, float64)],
+}
+
+
+def main() -> int:
+    folder = serving.cache_folder()
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / serving.LOCK_FILE, "w") as lock:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            print("another warm-up holds the lock: leaving it to finish", flush=True)
+            return 0
+        if serving.cache_is_ready(folder):
+            return 0
+        started = time.perf_counter()
+        print(f"compiling the safety kernels into {folder}", flush=True)
+        for name, dispatcher in serving.compiled_kernels().items():
+            for signature in SIGNATURES[name]:
+                dispatcher.compile(signature)
+            print(f"  {name}: {time.perf_counter() - started:.1f} s", flush=True)
+        (folder / serving.READY_FILE).write_text(json.dumps(serving.source_stamp()))
+        print(f"ready after {time.perf_counter() - started:.1f} s", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

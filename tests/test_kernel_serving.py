@@ -1,0 +1,151 @@
+"""The kernels' two forms (geometry/kernels/serving.py): the interpreted twins a cold process serves must answer
+exactly as the compiled kernels do, and warmup.py must compile every argument type an env calls them with, or
+a warm process would still compile in the foreground."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+
+import gymnasium as gym
+import numba
+import numpy as np
+import pytest
+
+import envfactory
+from envfactory.geometry.kernels import serving, warmup
+from envfactory.geometry.kernels.serving import kernels
+
+# one ID a family: the Goal twins call the same kernels with the same arrays
+SIM_IDS = sorted(i for i, record in envfactory.records().items() if record.backend == "sim" and "GoalSim" not in i)
+
+
+def _copies(args):
+    return [a.copy() if isinstance(a, np.ndarray) else a for a in args]
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, np.ndarray):
+        return a.shape == b.shape and np.array_equal(a, b, equal_nan=True)
+    if isinstance(a, tuple):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    return a == b or (a != a and b != b)
+
+
+@pytest.fixture
+def both_forms(monkeypatch):
+    """Serves every entry point as: run the interpreted twin and the compiled kernel on copies of the same
+    arguments, and record where their answers (return values and every array written in place) differ, and the
+    argument types of each call."""
+    compiled, twins = serving.compiled_kernels(), serving.interpreted_kernels()
+    seen: dict[str, set] = {name: set() for name in compiled}
+    differences: list[str] = []
+
+    def judged(name):
+        def call(*args):
+            seen[name].add(tuple(numba.typeof(a) for a in args))
+            by_twin, by_kernel = _copies(args), _copies(args)
+            answer, expected = twins[name](*by_twin), compiled[name](*by_kernel)
+            if not _same(answer, expected):
+                differences.append(f"{name} returned {answer!r}, compiled {expected!r}")
+            for index, (left, right) in enumerate(zip(by_twin, by_kernel)):
+                if not _same(left, right):
+                    differences.append(f"{name} argument {index}: {left!r} against {right!r}")
+            for target, source in zip(args, by_kernel):
+                if isinstance(target, np.ndarray):
+                    target[...] = source
+            return expected
+
+        return call
+
+    for name in compiled:
+        monkeypatch.setitem(kernels.__dict__, name, judged(name))
+    return seen, differences
+
+
+@pytest.mark.parametrize("env_id", SIM_IDS)
+def test_the_interpreted_kernels_answer_as_the_compiled_ones_at_the_types_warmup_compiles(env_id, both_forms):
+    seen, differences = both_forms
+    for ee_action_type in (False, True):
+        env = gym.make(env_id, ee_action_type=ee_action_type)
+        env.reset(seed=3)
+        env.action_space.seed(3)
+        for _ in range(25):
+            _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+            if terminated or truncated:
+                env.reset()
+        env.close()
+    assert differences == []
+    assert seen["motion_proof"], "the episodes never reached the proof: the comparison judged nothing"
+    declared = {name: {tuple(signature) for signature in signatures} for name, signatures in warmup.SIGNATURES.items()}
+    missing = {name: types - declared[name] for name, types in seen.items() if types - declared[name]}
+    assert not missing, (
+        f"warmup.SIGNATURES lacks these argument types (they would compile in the env's process): {missing}"
+    )
+
+
+def test_a_bad_kernel_mode_is_refused_by_name(monkeypatch):
+    monkeypatch.setenv("ENVFACTORY_KERNELS", "fast")
+    with pytest.raises(ValueError, match="ENVFACTORY_KERNELS='fast'.*auto, compiled, interpreted"):
+        serving.KernelServer()
+
+
+def test_a_cold_process_serves_the_twins_until_the_cache_is_marked_ready(monkeypatch, tmp_path):
+    started = []
+    monkeypatch.setenv("ENVFACTORY_KERNELS", "auto")
+    monkeypatch.setattr(serving, "cache_folder", lambda: tmp_path)
+    monkeypatch.setattr(serving, "start_warmup", lambda folder: started.append(folder) or folder / serving.LOG_FILE)
+    monkeypatch.setattr(serving, "CHECK_EVERY_S", 0.0)
+    server = serving.KernelServer()
+    rows = np.array([[1.0, 0.0, 0.5], [0.0, 2.0, 0.0]])
+    step = server.damped_step(rows, np.array([1.0, 1.0]), 0.1)
+    assert server.form == "interpreted" and started == [tmp_path]
+    (tmp_path / serving.READY_FILE).write_text(json.dumps(serving.source_stamp()))
+    assert np.array_equal(server.damped_step(rows, np.array([1.0, 1.0]), 0.1), step)
+    assert server.form == "compiled"
+    assert server.damped_step is serving.compiled_kernels()["damped_step"]
+
+
+def test_a_mark_from_other_sources_is_not_taken_for_ready(tmp_path):
+    stamp = serving.source_stamp()
+    stamp["motion.py"] = [0.0, 1]
+    (tmp_path / serving.READY_FILE).write_text(json.dumps(stamp))
+    assert not serving.cache_is_ready(tmp_path)
+    (tmp_path / serving.READY_FILE).write_text(json.dumps(serving.source_stamp()))
+    assert serving.cache_is_ready(tmp_path)
+
+
+@pytest.mark.slow
+def test_from_a_cold_cache_the_first_episodes_run_at_once_and_a_later_process_compiles_nothing(tmp_path):
+    environment = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path), "ENVFACTORY_KERNELS": "auto"}
+    command = [sys.executable, "-m", "envfactory.cli", "run", "UR5ePushSim-v0", "--episodes", "2", "--policy", "random"]
+    started = time.perf_counter()
+    first = subprocess.run(command, env=environment, capture_output=True, text=True, timeout=300)
+    assert first.returncode == 0, first.stderr
+    assert "compiling the safety kernels in the background" in first.stderr
+    assert time.perf_counter() - started < 60
+    deadline = time.monotonic() + 600
+    while not list(tmp_path.rglob(serving.READY_FILE)):
+        assert time.monotonic() < deadline, [p.read_text() for p in tmp_path.rglob(serving.LOG_FILE)]
+        time.sleep(2)
+    probe = (
+        "import gymnasium as gym, envfactory\n"
+        "from numba.core import event\n"
+        "from envfactory.geometry.kernels.serving import kernels\n"
+        "count = []\n"
+        "class Count(event.Listener):\n"
+        "    def on_start(self, ev): count.append(ev)\n"
+        "    def on_end(self, ev): pass\n"
+        "event.register('numba:compile', Count())\n"
+        "for ee in (False, True):\n"
+        "    env = gym.make('UR5ePushSim-v0', ee_action_type=ee); env.reset(seed=0)\n"
+        "    for _ in range(30): env.step(env.action_space.sample())\n"
+        "print(kernels.form, len(count))\n"
+    )
+    second = subprocess.run([sys.executable, "-c", probe], env=environment, capture_output=True, text=True, timeout=300)
+    assert second.returncode == 0, second.stderr
+    assert second.stdout.split()[-2:] == ["compiled", "0"]
+    assert "compiling the safety kernels" not in second.stderr
