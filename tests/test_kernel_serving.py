@@ -109,6 +109,21 @@ def test_a_cold_process_serves_the_twins_until_the_cache_is_marked_ready(monkeyp
     assert server.damped_step is serving.compiled_kernels()["damped_step"]
 
 
+def test_a_failed_warmup_is_said_and_the_process_compiles_for_itself(monkeypatch, tmp_path, capsys):
+    monkeypatch.setenv("ENVFACTORY_KERNELS", "auto")
+    monkeypatch.setattr(serving, "cache_folder", lambda: tmp_path)
+    monkeypatch.setattr(serving, "start_warmup", lambda folder: folder / serving.LOG_FILE)
+    monkeypatch.setattr(serving, "CHECK_EVERY_S", 0.0)
+    server = serving.KernelServer()
+    rows = np.array([[1.0, 0.0, 0.5], [0.0, 2.0, 0.0]])
+    server.damped_step(rows, np.array([1.0, 1.0]), 0.1)
+    assert server.form == "interpreted"
+    (tmp_path / serving.FAILED_FILE).write_text(json.dumps(serving.source_stamp()) + "\nTraceback: ...")
+    server.damped_step(rows, np.array([1.0, 1.0]), 0.1)
+    assert server.form == "compiled"
+    assert "the kernels' warm-up failed" in capsys.readouterr().err
+
+
 def test_a_mark_from_other_sources_is_not_taken_for_ready(tmp_path):
     stamp = serving.source_stamp()
     stamp["motion.py"] = [0.0, 1]
@@ -149,3 +164,23 @@ def test_from_a_cold_cache_the_first_episodes_run_at_once_and_a_later_process_co
     assert second.returncode == 0, second.stderr
     assert second.stdout.split()[-2:] == ["compiled", "0"]
     assert "compiling the safety kernels" not in second.stderr
+
+
+def test_numba_switched_off_serves_its_python_functions():
+    probe = (
+        "import gymnasium as gym, envfactory\n"
+        "from envfactory.geometry.kernels.serving import kernels\n"
+        "env = gym.make('VX300SPushSim-v0'); env.reset(seed=0)\n"
+        "for _ in range(5): env.step(env.action_space.sample())\n"
+        "print(kernels.form)\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", probe],
+        env={**os.environ, "NUMBA_DISABLE_JIT": "1"},
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split()[-1] == "interpreted"
+    assert "compiling the safety kernels" not in done.stderr

@@ -43,6 +43,7 @@ ENTRY_POINTS = {
 }
 MODES = ("auto", "compiled", "interpreted")
 READY_FILE = "envfactory-kernels.ready"
+FAILED_FILE = "envfactory-kernels.failed"
 LOCK_FILE = "envfactory-kernels.lock"
 LOG_FILE = "envfactory-kernels.log"
 CHECK_EVERY_S = 1.0
@@ -102,6 +103,15 @@ def cache_is_ready(folder: Path | None = None) -> bool:
     return marked == json.loads(json.dumps(source_stamp()))
 
 
+def warmup_failed(folder: Path) -> bool:
+    """Whether a warm-up of these very sources ended in an error (warmup.py writes the stamp and the traceback)."""
+    try:
+        stamp = (folder / FAILED_FILE).read_text().split("\n", 1)[0]
+    except OSError:
+        return False
+    return stamp == json.dumps(source_stamp())
+
+
 def start_warmup(folder: Path) -> Path:
     """Starts warmup.py in its own session, so it finishes the cache even if this process ends first."""
     folder.mkdir(parents=True, exist_ok=True)
@@ -136,6 +146,9 @@ class KernelServer:
         return self.__dict__[name]
 
     def _choose(self) -> None:
+        if numba.config.DISABLE_JIT:  # numba's own switch: its "kernels" are the Python functions already
+            self._serve(compiled_kernels(), "interpreted")
+            return
         if self.mode == "compiled" or (self.mode == "auto" and cache_is_ready()):
             self._serve(compiled_kernels(), "compiled")
             return
@@ -163,6 +176,17 @@ class KernelServer:
             if now >= self._next_check:
                 self._next_check = now + CHECK_EVERY_S
                 if cache_is_ready(folder):
+                    self._serve(compiled_kernels(), "compiled")
+                    return self.__dict__[name](*args)
+                if warmup_failed(folder):
+                    # compiling here raises the warm-up's error where the user sees it, rather than running
+                    # interpreted for good without a word
+                    print(
+                        f"envfactory: the kernels' warm-up failed (see {folder / FAILED_FILE}); compiling "
+                        "them in this process",
+                        file=sys.stderr,
+                        flush=True,
+                    )
                     self._serve(compiled_kernels(), "compiled")
                     return self.__dict__[name](*args)
             return twin(*args)

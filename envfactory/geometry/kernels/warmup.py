@@ -11,6 +11,7 @@ import fcntl
 import json
 import sys
 import time
+import traceback
 
 from numba.types import boolean, float64, int64
 
@@ -53,10 +54,17 @@ def main() -> int:
             return 0
         started = time.perf_counter()
         print(f"compiling the safety kernels into {folder}", flush=True)
-        for name, dispatcher in serving.compiled_kernels().items():
-            for signature in SIGNATURES[name]:
-                dispatcher.compile(signature)
-            print(f"  {name}: {time.perf_counter() - started:.1f} s", flush=True)
+        try:
+            for name, dispatcher in serving.compiled_kernels().items():
+                for signature in SIGNATURES[name]:
+                    dispatcher.compile(signature)
+                print(f"  {name}: {time.perf_counter() - started:.1f} s", flush=True)
+        except Exception:
+            failure = traceback.format_exc()
+            (folder / serving.FAILED_FILE).write_text(json.dumps(serving.source_stamp()) + "\n" + failure)
+            print(failure, flush=True)
+            return 1
+        (folder / serving.FAILED_FILE).unlink(missing_ok=True)
         (folder / serving.READY_FILE).write_text(json.dumps(serving.source_stamp()))
         print(f"ready after {time.perf_counter() - started:.1f} s", flush=True)
     return 0
