@@ -19,6 +19,7 @@ import coal
 import numpy as np
 import pinocchio as pin
 
+from envfactory.geometry.collision.meshes import hull, read_mesh, with_meshes_stood_in
 from envfactory.geometry.collision.shapes import BOX_ROUNDING, Shape, box_of, capsule_of
 from envfactory.geometry.collision.structure import Structure
 from envfactory.geometry.gripper_sweep import GripperSweep
@@ -60,11 +61,16 @@ class CollisionModel:
     def __init__(self, kinematics: Kinematics, obstacles: list[Obstacle], padding: dict[str, float] | None = None):
         self.kinematics = kinematics
         model = kinematics.model
-        self.geometry = pin.buildGeomFromUrdf(model, str(kinematics.urdf_path), pin.GeometryType.COLLISION)
+        urdf, stood_in = with_meshes_stood_in(kinematics.urdf_path)
+        self.geometry = pin.buildGeomFromUrdf(model, str(urdf), pin.GeometryType.COLLISION)
         padding = padding or {}
         self.shapes: list[Shape] = []
         for geometry_object in self.geometry.geometryObjects:
-            if isinstance(geometry_object.geometry, coal.BVHModelBase):
+            if geometry_object.name in stood_in:
+                mesh_file, scale = stood_in.pop(geometry_object.name)
+                vertices, triangles = read_mesh(mesh_file)
+                geometry_object.geometry = hull(vertices * scale, triangles)
+            elif isinstance(geometry_object.geometry, coal.BVHModelBase):
                 # coal measures meshes as the convex hull of their vertices, as PyBullet simulates them
                 geometry_object.geometry.buildConvexHull(True, "Qt")
                 geometry_object.geometry = geometry_object.geometry.convex
@@ -83,6 +89,8 @@ class CollisionModel:
                     box_of(geometry_object),
                 )
             )
+        if stood_in:  # Pinocchio named a shape otherwise than <link>_<index>: its stand-in sphere would be measured
+            raise RuntimeError(f"{kinematics.urdf_path}: no shape named {sorted(stood_in)} to take its collision mesh")
         self.links = sorted({shape.link for shape in self.shapes})
 
         # the obstacles, in the robot base frame, join the geometry model on the universe joint
