@@ -159,26 +159,40 @@ def input_digests(collision: CollisionModel, margin: float) -> dict[str, str]:
     digests = {name: hashlib.sha256() for name in INPUTS}
     for name, record in _fingerprint_records(collision, margin, padding={}):
         digests[name].update(record)
-    padding = {shape.link: round(shape.padding, 6) for shape in collision.shapes if shape.padding}
-    digests[PADDING].update(json.dumps(sorted(padding.items())).encode())
+    digests[PADDING].update(_padding_record(_padded_links(collision)))
     return {name: digest.hexdigest()[:16] for name, digest in digests.items()}
+
+
+def _padded_links(collision: CollisionModel) -> dict[str, float]:
+    return {shape.link: shape.padding for shape in collision.shapes if shape.padding}
+
+
+def _padding_record(padded: dict[str, float]) -> bytes:
+    return json.dumps(sorted((link, round(pad, 6)) for link, pad in padded.items())).encode()
+
+
+def _padding_added(padded: dict[str, float]) -> str:
+    links = ", ".join(f"{link} +{pad:g} m" for link, pad in sorted(padded.items()))
+    return f"{INPUTS[PADDING]}: {links} added since the list was generated (it was made without padding)"
 
 
 def stale_inputs(collision: CollisionModel, data: dict, margin: float) -> list[str]:
     """Which inputs differ from those the list was generated for: read from its input digests, or, for a list
     written before it kept them, found by testing the usual changes against its fingerprint."""
     stored = data.get("inputs")
+    padded = _padded_links(collision)
     if isinstance(stored, dict):
         now = input_digests(collision, margin)
-        return [INPUTS[name] for name in INPUTS if stored.get(name) != now[name]]
+        unpadded = hashlib.sha256(_padding_record({})).hexdigest()[:16]
+        return [
+            _padding_added(padded) if name == PADDING and padded and stored.get(name) == unpadded else INPUTS[name]
+            for name in INPUTS
+            if stored.get(name) != now[name]
+        ]
     robot = collision.kinematics.robot
     found = []
-    padded = {shape.link: shape.padding for shape in collision.shapes if shape.padding}
     if padded and fingerprint(collision, margin, padding={}) == data.get("fingerprint"):
-        found.append(
-            f"{INPUTS[PADDING]}: {', '.join(f'{link} +{pad:g} m' for link, pad in sorted(padded.items()))} added "
-            f"since the list was generated (it was made without padding)"
-        )
+        found.append(_padding_added(padded))
     gripper = robot.gripper
     if gripper is not None and fingerprint(
         collision, margin, gripper=(gripper.closed, gripper.open, gripper.mimic)
