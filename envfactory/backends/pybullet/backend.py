@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import threading
 import time
@@ -23,6 +24,7 @@ from envfactory.backends.base import (
 from envfactory.backends.driver_readings import DriverReadings
 from envfactory.backends.pybullet import scene
 from envfactory.backends.pybullet.fast_cycles import FastCycles, GripperResponse, Rig, record_gripper_response
+from envfactory.backends.pybullet.recorded_responses import load_or_record
 from envfactory.backends.synchronous import Profile, synchronous_length
 from envfactory.backends.view import RENDER_SIZE
 from envfactory.geometry.frames import TaskFrame, base_rotation
@@ -173,18 +175,19 @@ class PyBulletBackend:
         response = None
         if self._gripper is not None:
             gripper = self.robot.gripper
-            key = (
-                self.robot.name,
-                str(self._urdf_path),
-                self.dt,
-                self.spec.sim.solver_iterations,
-                gripper.open,
-                gripper.closed,
-                gripper.force,
-                gripper.max_velocity,
-            )
+            settings = {
+                "dt": self.dt,
+                "solver_iterations": self.spec.sim.solver_iterations,
+                "gripper": [gripper.open, gripper.closed, gripper.force, gripper.max_velocity],
+                # the recording session's scene and pose, in case an obstacle stood in the fingers' way
+                "scene": self.spec.scene.model_dump_json(),
+                "pose": [list(self.robot.mount), list(self.robot.mount_rpy), list(self.robot.home)],
+            }
+            key = (self.robot.name, str(self._urdf_path), json.dumps(settings))
             if key not in _GRIPPER_RESPONSES:
-                _GRIPPER_RESPONSES[key] = self._record_gripper_response()
+                _GRIPPER_RESPONSES[key] = load_or_record(
+                    without_visuals(self._urdf_path), settings, self._record_gripper_response
+                )
             response = _GRIPPER_RESPONSES[key]
         self._fast = FastCycles(rig, ObjectClearance(collision), response)
         self._fast.reset(np.asarray(self.robot.home, float), self._gripper_reset_value(None), has_objects=False)

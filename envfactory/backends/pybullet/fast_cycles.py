@@ -54,15 +54,19 @@ class GripperResponse:
     starts where the curve is e away and runs along it; position motors with a speed limit
     respond the same way to every step of their range (speed-limited, then a common tail)."""
 
-    def __init__(self, closing: np.ndarray, opening: np.ndarray, dt: float):
+    def __init__(self, closing, opening, dt: float):
         # per direction, the error to the target per substep (decreasing), the rate per substep, and the error
         # negated (rising, for bisect), as plain lists: read a substep at a time, numpy's scalar calls would cost
         # more than the reading
         self._lists = {
             direction: (curve.tolist(), (-np.diff(curve)).tolist(), (-curve).tolist())
-            for direction, curve in ((1.0, closing), (-1.0, opening))
+            for direction, curve in ((1.0, np.asarray(closing, float)), (-1.0, np.asarray(opening, float)))
         }
         self.dt = dt
+
+    def curves(self) -> tuple[list[float], list[float]]:
+        """(closing, opening): the recorded errors to the target, a substep apart, as the constructor takes them."""
+        return self._lists[1.0][0], self._lists[-1.0][0]
 
     def advance(self, value: float, target: float, substeps: int) -> tuple[float, float] | None:
         """Position and velocity after `substeps`, or None if the command is outside the recorded range."""
