@@ -36,7 +36,8 @@ def _timed_run(venv: Path, clone: Path, episodes: int) -> tuple[float, float, st
     stderr = process.stderr.read()
     if process.wait() != 0 or first_row is None:
         raise SystemExit(f"the main command failed:\n{stderr}")
-    return first_row, time.perf_counter() - started, stderr
+    # the page names no folder of this machine: the clone is a temporary one
+    return first_row, time.perf_counter() - started, stderr.replace(str(clone), "<clone>")
 
 
 def main() -> None:

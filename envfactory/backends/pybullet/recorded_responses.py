@@ -1,7 +1,7 @@
 """The gripper's recorded step response (fast_cycles.GripperResponse), kept on disk across processes.
 
 Recording it opens a second PyBullet session and simulates the gripper across its range both ways: about 1,200
-substeps, a fifth of the first make of a gripper robot. The response depends only on what the recording is
+substeps, about a tenth of the first make of a gripper robot. The response depends only on what the recording is
 made of, so it is kept beside the user config under a digest of all of it: the URDF as PyBullet loads it, the
 size and time of every mesh file it names, the physics step and solver iterations, the gripper's range, force
 and speed, and the versions of PyBullet and envfactory. Anything else, and it is recorded again.

@@ -1,7 +1,7 @@
 """Collision meshes read here rather than through Pinocchio's mesh loader.
 
-Pinocchio loads URDF meshes with assimp, whose first load in a process costs about 37 MB of memory and a few
-tenths of a second however small the meshes are (the UR5e's and the Robotiq's collision OBJs hold 7,000
+Pinocchio loads URDF meshes with assimp, whose first load in a process costs about 37 MB of memory however small
+the meshes are (the UR5e's and the Robotiq's collision OBJs hold 7,000
 vertices). The check measures a mesh as its convex hull, which only needs the vertices the faces use, so OBJ and
 STL are read here: the URDF is handed to Pinocchio with each such mesh stood in for by a small sphere at the same
 origin (so every shape keeps its name, index and placement), and the sphere is then replaced by the mesh's hull.

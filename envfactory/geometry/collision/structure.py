@@ -51,8 +51,7 @@ class Structure:
         self.lever = np.array([self._lever(shape, drivers) for shape in shapes])  # (shapes, coordinates)
         # per shape, the nearest joint at or above it that the gripper does not move
         self.gripper_mount = np.array([self._gripper_mount(shape.joint, drivers) for shape in shapes], dtype=np.int64)
-        self._sweep: tuple[np.ndarray, list[list[pin.SE3]]] | None = None
-        self._sweep_arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._sweep: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         if kinematics.robot.gripper is not None:
             # a shape the gripper does not move has no gripper lever (the measured sweep leaves rounding noise)
             ends = [np.array([shape.capsule_start, shape.capsule_end]) for shape in shapes]
@@ -72,7 +71,7 @@ class Structure:
         the gripper's range on one dense sweep shared by every caller. A linkage's joints turn against each
         other (a parallel gripper keeps its pads upright), so the summed joint levers would overstate the motion
         several times; the measured sweep bounds it instead."""
-        values, rotations, translations = self._dense_sweep_arrays()
+        values, rotations, translations = self._dense_sweep()
         step = values[1] - values[0]
         rates = np.zeros(len(points))
         for row, shape in enumerate(shapes):
@@ -83,22 +82,16 @@ class Structure:
             rates[row] = GRIPPER_SAFETY_FACTOR * max(0.0, np.max((moved + radii[row] * turned) / step))
         return rates
 
-    def _dense_sweep_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """_dense_sweep's placements as arrays (sample, shape, 3, 3) and (sample, shape, 3), for whole-sweep
-        arithmetic (a Python loop over the samples' SE3 objects cost 0.4 s of the first make of a robot)."""
-        if self._sweep_arrays is None:
-            values, frames = self._dense_sweep()
-            rotations = np.array([[placement.rotation for placement in sample] for sample in frames])
-            translations = np.array([[placement.translation for placement in sample] for sample in frames])
-            self._sweep_arrays = values, rotations, translations
-        return self._sweep_arrays
-
-    def _dense_sweep(self) -> tuple[np.ndarray, list[list[pin.SE3]]]:
-        """The gripper values of the dense sweep and every shape's mounted placement at each (computed once)."""
+    def _dense_sweep(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The gripper values of the dense sweep and every shape's mounted placement at each, as rotations
+        (sample, shape, 3, 3) and translations (sample, shape, 3) for whole-sweep arithmetic (computed once)."""
         if self._sweep is None:
             gripper = self.kinematics.robot.gripper
             values = np.linspace(gripper.low, gripper.high, GRIPPER_SAMPLES)
-            self._sweep = values, self.mounted_placements(range(len(self.shapes)), values)
+            frames = self.mounted_placements(range(len(self.shapes)), values)
+            rotations = np.array([[placement.rotation for placement in sample] for sample in frames])
+            translations = np.array([[placement.translation for placement in sample] for sample in frames])
+            self._sweep = values, rotations, translations
         return self._sweep
 
     def _is_moved(self, joint: int, drivers, coordinate: int | None = None) -> bool:
