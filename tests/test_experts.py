@@ -14,6 +14,8 @@ REACH_IDS = [
     "RX200ReacherGoalSim-v0",
     "NED2ReacherSim-v0",
     "NED2ReacherGoalSim-v0",
+    "PandaReachSim-v0",
+    "PandaReachGoalSim-v0",
 ]
 
 
@@ -25,7 +27,9 @@ def test_scripted_reach_succeeds(env_id, make):
     assert success_rate(results) >= 0.9, [(r.seed, r.length, r.success) for r in results]
 
 
-@pytest.mark.parametrize("env_id", ["UR5eReacherSim-v0", "VX300SReacherSim-v0", "RX200ReacherSim-v0"])
+@pytest.mark.parametrize(
+    "env_id", ["UR5eReacherSim-v0", "VX300SReacherSim-v0", "RX200ReacherSim-v0", "PandaReachSim-v0"]
+)
 def test_scripted_reach_in_ee_mode(env_id, make):
     env = make(env_id, ee_action_type=True)
     env.reset(seed=0)
@@ -33,7 +37,15 @@ def test_scripted_reach_in_ee_mode(env_id, make):
     assert success_rate(results) >= 0.9
 
 
-MANIPULATION_IDS = ["UR5ePushSim-v0", "UR5ePnPSim-v0", "VX300SPnPSim-v0", "RX200PushSim-v0", "RX200PnPSim-v0"]
+MANIPULATION_IDS = [
+    "UR5ePushSim-v0",
+    "UR5ePnPSim-v0",
+    "VX300SPnPSim-v0",
+    "RX200PushSim-v0",
+    "RX200PnPSim-v0",
+    "PandaPushSim-v0",
+    "PandaPnPSim-v0",
+]
 
 
 @pytest.mark.parametrize("env_id", MANIPULATION_IDS)
@@ -67,6 +79,8 @@ def test_scripted_manipulation_succeeds_near_the_base(env_id, make):
         ("RX200PnPSim-v0", 0.8),
         ("NED2PushSim-v0", 0.9),
         ("NED2PnPSim-v0", 0.8),
+        ("PandaPushSim-v0", 0.9),
+        ("PandaPnPSim-v0", 0.8),
     ],
 )
 def test_scripted_manipulation_over_50_seeds(env_id, bar, make):
@@ -77,7 +91,15 @@ def test_scripted_manipulation_over_50_seeds(env_id, bar, make):
 
 @pytest.mark.parametrize(
     "env_id",
-    ["UR5ePushSim-v0", "UR5ePnPSim-v0", "VX300SPushSim-v0", "VX300SPnPSim-v0", "NED2PnPSim-v0", "RX200PushSim-v0"],
+    [
+        "UR5ePushSim-v0",
+        "UR5ePnPSim-v0",
+        "VX300SPushSim-v0",
+        "VX300SPnPSim-v0",
+        "NED2PnPSim-v0",
+        "RX200PushSim-v0",
+        "PandaPnPSim-v0",
+    ],
 )
 def test_scripted_manipulation_in_ee_mode(env_id, make):
     env = make(env_id, ee_action_type=True)
@@ -97,6 +119,8 @@ def test_scripted_manipulation_in_ee_mode(env_id, make):
         ("VX300SPnPSim-v0", 0.8),
         ("NED2PnPSim-v0", 0.8),
         ("RX200PnPSim-v0", 0.8),
+        ("PandaPushSim-v0", 0.9),
+        ("PandaPnPSim-v0", 0.8),
     ],
 )
 def test_scripted_manipulation_in_ee_mode_over_20_seeds(env_id, bar, make):

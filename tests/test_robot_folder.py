@@ -69,6 +69,30 @@ def test_undeclared_package_is_named_with_the_robot_file_and_line(tmp_path):
     assert "declare its package" in message
 
 
+def test_an_undeclared_package_beside_the_urdf_is_read_from_there(tmp_path):
+    """As PyBullet reads pybullet_data's Panda (`package://meshes/...` beside its URDF)."""
+    folder = _robot_folder(tmp_path)
+    beside = folder / "robots" / "assets" / "arm_description" / "meshes"
+    beside.mkdir(parents=True)
+    (beside / "base.stl").write_bytes(TRIANGLE_STL)
+    try:
+        added, problems = register_specs(folder)
+        assert problems == [] and added == ["MyArmReach-v0"]
+    finally:
+        unregister_folder(folder)
+
+
+def test_a_pybullet_data_part_that_is_not_installed_is_named(tmp_path):
+    folder = _robot_folder(tmp_path)
+    robot = folder / "robots" / "myarm.yaml"
+    robot.write_text(robot.read_text().replace("urdf: assets/arm.urdf", "pybullet_data: nope/arm.urdf"))
+    added, problems = register_specs(folder)
+    assert added == [] and len(problems) == 1
+    message = str(problems[0])
+    assert "myarm.yaml:" in message, message
+    assert "robot.model.parts.0.pybullet_data: the installed pybullet_data has no 'nope/arm.urdf'" in message, message
+
+
 @pytest.mark.parametrize(
     "broken, expected",
     [

@@ -26,6 +26,9 @@ SIM_IDS = [
     "NED2ReacherSim-v0",
     "NED2PushSim-v0",
     "NED2PnPSim-v0",
+    "PandaReachSim-v0",
+    "PandaPushSim-v0",
+    "PandaPnPSim-v0",
 ]
 
 

@@ -125,6 +125,10 @@ def test_ee_mode_shrinks_previous_action():
         ("NED2ReacherSim-v0", 29, 26, 25),
         ("NED2PushSim-v0", 47, 44, 43),
         ("NED2PnPSim-v0", 49, 46, 45),
+        # the Panda's: 9 joint_states entries (7 arm joints, 2 fingers), 7 arm joints
+        ("PandaReachSim-v0", 32, 28, 28),
+        ("PandaPushSim-v0", 50, 46, 46),
+        ("PandaPnPSim-v0", 52, 48, 48),
     ],
 )
 def test_observation_sizes(env_id, standard, ee_mode, goal_env):

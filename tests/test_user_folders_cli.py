@@ -64,7 +64,7 @@ def test_every_command_naming_a_robot_or_id_takes_specs():
 @pytest.mark.parametrize(
     "args, names",
     [
-        (["collision-pairs", "myarm"], "no robot or ID named 'myarm' (robots: ned2, rx200, ur5e, vx300s)"),
+        (["collision-pairs", "myarm"], "no robot or ID named 'myarm' (robots: ned2, panda, rx200, ur5e, vx300s)"),
         (["collision-pairs", "ur5"], "no robot or ID named 'ur5' (did you mean 'ur5e'?)"),
         (
             ["twin", "myarm", "--port", "0"],

@@ -39,7 +39,8 @@ import time
 from devkit.report import Report, add_markdown_option
 
 WARM_UP_STEPS = 5
-PANDA_TWIN = {"Reacher": "PandaReach-v3", "Push": "PandaPush-v3", "PnP": "PandaPickAndPlace-v3"}
+# envfactory task (as its IDs spell it: "Reach" is in "UR5eReacherSim-v0" and "PandaReachSim-v0") -> panda-gym ID
+PANDA_TWIN = {"Reach": "PandaReach-v3", "Push": "PandaPush-v3", "PnP": "PandaPickAndPlace-v3"}
 ENVFACTORY_IDS = [
     "UR5eReacherSim-v0",
     "UR5ePushSim-v0",
@@ -51,9 +52,13 @@ ENVFACTORY_IDS = [
 RESULT = "RESULT "
 
 
+def is_panda_gym(env_id: str) -> bool:
+    return env_id in PANDA_TWIN.values()
+
+
 def panda_twin(env_id: str) -> str | None:
     for task, twin in PANDA_TWIN.items():
-        if task in env_id and not env_id.startswith("Panda"):
+        if task in env_id and not is_panda_gym(env_id):
             return twin
     return None
 
@@ -122,7 +127,7 @@ class PandaExpert:
 
         ee = observation["observation"][:3]
         goal = observation["desired_goal"]
-        if self.task == "Reacher":
+        if self.task == "Reach":
             return self._towards(ee, goal)
         cube = observation["achieved_goal"]
         if self.task == "Push":
@@ -154,7 +159,7 @@ class PandaExpert:
 def _touching(env, env_id: str):
     """A function telling whether the robot ends a step within 2 mm of the cube, or None without a cube."""
     unwrapped = env.unwrapped
-    if env_id.startswith("Panda"):
+    if is_panda_gym(env_id):
         if "Reach" in env_id:
             return None
         sim = unwrapped.sim
@@ -183,7 +188,7 @@ def _policy(env, env_id: str, kind: str, seed: int):
         env.action_space.seed(seed)
         sample = env.action_space.sample
         return lambda observation: sample(), lambda: None
-    if env_id.startswith("Panda"):
+    if is_panda_gym(env_id):
         task = next(t for t, twin in PANDA_TWIN.items() if twin == env_id)
         expert = PandaExpert(env, task)
         return expert, expert.reset
@@ -195,7 +200,7 @@ def _policy(env, env_id: str, kind: str, seed: int):
 
 def work(env_id: str, steps: int, policy: str, seed: int, kwargs: dict) -> dict:
     start = time.perf_counter()
-    if env_id.startswith("Panda"):
+    if is_panda_gym(env_id):
         import panda_gym  # noqa: F401  (registers the Panda IDs)
     else:
         import envfactory  # noqa: F401
@@ -204,10 +209,10 @@ def work(env_id: str, steps: int, policy: str, seed: int, kwargs: dict) -> dict:
     import numpy as np
 
     start = time.perf_counter()
-    env = gym.make(env_id, **({} if env_id.startswith("Panda") else kwargs))
+    env = gym.make(env_id, **({} if is_panda_gym(env_id) else kwargs))
     make_s = time.perf_counter() - start
     unwrapped = env.unwrapped
-    if env_id.startswith("Panda"):
+    if is_panda_gym(env_id):
         cycle = unwrapped.sim.n_substeps * unwrapped.sim.timestep
     else:
         cycle = unwrapped.blueprint.spec.env.timing.action_cycle_time
@@ -247,7 +252,7 @@ def work(env_id: str, steps: int, policy: str, seed: int, kwargs: dict) -> dict:
             restart()
     physics, calls = clock.read()
     physics, calls = physics - physics_before, calls - calls_before
-    counts = getattr(unwrapped.backend, "cycle_counts", None) if not env_id.startswith("Panda") else None
+    counts = getattr(unwrapped.backend, "cycle_counts", None) if not is_panda_gym(env_id) else None
     played = None
     if counts is not None:  # how the fast fidelity played the cycles (all runs, resets' included)
         kinds = (counts.kinematic, counts.at_rest, counts.carried, counts.dynamic)
@@ -278,7 +283,7 @@ def work(env_id: str, steps: int, policy: str, seed: int, kwargs: dict) -> dict:
 
 def work_vector(env_id: str, steps: int, num_envs: int, seed: int) -> dict:
     """Env steps per second summed over `num_envs` async sub-processes (gym.make_vec), random actions."""
-    if env_id.startswith("Panda"):
+    if is_panda_gym(env_id):
         import panda_gym  # noqa: F401
     else:
         import envfactory  # noqa: F401

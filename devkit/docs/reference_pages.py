@@ -98,6 +98,8 @@ def kwargs_page(families: list[Family]) -> str:
         for env_id in family.ids:
             spec = factory.blueprint(env_id).spec
             for name, path in kwarg_paths(spec).items():
+                if path.startswith("robot.ros.") and spec.robot.ros is None:
+                    continue  # a simulation-only robot has no topics to list
                 accepted.setdefault(name, {}).setdefault(path, []).append(value_at(spec, path))
                 tasks.setdefault(name, set()).add(spec.task.label)
     _check_accepted(accepted)

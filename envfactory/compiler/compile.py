@@ -335,6 +335,9 @@ def _check_backend(spec: ComposedSpec, env_id: str, backend: str, found: Finding
     if backend != "rosbridge":
         return
     ros = spec.robot.ros
+    if spec.robot.simulation_only is not None:
+        found.add(path, f"robot {spec.robot.name!r} is simulation-only: {spec.robot.simulation_only}")
+        return
     if ros is None:
         found.add(
             path, f"backend rosbridge needs the robot's topics: robot {spec.robot.name!r} declares no 'ros:' block"

@@ -63,6 +63,13 @@ def resolve_part_path(part: "UrdfPart", asset_root: Path, where: str = "robot.mo
             raise AssemblyError(
                 f"{where}.airo_models", f"airo-models has no robot {part.airo_models!r}: {exc}"
             ) from None
+    if part.pybullet_data is not None:
+        import pybullet_data
+
+        path = Path(pybullet_data.getDataPath()) / part.pybullet_data
+        if not path.is_file():
+            raise AssemblyError(f"{where}.pybullet_data", f"the installed pybullet_data has no {part.pybullet_data!r}")
+        return path
     path = Path(part.urdf)
     path = path if path.is_absolute() else (asset_root / path)
     if not path.is_file():
@@ -72,9 +79,12 @@ def resolve_part_path(part: "UrdfPart", asset_root: Path, where: str = "robot.mo
 
 def _resolve_mesh(filename: str, urdf_path: Path, packages: dict[str, str], asset_root: Path, where: str) -> Path:
     """A mesh reference as a file path: relative to its URDF, file://, or package:// through
-    the packages the robot YAML declares."""
+    the packages the robot YAML declares. An undeclared package that is a folder beside the URDF
+    is read from there, as PyBullet reads it (pybullet_data's Panda names `package://meshes/...`)."""
     if filename.startswith("package://"):
         package, _, rest = filename.removeprefix("package://").partition("/")
+        if package not in packages and (urdf_path.parent / package).is_dir():
+            return (urdf_path.parent / package).resolve() / rest
         if package not in packages:
             declared = ", ".join(sorted(packages)) or "none"
             raise AssemblyError(

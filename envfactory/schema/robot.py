@@ -27,9 +27,14 @@ Velocity = Annotated[Positive, Field(le=MAX_JOINT_VELOCITY)]
 DeltaBound = Annotated[Real, Field(ge=-TWO_PI, le=TWO_PI)]
 
 
+_PART_SOURCES = ("airo_models", "pybullet_data", "urdf")
+
+
 class UrdfPart(Model):
-    airo_models: str | None = None
-    urdf: str | None = None
+    # Where the part's URDF comes from: exactly one of these three
+    airo_models: str | None = None  # a robot name airo-models ships
+    pybullet_data: str | None = None  # a path inside the installed pybullet_data package
+    urdf: str | None = None  # a file, relative to the robot YAML's folder
     prefix: str = ""
     parent: str | None = None
     xyz: Position = (0.0, 0.0, 0.0)
@@ -37,8 +42,10 @@ class UrdfPart(Model):
 
     @model_validator(mode="after")
     def _one_source(self) -> "UrdfPart":
-        if (self.airo_models is None) == (self.urdf is None):
-            raise ValueError("give exactly one of 'airo_models' or 'urdf'")
+        given = [source for source in _PART_SOURCES if getattr(self, source) is not None]
+        if len(given) != 1:
+            named = f"both {given[0]!r} and {given[1]!r}" if len(given) > 1 else "none"
+            raise ValueError(f"give exactly one of {', '.join(map(repr, _PART_SOURCES))} (given: {named})")
         return self
 
 
@@ -255,6 +262,8 @@ class RobotSpec(Model):
     arm_max_velocity: Velocity = 3.15  # rad/s per arm joint, unless the joint declares its own velocity
     safety: RobotSafety = RobotSafety()
     ros: RosSpec | None = None
+    # Why a robot has no real path: what `validate` says to a family that declares a Real ID on it
+    simulation_only: str | None = None
     # How the robot's real path senses and acts, in whole steps, as `envfactory sensing-spec` measured it from
     # a twin log: joined to every task's randomization sensing terms (a task's own of the same name wins), so a
     # policy trained with randomize=True meets them before the arm does
@@ -307,6 +316,10 @@ class RobotSpec(Model):
 
     @model_validator(mode="after")
     def _consistent(self) -> "RobotSpec":
+        if self.simulation_only is not None and self.ros is not None:
+            raise located(
+                "simulation_only", "a robot with a 'ros:' block has a real path: drop 'simulation_only' or 'ros'"
+            )
         if self.ee_mode_orientation == "top_down" and self.top_down_rpy is None:
             raise located(
                 "ee_mode_orientation",
