@@ -129,6 +129,9 @@ def test_ee_mode_shrinks_previous_action():
         ("PandaReachSim-v0", 32, 28, 28),
         ("PandaPushSim-v0", 50, 46, 46),
         ("PandaPnPSim-v0", 52, 48, 48),
+        # Slide: Push's layout with the puck in the cube's rows
+        ("UR5eSlideSim-v0", 45, 42, 41),
+        ("VX300SSlideSim-v0", 49, 46, 45),
     ],
 )
 def test_observation_sizes(env_id, standard, ee_mode, goal_env):

@@ -50,6 +50,8 @@ MEANINGS: dict[str, str] = {
     "cube_pose_topic": "Real IDs: the geometry_msgs/PoseStamped topic the cube's pose is read from.",
     "random_cube_spawn": "Spawn the cube at a random offset (± the spawn offset in x and y) around its spawn "
     "position at every reset, instead of exactly there.",
+    "random_puck_spawn": "Spawn the puck at a random offset (± the spawn offset in x and y) around its spawn "
+    "position at every reset, instead of exactly there.",
     "random_goal": "Draw the goal uniformly from the goal box at every reset, instead of the static goal.",
     "multi_goal": "Pick and place's lift stage: the current goal is the cube's spawn raised by `lift_height` until "
     "the cube gets there, then the place goal.",

@@ -6,9 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-# The timing law along the line: a quintic in the elapsed fraction, so velocity and acceleration start and end
-# at zero and the servos lag no step in either; its peak speed is this multiple of the mean.
-PEAK_OVER_MEAN_SPEED = 1.875
+from envfactory.geometry.timing_law import PEAK_OVER_MEAN_SPEED, quintic
 
 
 def synchronous_length(start: np.ndarray, end: np.ndarray, duration: float, velocities: np.ndarray) -> float:
@@ -17,11 +15,6 @@ def synchronous_length(start: np.ndarray, end: np.ndarray, duration: float, velo
     if not len(start):
         return duration
     return max(duration, PEAK_OVER_MEAN_SPEED * float((np.abs(end - start) / velocities).max()))
-
-
-def quintic(tau):
-    """The share of the way covered at each elapsed fraction: the timing law of the arm's profiles."""
-    return tau**3 * (10.0 - 15.0 * tau + 6.0 * tau * tau)
 
 
 class Profile:

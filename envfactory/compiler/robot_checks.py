@@ -299,6 +299,8 @@ def _reach_problems(spec: ComposedSpec, geometry: RobotGeometry) -> list[tuple[s
 
     low, high = (np.asarray(b, float) for b in goal.box)
     probes = [np.asarray(goal.static_goal, float)] if not goal.random else _probes(low, high)
+    if not goal.within_reach:
+        probes = []  # the object gets there on its own
     misses = []
     for point in probes:
         solution = solve(point)

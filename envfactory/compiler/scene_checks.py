@@ -108,7 +108,7 @@ def height_summary(spec: ComposedSpec) -> str:
     low, high = (box[2] for box in spec.task.goal.box)
     parts = [f"goal {scene.height(low):.3f}–{scene.height(high):.3f} m"]
     parts += [
-        f"{name} centre {scene.height(obj.spawn.position[2]):.3f} m (resting: {obj.size / 2:g})"
+        f"{name} centre {scene.height(obj.spawn.position[2]):.3f} m (resting: {obj.half_extents[2]:g})"
         for name, obj in spec.task.objects.items()
     ]
     return f"Heights above the table top (z {scene.top_z:g} in the {spec.robot.task_frame} frame): " + ", ".join(parts)
@@ -228,7 +228,7 @@ def _objects(spec: ComposedSpec, scene: TaskFrameScene, found: Findings) -> None
     for name, obj in spec.task.objects.items():
         path = f"task.objects.{name}.spawn"
         position = np.asarray(obj.spawn.position, float)
-        half = obj.size / 2
+        half, _, half_height = obj.half_extents
         reach = np.asarray(obj.spawn.offset if obj.spawn.random else (0.0, 0.0)) + half
         lo, hi = position[:2] - reach, position[:2] + reach
         if not scene.inside_table(lo, hi):
@@ -238,20 +238,20 @@ def _objects(spec: ComposedSpec, scene: TaskFrameScene, found: Findings) -> None
                 f"{_fmt(obj.spawn.offset)} ± half its size {half:g} leaves "
                 f"the table ({scene.footprint()})",
             )
-        resting = scene.top_z + half
+        resting = scene.top_z + half_height
         if position[2] < resting - RESTING_SLACK:
             found.add(
                 f"{path}.position",
                 f"{name} centre z {position[2]:g} puts it inside the table: "
                 f"resting on the top it is at z {resting:g}"
-                f"{scene.other_frame_hint(spec, position[2] - half)}",
+                f"{scene.other_frame_hint(spec, position[2] - half_height)}",
             )
         elif position[2] > resting + RESTING_SLACK:
             found.add(
                 f"{path}.position",
                 f"{name} centre z {position[2]:g} floats {position[2] - resting:.3g} m above "
                 f"the table: resting on the top it is at z {resting:g}"
-                f"{scene.other_frame_hint(spec, position[2] - half)}",
+                f"{scene.other_frame_hint(spec, position[2] - half_height)}",
             )
         lift = spec.task.goal.lift
         if (

@@ -35,7 +35,7 @@ class ObjectSpawner:
             if spec.spawn.random:
                 offset = np.asarray(spec.spawn.offset)
                 position[:2] += rng.uniform(-offset, offset)
-                half = spec.size / 2
+                half = spec.half_extents[0]
                 if not self.frame.rotated:
                     position[:2] = np.clip(position[:2], self.table_min + half, self.table_max - half)
                 else:  # the cube's footprint, turned with the frame, stays inside the table

@@ -11,8 +11,9 @@ from __future__ import annotations
 from envfactory.experts.pnp import PickPlaceExpert
 from envfactory.experts.push import PushExpert
 from envfactory.experts.reach import ReachExpert
+from envfactory.experts.slide import SlideExpert
 
-EXPERTS = {"reach": ReachExpert, "push": PushExpert, "pnp": PickPlaceExpert}
+EXPERTS = {"reach": ReachExpert, "push": PushExpert, "pnp": PickPlaceExpert, "slide": SlideExpert}
 
 
 class RandomPolicy:

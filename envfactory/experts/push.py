@@ -43,7 +43,7 @@ class PushExpert(Expert):
         goal = np.mean(np.asarray(spec.task.goal.box, float), axis=0)
         direction = goal[:2] - spawn[:2]
         direction = direction / np.linalg.norm(direction) if np.linalg.norm(direction) > 1e-9 else np.array([1.0, 0])
-        behind = spawn[:2] - direction * (obj.size / 2 + params.paddle)
+        behind = spawn[:2] - direction * (obj.half_extents[0] + params.paddle)
         push = ExpertPoint(
             "push",
             f"{PARAMS}.height",
@@ -68,29 +68,39 @@ class PushExpert(Expert):
         rotation = self.motion.down_facing(direction)
         push_z = cube[2] + p.height
         clear_z = cube[2] + p.clearance
-        # the cube reaches further along a diagonal than across a face
-        yaw = state.objects[p.object].rpy[2]
-        half = env.blueprint.spec.task.objects[p.object].size / 2
-        reach = half * (
-            abs(np.cos(yaw) * direction[0] + np.sin(yaw) * direction[1])
-            + abs(-np.sin(yaw) * direction[0] + np.cos(yaw) * direction[1])
-        )
-        offset = reach + p.paddle
+        offset = self._reach(direction) + p.paddle
         behind = cube[:2] - direction * offset
         relative = ee[:2] - cube[:2]
         along = float(relative @ direction)
         across = float(np.linalg.norm(relative - along * direction))
         low = ee[2] < push_z + PUSH_WITHIN
         if low and along < -offset + 0.015 and across < p.lateral_tolerance:
-            # in contact range behind the cube and on the line: push, aiming the cube at the goal
-            target = np.append(env.goal[:2] - direction * offset, push_z)
-            return self.motion.toward(target, rotation, max_step=min(p.step, remaining + 0.005))
+            # in contact range behind the object and on the line
+            return self.drive(direction, offset, push_z, rotation, remaining)
         if low and along < -offset + 0.005:
-            # still behind the cube: slide sideways onto the line without touching it
+            # still behind the object: slide sideways onto the line without touching it
             return self.motion.toward(np.append(behind, push_z), rotation, max_step=p.step)
         if np.linalg.norm(ee[:2] - behind) < 0.01:
             return self.motion.toward(np.append(behind, push_z), rotation, max_step=p.step)
         if ee[2] < clear_z - 0.01 and np.linalg.norm(ee[:2] - behind) > 0.02:
-            # beside or ahead of the cube: rise before moving over it
+            # beside or ahead of the object: rise before moving over it
             return self.motion.toward(np.append(ee[:2], clear_z), rotation, max_step=p.step)
         return self.motion.toward(np.append(behind, clear_z), rotation, max_step=2 * p.step)
+
+    def drive(self, direction, offset: float, push_z: float, rotation, remaining: float):
+        """Push, aiming the object at the goal."""
+        target = np.append(self.env.goal[:2] - direction * offset, push_z)
+        return self.motion.toward(target, rotation, max_step=min(self.params.step, remaining + 0.005))
+
+    def _reach(self, direction: np.ndarray) -> float:
+        """How far the object reaches from its centre along `direction`: its radius if it is round; a box
+        reaches further along a diagonal than across a face."""
+        spec = self.env.blueprint.spec.task.objects[self.params.object]
+        half = spec.half_extents[0]
+        if spec.shape == "cylinder":
+            return half
+        yaw = self.env.state.objects[self.params.object].rpy[2]
+        return half * (
+            abs(np.cos(yaw) * direction[0] + np.sin(yaw) * direction[1])
+            + abs(-np.sin(yaw) * direction[0] + np.cos(yaw) * direction[1])
+        )

@@ -16,11 +16,6 @@ from envfactory.geometry.kernels.serving import kernels
 NEAR_CONTACT = 0.01
 
 
-def bounding_radius(cube_size: float) -> float:
-    """The radius of the sphere around a cube of this edge: what the proofs keep the robot away from."""
-    return cube_size * np.sqrt(3) / 2
-
-
 class ObjectClearance:
     """Lower bounds on the gap between the arm's moving collision shapes and a sphere, over a motion.
 

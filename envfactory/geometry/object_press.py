@@ -41,13 +41,13 @@ class ObjectPressGuard:
         self.guarded = np.array(
             [shape for shape in collision.moving_shapes if not collision.moved_by_gripper[shape]], dtype=int
         )
-        self.half_extents = {name: (spec.size / 2,) * 3 for name, spec in objects.items()}
-        self.boxes = {name: coal.Box(*(2 * h for h in half)) for name, half in self.half_extents.items()}
+        self.half_extents = {name: spec.half_extents for name, spec in objects.items()}
+        self.shapes = {name: _shape(spec) for name, spec in objects.items()}
         self.surfaces = [
             (o.name, float(o.high[2]), tuple(map(float, o.low[:2])), tuple(map(float, o.high[:2])))
             for o in collision.obstacles
         ]
-        self.bounding_radius = {name: float(np.linalg.norm(half)) for name, half in self.half_extents.items()}
+        self.bounding_radius = {name: spec.bounding_radius for name, spec in objects.items()}
 
     def check(
         self,
@@ -97,5 +97,13 @@ class ObjectPressGuard:
         gaps = collision.sphere_gaps(self.guarded, in_base, self.bounding_radius[name])
         near = gaps <= 0.0
         if near.any():
-            gaps[near] = collision.box_clearances(self.guarded[near], self.boxes[name], in_base, rotation)
+            gaps[near] = collision.object_clearances(self.guarded[near], self.shapes[name], in_base, rotation)
         return gaps
+
+
+def _shape(spec: ObjectSpec):
+    """The object's own shape for coal's distance queries (a cylinder's axis is its z, as in both engines)."""
+    radius, _, half_height = spec.half_extents
+    if spec.shape == "cylinder":
+        return coal.Cylinder(radius, 2 * half_height)
+    return coal.Box(*(2 * h for h in spec.half_extents))

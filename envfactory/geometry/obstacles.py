@@ -21,6 +21,7 @@ PEDESTAL_LEG_HALF_WIDTH = 0.02
 
 TABLE_RGBA = (0.55, 0.42, 0.30, 1.0)
 TABLE_TOP = "table top"  # the obstacle objects rest on
+FLOOR = "floor"  # the obstacle under everything
 COLUMN_RGBA = (0.2, 0.2, 0.2, 1.0)
 FLOOR_RGBA = (0.85, 0.85, 0.85, 1.0)
 
@@ -70,7 +71,7 @@ def scene_obstacles(spec: ComposedSpec) -> list[Obstacle]:
     floor_z = spec.env.safety.floor_z
     obstacles = [
         Obstacle(
-            "floor",
+            FLOOR,
             (0.0, 0.0, floor_z - FLOOR_THICKNESS / 2),
             (FLOOR_HALF_EXTENT, FLOOR_HALF_EXTENT, FLOOR_THICKNESS / 2),
             FLOOR_RGBA,

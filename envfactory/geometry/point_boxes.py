@@ -30,7 +30,6 @@ import numpy as np
 import pinocchio as pin
 
 from envfactory.geometry.frames import TaskFrame
-from envfactory.geometry.object_clearance import bounding_radius
 from envfactory.geometry.obstacles import table_bounds_xy
 from envfactory.geometry.robot_model import robot_chain
 
@@ -119,7 +118,7 @@ def point_boxes(spec, kinematics) -> PointBoxes:
     top = spec.scene.table.top_z - origin[2]
     objects = {}
     for name, obj in spec.task.objects.items():
-        half_diagonal = bounding_radius(obj.size)
+        half_diagonal = obj.bounding_radius
         on_table = Box(np.array([*table_min, top]), np.array([*table_max, top + half_diagonal]))
         box = ee.grown(half_diagonal).union(on_table)
         box.low[2] = min(box.low[2], floor_z)  # knocked off the table onto the floor

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
+import numpy as np
 from pydantic import Field, field_validator, model_validator
 
 from envfactory.schema.base import Model, Position, Rgba, in_unit_range, located
@@ -29,8 +30,9 @@ class SpawnSpec(Model):
 
 
 class ObjectSpec(Model):
-    shape: Literal["box"] = "box"
-    size: Annotated[Positive, Field(le=1.0)]  # edge length, m: something a gripper handles
+    shape: Literal["box", "cylinder"] = "box"  # a cube, or an upright cylinder (a puck)
+    size: Annotated[Positive, Field(le=1.0)]  # a cube's edge or a cylinder's diameter, m: something a gripper handles
+    height: Annotated[Positive, Field(le=1.0)] | None = None  # a cylinder's height, m; its diameter if unset
     rgba: Rgba = (1.0, 0.0, 0.0, 1.0)
     mass: Annotated[Positive, Field(le=100.0)]  # kg
     friction: Friction = 1.0
@@ -41,7 +43,23 @@ class ObjectSpec(Model):
     @model_validator(mode="after")
     def _colour(self) -> "ObjectSpec":
         in_unit_range(self.rgba)
+        if self.shape == "box" and self.height is not None:
+            raise located("height", "a box is a cube of edge 'size': 'height' is a cylinder's")
         return self
+
+    @property
+    def half_extents(self) -> tuple[float, float, float]:
+        """Half the object's bounding box, upright: what the scene checks, spawns and the safety proofs use
+        (for a cylinder, the box around it: larger, so still safe)."""
+        radius = self.size / 2
+        return (radius, radius, (self.height if self.height is not None else self.size) / 2)
+
+    @property
+    def bounding_radius(self) -> float:
+        """The radius of the sphere around the object: what the motion proofs keep the robot away from."""
+        if self.shape == "cylinder":
+            return float(np.hypot(self.half_extents[0], self.half_extents[2]))
+        return float(np.linalg.norm(self.half_extents))
 
 
 class GripperUse(Model):
@@ -68,6 +86,9 @@ class GoalSpec(Model):
     # unless this says such goals are wanted
     allow_achieved_at_reset: bool = False
     lift: LiftSpec | None = None
+    # false: the object travels to the goal on its own (struck or thrown), so the goal box may lie beyond the
+    # arm's reach and `validate` does not ask the arm to reach it
+    within_reach: bool = True
 
     @field_validator("box")
     @classmethod
@@ -83,6 +104,8 @@ class GoalSpec(Model):
         low, high = self.box
         if self.static is not None and not all(lo <= v <= hi for v, lo, hi in zip(self.static, low, high)):
             raise located("static", f"static goal {list(self.static)} lies outside the goal box")
+        if not self.within_reach and self.achieved.partition(".")[0] == "ee":
+            raise located("within_reach", "the EE is the arm's own: its goal must be within reach")
         return self
 
     @property

@@ -178,9 +178,7 @@ def task_lines(compiled: Blueprint) -> list[str]:
     for name, obj in task.objects.items():
         spawn = obj.spawn
         where = f"± {list(spawn.offset)} in x, y" if spawn.random else "fixed"
-        lines.append(
-            f"Object {name}: {obj.shape} {obj.size:g} m, {obj.mass:g} kg, spawns at {list(spawn.position)} ({where})"
-        )
+        lines.append(f"Object {name}: {_solid(obj)}, {obj.mass:g} kg, spawns at {list(spawn.position)} ({where})")
     if spec.gripper_at_reset is not None or task.gripper.in_action:
         use = "action[-1], absolute" if task.gripper.in_action else "not in the action"
         lines.append(f"Gripper: {spec.gripper_at_reset} at reset, {use}")
@@ -368,3 +366,9 @@ def render_description(compiled: Blueprint, console: Console) -> None:
             console.print(part.body, highlight=False, soft_wrap=True)
         else:
             console.print(part.body)
+
+
+def _solid(obj) -> str:
+    if obj.shape == "cylinder":
+        return f"cylinder ⌀{obj.size:g} m × {2 * obj.half_extents[2]:g} m high"
+    return f"box {obj.size:g} m"

@@ -28,7 +28,7 @@ from envfactory.backends.at_rest import GRIPPER_REST, JOINT_REST, OBJECT_REST, O
 from envfactory.backends.mujoco.held import Carry
 from envfactory.backends.mujoco.model import ROBOT_PREFIX
 from envfactory.backends.synchronous import Profile, synchronous_length
-from envfactory.geometry.object_clearance import NEAR_CONTACT, ObjectClearance, bounding_radius
+from envfactory.geometry.object_clearance import NEAR_CONTACT, ObjectClearance
 from envfactory.geometry.obstacles import scene_obstacles
 from envfactory.schema.models import ComposedSpec
 
@@ -96,7 +96,7 @@ class FastCycles:
         self._gripper: Profile | None = None
         self.sim_time = 0.0
         self._clearance: ObjectClearance | None = None  # once attach gives the safety check's shapes
-        self._object_radii = np.array([bounding_radius(obj.size) for obj in spec.task.objects.values()])
+        self._object_radii = np.array([obj.bounding_radius for obj in spec.task.objects.values()])
         self._object_bodies = [handles.object_body[name] for name in spec.task.objects]
         self.counts = CycleCounts()
         self._settled = False

@@ -20,9 +20,9 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from envfactory.backends.synchronous import quintic
 from envfactory.geometry.object_clearance import NEAR_CONTACT
 from envfactory.geometry.obstacles import Obstacle
+from envfactory.geometry.timing_law import quintic
 
 # The held object moved less than this against the hand over the last simulated cycle, m: a grasp that holds
 # (MuJoCo's no-slip pass leaves a squeezed cube still to well under this; a cube on its way out moves mm).

@@ -29,7 +29,7 @@ import pinocchio as pin
 
 from envfactory.backends.view import MARKER_RGBA
 from envfactory.geometry.frames import base_rotation
-from envfactory.geometry.obstacles import scene_obstacles
+from envfactory.geometry.obstacles import FLOOR, scene_obstacles
 from envfactory.schema.models import CameraSpec, ComposedSpec
 
 ROBOT_PREFIX = "robot/"
@@ -113,14 +113,19 @@ def build(spec: ComposedSpec, urdf_path: Path) -> tuple[mujoco.MjModel, Handles]
     pair_surfaces: list[tuple[str, str]] = []
     for obstacle in scene_obstacles(spec):
         name = f"obstacle:{obstacle.name}"
+        if obstacle.name == FLOOR:
+            # a plane at the floor box's top: a half-space, which an object falling off the table at 4 m/s
+            # cannot pass through as it passed through the 2 cm box under MuJoCo's soft contact
+            shape = {"type": mujoco.mjtGeom.mjGEOM_PLANE, "size": [*obstacle.half_extents[:2], 0.1]}
+            shape["pos"] = [*obstacle.center[:2], float(obstacle.high[2])]
+        else:
+            shape = {
+                "type": mujoco.mjtGeom.mjGEOM_BOX,
+                "size": list(obstacle.half_extents),
+                "pos": list(obstacle.center),
+            }
         world.worldbody.add_geom(
-            name=name,
-            type=mujoco.mjtGeom.mjGEOM_BOX,
-            size=list(obstacle.half_extents),
-            pos=list(obstacle.center),
-            rgba=list(obstacle.rgba),
-            contype=WORLD_TYPE,
-            conaffinity=WORLD_AFFINITY,
+            name=name, rgba=list(obstacle.rgba), contype=WORLD_TYPE, conaffinity=WORLD_AFFINITY, **shape
         )
         surfaces[name] = SURFACE_FRICTION
 
@@ -171,8 +176,9 @@ def build(spec: ComposedSpec, urdf_path: Path) -> tuple[mujoco.MjModel, Handles]
         # no contact of its own: each is an explicit pair below, with the product of the two frictions
         body.add_geom(
             name=f"object:{name}",
-            type=mujoco.mjtGeom.mjGEOM_BOX,
-            size=[obj.size / 2] * 3,
+            # MuJoCo's cylinder size is its radius and half height
+            type=mujoco.mjtGeom.mjGEOM_CYLINDER if obj.shape == "cylinder" else mujoco.mjtGeom.mjGEOM_BOX,
+            size=[obj.half_extents[0], obj.half_extents[2], 0.0] if obj.shape == "cylinder" else list(obj.half_extents),
             mass=obj.mass,
             rgba=list(obj.rgba),
             contype=0,

@@ -28,7 +28,7 @@ from envfactory.backends.pybullet.recorded_responses import load_or_record
 from envfactory.backends.synchronous import Profile, synchronous_length
 from envfactory.backends.view import RENDER_SIZE
 from envfactory.geometry.frames import TaskFrame, base_rotation
-from envfactory.geometry.object_clearance import ObjectClearance, bounding_radius
+from envfactory.geometry.object_clearance import ObjectClearance
 from envfactory.geometry.obstacles import TABLE_TOP, scene_obstacles
 from envfactory.geometry.urdf_assembly import without_visuals
 from envfactory.schema.models import CameraSpec, ComposedSpec
@@ -347,9 +347,7 @@ class PyBulletBackend:
     def _add_objects(self, objects) -> None:
         self.objects.update(scene.add_objects(self.client, self.spec.task.objects, self.task_frame, objects))
         # the bounding sphere of each (cubic) object, for the fast fidelity's clearance
-        self._object_radii = {
-            body: bounding_radius(self.spec.task.objects[name].size) for name, body in self.objects.items()
-        }
+        self._object_radii = {body: self.spec.task.objects[name].bounding_radius for name, body in self.objects.items()}
 
     def command_joints(self, q_arm_target, duration: float) -> None:
         # Every joint follows the joint-synchronous profile along the straight joint-space line the safety check

@@ -28,9 +28,27 @@ def add_obstacles(client: int, obstacles: list[Obstacle]) -> list[int]:
     return [_box(client, list(o.half_extents), list(o.center), o.rgba) for o in obstacles]
 
 
+def _cylinder(client: int, spec: ObjectSpec, position, orientation) -> int:
+    radius, _, half_height = spec.half_extents
+    collision = p.createCollisionShape(p.GEOM_CYLINDER, radius=radius, height=2 * half_height, physicsClientId=client)
+    visual = p.createVisualShape(
+        p.GEOM_CYLINDER, radius=radius, length=2 * half_height, rgbaColor=spec.rgba, physicsClientId=client
+    )
+    return p.createMultiBody(
+        spec.mass,
+        collision,
+        visual,
+        basePosition=list(position),
+        baseOrientation=list(orientation),
+        physicsClientId=client,
+    )
+
+
 def add_object(client: int, spec: ObjectSpec, position, orientation) -> int:
-    half = spec.size / 2
-    body = _box(client, [half, half, half], position, spec.rgba, mass=spec.mass, orientation=orientation)
+    if spec.shape == "cylinder":
+        body = _cylinder(client, spec, position, orientation)
+    else:
+        body = _box(client, list(spec.half_extents), position, spec.rgba, mass=spec.mass, orientation=orientation)
     p.changeDynamics(
         body,
         -1,

@@ -424,9 +424,11 @@ class CollisionModel:
     def all_exact(self) -> np.ndarray:
         return self.exact(np.arange(self.pair_count))
 
-    def box_clearances(self, shapes: np.ndarray, box: coal.Box, center: np.ndarray, rotation: np.ndarray) -> np.ndarray:
-        """coal's clearance of the given shapes from a box outside the scene (an object; base frame)
-        at the current pose."""
+    def object_clearances(
+        self, shapes: np.ndarray, solid: coal.ShapeBase, center: np.ndarray, rotation: np.ndarray
+    ) -> np.ndarray:
+        """coal's clearance of the given shapes from a solid outside the scene (an object's box or cylinder;
+        base frame) at the current pose."""
         self._place_geometry()
         placement = coal.Transform3s(rotation, center)
         out = np.empty(len(shapes))
@@ -436,7 +438,7 @@ class CollisionModel:
                 coal.distance(
                     self.geometry.geometryObjects[int(shape)].geometry,
                     coal.Transform3s(pose.rotation, pose.translation),
-                    box,
+                    solid,
                     placement,
                     self._distance_request,
                     coal.DistanceResult(),
