@@ -132,6 +132,7 @@ def test_ee_mode_shrinks_previous_action():
         # Slide: Push's layout with the puck in the cube's rows
         ("UR5eSlideSim-v0", 45, 42, 41),
         ("VX300SSlideSim-v0", 49, 46, 45),
+        ("RX200SlideSim-v0", 46, 44, 42),
     ],
 )
 def test_observation_sizes(env_id, standard, ee_mode, goal_env):
