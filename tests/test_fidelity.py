@@ -15,6 +15,7 @@ import pytest
 
 import envfactory
 from devkit.oracles.fidelity_probe import assert_within, expert_success, paired_episode, read_scene, trajectory_gaps
+from envfactory.backends.pybullet.fast_cycles import SETTLE_SUBSTEPS
 from envfactory.geometry.object_clearance import NEAR_CONTACT
 
 SIM_IDS = sorted(i for i, r in envfactory.records().items() if r.backend == "sim" and "Goal" not in i)
@@ -90,11 +91,21 @@ def test_a_dropped_cube_replays_from_a_saved_state():
     assert len(replays) >= 2 and max(replays) < 1e-6, replays
 
 
+def _settling_room(env_id: str) -> bool:
+    """Whether the spec's cycle leaves the motors SETTLE_SUBSTEPS after the motion, which a kinematic cycle
+    needs (the Panda's Slide moves for 0.3 s of its 0.5 s cycle: its every cycle is simulated)."""
+    spec = envfactory.blueprint(env_id).spec
+    return spec.env.timing.action_cycle_time - spec.env.timing.action_speed >= SETTLE_SUBSTEPS / spec.sim.physics_hz
+
+
 @pytest.mark.parametrize("env_id", SIM_IDS)
 def test_fast_steps_match_full_dynamics_from_the_same_state(env_id):
     gaps, _ = paired_episode(env_id, "random", seed=0, steps=40)
     assert_within(gaps, f"{env_id} random")
-    assert "kinematic" in gaps.kinds  # the fast path is taken, not only measured
+    if _settling_room(env_id):
+        assert "kinematic" in gaps.kinds  # the fast path is taken, not only measured
+    else:  # a motion that ends too late in its cycle to settle by the reading is always simulated
+        assert "kinematic" not in gaps.kinds
     expert, success = paired_episode(env_id, "scripted", seed=0)
     assert_within(expert, f"{env_id} scripted")
     # the experts touch the cube: dynamics there (a Reach has no cube)

@@ -78,3 +78,53 @@ def test_cubes_and_goals_fill_panda_gyms_ranges(twins, ours_id, theirs_id):
 def test_a_real_id_on_the_panda_is_refused_with_the_reason():
     robot = envfactory.blueprint("PandaReachSim-v0").spec.robot
     assert robot.ros is None and "franka_ros" in robot.simulation_only
+
+
+@pytest.mark.parametrize("engine", ["pybullet", "mujoco"])
+def test_both_engines_load_the_identified_inertia_in_place_of_the_placeholder(engine):
+    """robots/panda.yaml replaces pybullet_data's 0.1 kg m^2 placeholders with identified mass properties: each
+    engine, reading the assembled URDF itself, holds every overridden link's mass and principal moments."""
+    import mujoco
+
+    env = gym.make("PandaReachSim-v0", engine=engine)
+    try:
+        env.reset(seed=0)
+        backend = env.unwrapped.backend
+        inertials = env.unwrapped.blueprint.spec.robot.model.inertials
+        assert {f"panda_link{i}" for i in range(1, 8)} <= set(inertials)
+        for link, spec in inertials.items():
+            ixx, iyy, izz, ixy, ixz, iyz = spec.inertia
+            moments = np.linalg.eigvalsh(np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]]))
+            if engine == "pybullet":
+                index = next(
+                    j
+                    for j in range(p.getNumJoints(backend.body, physicsClientId=backend.client))
+                    if p.getJointInfo(backend.body, j, physicsClientId=backend.client)[12].decode() == link
+                )
+                info = p.getDynamicsInfo(backend.body, index, physicsClientId=backend.client)
+                mass, held = info[0], np.sort(info[2])
+            else:
+                body = mujoco.mj_name2id(backend.model, mujoco.mjtObj.mjOBJ_BODY, "robot/" + link)
+                mass, held = backend.model.body_mass[body], np.sort(backend.model.body_inertia[body])
+            assert mass == pytest.approx(spec.mass, rel=1e-6), (engine, link)
+            np.testing.assert_allclose(held, moments, rtol=1e-4, atol=1e-9, err_msg=f"{engine} {link}")
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        (
+            "+robot.model.inertials.panda_link9={mass:1.0,xyz:[0,0,0],inertia:[0.1,0.1,0.1,0,0,0]}",
+            "robot.model.inertials.panda_link9: no link named 'panda_link9'",
+        ),
+        (
+            "robot.model.inertials.panda_link5.inertia=[0.01,0.01,0.05,0,0,0]",
+            "robot.model.inertials.panda_link5.inertia: no body has this inertia",
+        ),
+    ],
+)
+def test_an_inertial_override_that_cannot_be_is_named(override, message):
+    with pytest.raises(envfactory.SpecError, match=message):
+        envfactory.blueprint("PandaReachSim-v0", [override])

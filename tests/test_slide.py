@@ -11,7 +11,7 @@ from envfactory.envs.episodes import run_episodes, success_rate
 from envfactory.experts import make_policy
 from envfactory.schema.errors import SpecError
 
-SLIDE_IDS = ["UR5eSlideSim-v0", "VX300SSlideSim-v0", "RX200SlideSim-v0"]
+SLIDE_IDS = ["PandaSlideSim-v0", "UR5eSlideSim-v0", "VX300SSlideSim-v0", "RX200SlideSim-v0"]
 GRAVITY = 9.81
 
 

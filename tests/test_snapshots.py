@@ -130,6 +130,7 @@ def test_ee_mode_shrinks_previous_action():
         ("PandaPushSim-v0", 50, 46, 46),
         ("PandaPnPSim-v0", 52, 48, 48),
         # Slide: Push's layout with the puck in the cube's rows
+        ("PandaSlideSim-v0", 50, 46, 46),
         ("UR5eSlideSim-v0", 45, 42, 41),
         ("VX300SSlideSim-v0", 49, 46, 45),
         ("RX200SlideSim-v0", 46, 44, 42),

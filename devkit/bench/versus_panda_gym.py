@@ -40,7 +40,12 @@ from devkit.report import Report, add_markdown_option
 
 WARM_UP_STEPS = 5
 # envfactory task (as its IDs spell it: "Reach" is in "UR5eReacherSim-v0" and "PandaReachSim-v0") -> panda-gym ID
-PANDA_TWIN = {"Reach": "PandaReach-v3", "Push": "PandaPush-v3", "PnP": "PandaPickAndPlace-v3"}
+PANDA_TWIN = {
+    "Reach": "PandaReach-v3",
+    "Push": "PandaPush-v3",
+    "PnP": "PandaPickAndPlace-v3",
+    "Slide": "PandaSlide-v3",
+}
 ENVFACTORY_IDS = [
     "UR5eReacherSim-v0",
     "UR5ePushSim-v0",
@@ -110,6 +115,8 @@ class PandaExpert:
     GAIN = 10.0
 
     def __init__(self, env, task: str):
+        if task not in ("Reach", "Push", "PnP"):
+            raise ValueError(f"no scripted panda-gym controller for {task}: run it with --policy random")
         self.env, self.task = env.unwrapped, task
         self.stage = 0
 

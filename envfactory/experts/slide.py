@@ -29,9 +29,8 @@ class SlideParams(PushParams):
     object: str = "puck"
     face: float = Field(gt=0, le=0.3)  # from the EE to the striking face of the gripper along the line, m
     surface_friction: float = Field(default=0.5, gt=0, le=2.0)  # the table's, which the puck's multiplies
-    speedup: float = Field(
-        default=PEAK_OVER_MEAN_SPEED, gt=0, le=5.0
-    )  # the struck puck's speed over the striker's mean
+    # the struck puck's speed over the striker's mean: the timing law's peak, unless a robot's motors trail it
+    speedup: float = Field(default=PEAK_OVER_MEAN_SPEED, gt=0, le=5.0)
     max_strike: float = Field(default=0.12, gt=0, le=0.5)  # the longest strike, m of EE travel in one step
     min_strike: float = Field(default=0.005, gt=0, le=0.5)  # the shortest, m
 
@@ -45,7 +44,8 @@ class SlideExpert(PushExpert):
         if np.linalg.norm(puck.linear_velocity[:2]) > SLIDING:
             # it is on its way: rise clear of it, ready for a next strike
             ee = state.ee_position
-            return self.motion.toward(np.append(ee[:2], puck.position[2] + self.params.clearance), max_step=0.03)
+            clear = np.append(ee[:2], puck.position[2] + self.params.clearance)
+            return self.motion.toward(clear, max_step=self.params.step)
         return super().__call__(observation)
 
     def drive(self, direction, offset: float, push_z: float, rotation, remaining: float):

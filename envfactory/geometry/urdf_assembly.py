@@ -170,6 +170,23 @@ def _give_links_inertia(root: ET.Element) -> None:
             ET.SubElement(inertial, "inertia", ixx=value, iyy=value, izz=value, ixy="0", ixz="0", iyz="0")
 
 
+def _replace_inertials(root: ET.Element, inertials: dict, link_names: set[str]) -> None:
+    links = {link.get("name"): link for link in root.findall("link")}
+    for name, spec in inertials.items():
+        if name not in link_names:
+            raise AssemblyError(
+                f"robot.model.inertials.{name}", f"no link named {name!r} in the parts{suggest(name, link_names)}"
+            )
+        link = links[name]
+        for old in link.findall("inertial"):
+            link.remove(old)
+        inertial = ET.SubElement(link, "inertial")
+        ET.SubElement(inertial, "origin", xyz=" ".join(map(repr, spec.xyz)), rpy="0 0 0")
+        ET.SubElement(inertial, "mass", value=repr(spec.mass))
+        names = ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")
+        ET.SubElement(inertial, "inertia", **{key: repr(value) for key, value in zip(names, spec.inertia)})
+
+
 def _fixed_joint(name: str, parent: str, child: str, xyz, rpy) -> ET.Element:
     joint = ET.Element("joint", name=name, type="fixed")
     ET.SubElement(joint, "origin", xyz=" ".join(map(str, xyz)), rpy=" ".join(map(str, rpy)))
@@ -216,6 +233,7 @@ def assemble(model: "ModelSpec", asset_root: Path, robot_name: str) -> Path:
             raise AssemblyError(f"robot.model.frames.{frame_name}", f"the URDF already has a link {frame_name!r}")
         ET.SubElement(robot, "link", name=frame_name)
         robot.append(_fixed_joint(f"{frame_name}_joint", frame.parent, frame_name, frame.xyz, frame.rpy))
+    _replace_inertials(robot, model.inertials, link_names)
     _give_links_inertia(robot)
 
     path = _output_dir() / f"{robot_name}-{key}.urdf"

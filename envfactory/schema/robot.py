@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
+import numpy as np
 from pydantic import Field, model_validator
 
 from envfactory.schema.base import Model, Position, Rgba, Rpy, in_unit_range, located, ordered
@@ -55,11 +56,36 @@ class FrameSpec(Model):
     rpy: Rpy = (0.0, 0.0, 0.0)
 
 
+class InertialSpec(Model):
+    """A link's mass properties, in place of the URDF's: its mass, its centre of mass in the link frame and its
+    inertia tensor about that centre, in the link frame's axes."""
+
+    mass: Annotated[Positive, Field(le=1000.0)]  # kg
+    xyz: Position  # m
+    inertia: tuple[Real, Real, Real, Real, Real, Real]  # ixx, iyy, izz, ixy, ixz, iyz, kg m^2
+
+    @model_validator(mode="after")
+    def _physical(self) -> "InertialSpec":
+        ixx, iyy, izz, ixy, ixz, iyz = self.inertia
+        tensor = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+        moments = np.linalg.eigvalsh(tensor)
+        # a real body's principal moments are positive and each at most the sum of the other two
+        if moments.min() <= 0 or 2 * moments.max() > moments.sum() * (1 + 1e-9):
+            raise located(
+                "inertia",
+                f"no body has this inertia: principal moments {np.round(moments, 9).tolist()} must be positive, "
+                "each at most the sum of the other two",
+            )
+        return self
+
+
 class ModelSpec(Model):
     parts: list[UrdfPart] = Field(min_length=1)
     frames: dict[str, FrameSpec] = {}
     # package:// mesh paths: package name -> folder, relative to the robot YAML's folder
     packages: dict[str, str] = {}
+    # link name -> mass properties replacing the URDF's (a vendor file with placeholder inertia)
+    inertials: dict[str, InertialSpec] = {}
 
     @model_validator(mode="after")
     def _attached_parts_name_parent(self) -> "ModelSpec":
