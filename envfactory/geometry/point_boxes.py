@@ -30,7 +30,7 @@ import numpy as np
 import pinocchio as pin
 
 from envfactory.geometry.frames import TaskFrame
-from envfactory.geometry.obstacles import table_bounds_xy
+from envfactory.geometry.obstacles import FLOOR_HALF_EXTENT, table_bounds_xy
 from envfactory.geometry.robot_model import robot_chain
 
 JOINT_STOP_SOFTNESS = 0.005  # rad or m past a URDF limit a joint pressed against its stop may read
@@ -122,8 +122,24 @@ def point_boxes(spec, kinematics) -> PointBoxes:
         on_table = Box(np.array([*table_min, top]), np.array([*table_max, top + half_diagonal]))
         box = ee.grown(half_diagonal).union(on_table)
         box.low[2] = min(box.low[2], floor_z)  # knocked off the table onto the floor
+        if not spec.task.goal.within_reach:
+            # an object the task sends off on its own (a struck puck) may leave the table's far edge and come
+            # to rest anywhere on the floor
+            box = box.union(_floor_box(frame, floor_z, top + half_diagonal))
         objects[name] = box
     return PointBoxes(ee, objects, spec.env.timing.action_cycle_time, *_joint_boxes(robot, kinematics))
+
+
+def _floor_box(frame: TaskFrame, floor_z: float, top: float) -> Box:
+    """The floor's extent in the task frame (its corners' box, should the frame turn), from the floor to `top`."""
+    corners = np.array(
+        [
+            frame.to_task(np.array([sx * FLOOR_HALF_EXTENT, sy * FLOOR_HALF_EXTENT, 0.0]))
+            for sx in (-1, 1)
+            for sy in (-1, 1)
+        ]
+    )
+    return Box(np.array([*corners[:, :2].min(axis=0), floor_z]), np.array([*corners[:, :2].max(axis=0), top]))
 
 
 def _joint_boxes(robot, kinematics) -> tuple[Box, Box]:
