@@ -14,6 +14,7 @@ import numpy as np
 from pydantic import Field
 
 from envfactory.experts.push import PushExpert, PushParams
+from envfactory.geometry.obstacles import SURFACE_FRICTION
 from envfactory.geometry.timing_law import PEAK_OVER_MEAN_SPEED
 
 GRAVITY = 9.81
@@ -28,7 +29,8 @@ CLOSE_GAP = 0.002
 class SlideParams(PushParams):
     object: str = "puck"
     face: float = Field(gt=0, le=0.3)  # from the EE to the striking face of the gripper along the line, m
-    surface_friction: float = Field(default=0.5, gt=0, le=2.0)  # the table's, which the puck's multiplies
+    # the table's, which the puck's multiplies
+    surface_friction: float = Field(default=SURFACE_FRICTION[0], gt=0, le=2.0)
     # the struck puck's speed over the striker's mean: the timing law's peak, unless a robot's motors trail it
     speedup: float = Field(default=PEAK_OVER_MEAN_SPEED, gt=0, le=5.0)
     max_strike: float = Field(default=0.12, gt=0, le=0.5)  # the longest strike, m of EE travel in one step

@@ -24,6 +24,9 @@ TABLE_TOP = "table top"  # the obstacle objects rest on
 FLOOR = "floor"  # the obstacle under everything
 COLUMN_RGBA = (0.2, 0.2, 0.2, 1.0)
 FLOOR_RGBA = (0.85, 0.85, 0.85, 1.0)
+# lateral, spinning, rolling friction of the table, obstacles and robot links: PyBullet's default, which both
+# engines give every surface a spec gives no friction
+SURFACE_FRICTION = (0.5, 0.0, 0.0)
 
 
 @dataclass(frozen=True)

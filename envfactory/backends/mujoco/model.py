@@ -29,7 +29,7 @@ import pinocchio as pin
 
 from envfactory.backends.view import MARKER_RGBA
 from envfactory.geometry.frames import base_rotation
-from envfactory.geometry.obstacles import FLOOR, scene_obstacles
+from envfactory.geometry.obstacles import FLOOR, SURFACE_FRICTION, scene_obstacles
 from envfactory.schema.models import CameraSpec, ComposedSpec
 
 ROBOT_PREFIX = "robot/"
@@ -40,7 +40,6 @@ SERVO_STIFFNESS_ERROR = 0.01  # rad (or m): the position error at which a servo 
 # Reflected rotor inertia of a joint's drive, in proportion to its effort (a stronger joint has a bigger motor
 # behind a gearbox); it is what keeps a stiff servo on a light link stable at the engine's timestep.
 ARMATURE_PER_EFFORT = 1e-3  # kg m^2 per N m (kg per N on a slide)
-SURFACE_FRICTION = (0.5, 0.0, 0.0)  # lateral, spinning, rolling of the table, obstacles and robot links
 # A joint the specs do not drive (the VX300S's gripper motor horn) is held by PyBullet's default velocity motors;
 # here a damper stops it, or the arm's swings would spin it on forever and the scene would never be at rest.
 UNDRIVEN_DAMPING = 0.01  # N m s / rad

@@ -16,37 +16,39 @@ from envfactory.schema.models import CameraSpec, ObjectSpec, RobotSpec
 GEAR_MAX_FORCE = 1000.0
 
 
-def _box(client: int, half_extents, position, rgba, mass: float = 0.0, orientation=(0.0, 0.0, 0.0, 1.0)) -> int:
-    collision = p.createCollisionShape(p.GEOM_BOX, halfExtents=half_extents, physicsClientId=client)
-    visual = p.createVisualShape(p.GEOM_BOX, halfExtents=half_extents, rgbaColor=rgba, physicsClientId=client)
+def _body(
+    client: int, shape: int, size: dict, visual_size: dict, position, rgba, mass=0.0, orientation=(0.0, 0.0, 0.0, 1.0)
+) -> int:
+    """A body of one primitive: PyBullet names a cylinder's height `height` for collision, `length` for sight."""
+    collision = p.createCollisionShape(shape, physicsClientId=client, **size)
+    visual = p.createVisualShape(shape, rgbaColor=rgba, physicsClientId=client, **visual_size)
     return p.createMultiBody(
         mass, collision, visual, basePosition=list(position), baseOrientation=list(orientation), physicsClientId=client
     )
+
+
+def _box(client: int, half_extents, position, rgba, mass: float = 0.0, orientation=(0.0, 0.0, 0.0, 1.0)) -> int:
+    size = {"halfExtents": list(half_extents)}
+    return _body(client, p.GEOM_BOX, size, size, position, rgba, mass, orientation)
 
 
 def add_obstacles(client: int, obstacles: list[Obstacle]) -> list[int]:
     return [_box(client, list(o.half_extents), list(o.center), o.rgba) for o in obstacles]
 
 
-def _cylinder(client: int, spec: ObjectSpec, position, orientation) -> int:
-    radius, _, half_height = spec.half_extents
-    collision = p.createCollisionShape(p.GEOM_CYLINDER, radius=radius, height=2 * half_height, physicsClientId=client)
-    visual = p.createVisualShape(
-        p.GEOM_CYLINDER, radius=radius, length=2 * half_height, rgbaColor=spec.rgba, physicsClientId=client
-    )
-    return p.createMultiBody(
-        spec.mass,
-        collision,
-        visual,
-        basePosition=list(position),
-        baseOrientation=list(orientation),
-        physicsClientId=client,
-    )
-
-
 def add_object(client: int, spec: ObjectSpec, position, orientation) -> int:
     if spec.shape == "cylinder":
-        body = _cylinder(client, spec, position, orientation)
+        radius, _, half_height = spec.half_extents
+        body = _body(
+            client,
+            p.GEOM_CYLINDER,
+            {"radius": radius, "height": 2 * half_height},
+            {"radius": radius, "length": 2 * half_height},
+            position,
+            spec.rgba,
+            spec.mass,
+            orientation,
+        )
     else:
         body = _box(client, list(spec.half_extents), position, spec.rgba, mass=spec.mass, orientation=orientation)
     p.changeDynamics(
