@@ -21,7 +21,8 @@ def _twin_episodes(make, env_id, steps=30):
     return raw, scaled, pairs
 
 
-@pytest.mark.parametrize("env_id", ["UR5eReacherGoalSim-v0", "VX300SPushGoalSim-v0"])
+# Slide's goals lie on the table top: a goal box flat in z
+@pytest.mark.parametrize("env_id", ["UR5eReacherGoalSim-v0", "VX300SPushGoalSim-v0", "VX300SSlideGoalSim-v0"])
 def test_goal_env_columns_and_goals_are_mapped_by_their_declared_boxes(make, env_id):
     raw, scaled, pairs = _twin_episodes(make, env_id)
     box = raw.observation_space["observation"]
@@ -31,7 +32,8 @@ def test_goal_env_columns_and_goals_are_mapped_by_their_declared_boxes(make, env
         expected = (raw_obs["observation"] - (box.low + box.high) / 2) / ((box.high - box.low) / 2)
         np.testing.assert_allclose(scaled_obs["observation"], expected, atol=1e-5)
         for key in ("achieved_goal", "desired_goal"):
-            expected = (raw_obs[key] - (goal_low + goal_high) / 2) / ((goal_high - goal_low) / 2)
+            half = (goal_high - goal_low) / 2
+            expected = (raw_obs[key] - (goal_low + goal_high) / 2) / np.where(half > 0, half, 1.0)  # flat: unit kept
             np.testing.assert_allclose(scaled_obs[key], expected, atol=1e-5)
     assert np.all(np.abs(np.stack([s["observation"] for _, s, _ in pairs])) <= 1.0 + 1e-6)
 

@@ -378,9 +378,11 @@ class GoalRobotEnv(RobotEnv):
 
     def _observation_space(self) -> spaces.Space:
         spec = self.blueprint.spec
-        goal_low, goal_high = (np.asarray(b, np.float32) for b in spec.task.goal.box)
+        # in float64 until the scale has mapped them: a flat goal axis (a goal on the table top) cast to float32
+        # first maps to -2e-10, and the 0.0 every goal on it maps to would lie outside its own space
+        goal_low, goal_high = (np.asarray(b, float) for b in spec.task.goal.box)
         achieved = self.blueprint.boxes.of(self.blueprint.achieved_from)
-        achieved_low, achieved_high = achieved.low.astype(np.float32), achieved.high.astype(np.float32)
+        achieved_low, achieved_high = achieved.low, achieved.high
         box = (
             self._goal_scale.box
             if self._goal_scale is not None
