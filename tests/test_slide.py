@@ -172,3 +172,23 @@ def test_the_expert_slides_over_20_seeds(env_id):
 def test_shape_and_reach_mistakes_are_named(override, message):
     with pytest.raises(SpecError, match=message.replace("(", r"\(").replace(")", r"\)")):
         envfactory.blueprint("VX300SSlideSim-v0", [override])
+
+
+def test_a_puck_past_the_floors_edge_ends_the_episode_before_its_observation_leaves_its_box():
+    """The floor ends 3 m from the origin, and so does a struck puck's observation box: a puck beyond it falls
+    for ever, and the step that finds it there ends the episode, naming it, with the last observation inside its
+    box (it was clipped into a valid-looking one before: the 10k-step bounds test, VX300SSlideGoalSim-v0)."""
+    env = gym.make("VX300SSlideSim-v0")
+    try:
+        env.reset(seed=0)
+        unwrapped = env.unwrapped
+        backend = unwrapped.backend
+        body = backend.objects["puck"]
+        p.resetBasePositionAndOrientation(body, [3.05, 0.0, 0.015], [0, 0, 0, 1], physicsClientId=backend.client)
+        hold = unwrapped.actions.to_policy(unwrapped.actions.hold_action(unwrapped.state))
+        observation, _, terminated, truncated, info = env.step(hold)
+        assert (terminated, truncated) == (False, True)
+        assert "object puck is at [3.05, 0.0," in info["abort_reason"] and "off the floor" in info["abort_reason"]
+        assert env.observation_space.contains(observation) and not info["observation_clipped"]
+    finally:
+        env.close()

@@ -134,6 +134,13 @@ def test_ee_mode_shrinks_previous_action():
         ("UR5eSlideSim-v0", 45, 42, 41),
         ("VX300SSlideSim-v0", 49, 46, 45),
         ("RX200SlideSim-v0", 46, 44, 42),
+        # Stack: Pick-and-Place's layout with a second cube's 15 rows, is_grasped and goal columns (+20); goal envs
+        # drop both cubes' goal columns (8)
+        ("UR5eStackSim-v0", 67, 64, 59),
+        ("PandaStackSim-v0", 72, 68, 64),
+        ("VX300SStackSim-v0", 71, 68, 63),
+        ("RX200StackSim-v0", 68, 66, 60),
+        ("NED2StackSim-v0", 69, 66, 61),
     ],
 )
 def test_observation_sizes(env_id, standard, ee_mode, goal_env):

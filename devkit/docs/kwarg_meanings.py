@@ -52,6 +52,10 @@ MEANINGS: dict[str, str] = {
     "position at every reset, instead of exactly there.",
     "random_puck_spawn": "Spawn the puck at a random offset (± the spawn offset in x and y) around its spawn "
     "position at every reset, instead of exactly there.",
+    "random_lower_spawn": "Spawn the lower cube (the one the goal places) at a random offset (± the spawn "
+    "offset in x and y) around its spawn position at every reset, instead of exactly there.",
+    "random_upper_spawn": "Spawn the upper cube (the one stacked on the lower) at a random offset (± the spawn "
+    "offset in x and y) around its spawn position at every reset, instead of exactly there.",
     "random_goal": "Draw the goal uniformly from the goal box at every reset, instead of the static goal.",
     "multi_goal": "Pick and place's lift stage: the current goal is the cube's spawn raised by `lift_height` until "
     "the cube gets there, then the place goal.",

@@ -17,7 +17,7 @@ from envfactory.schema.compose import load_env_spec
 from envfactory.schema.errors import SpecError
 from envfactory.terms import plugins
 from envfactory.views import term_catalog
-from envfactory.views.describe import render_description
+from envfactory.views.describe import id_summary, render_description
 
 
 @command()
@@ -90,10 +90,7 @@ def list_ids(sources: bool = typer.Option(False, "--sources", help="Where the ID
         except SpecError as exc:
             table.add_row(env_id, "?", "?", record.backend, "invalid", str(exc.problems[0]) if exc.problems else "")
             continue
-        obs = str(compiled.observation_size) + (" + goal 3+3" if compiled.goal_env else "")
-        table.add_row(
-            env_id, compiled.spec.robot.name, compiled.spec.task.name, compiled.backend, obs, str(compiled.action.size)
-        )
+        table.add_row(env_id, *id_summary(compiled))
     console.print(table)
 
 

@@ -269,7 +269,13 @@ def _achieved_from(spec: ComposedSpec, found: Findings) -> str:
             "task.goal.achieved",
             f"unknown achieved goal {spec.task.goal.achieved!r}{suggest(spec.task.goal.achieved, valid)}",
         )
-    elif spec.task.goal.lift is not None and source == "ee":
+    for name in spec.task.goal.also:
+        if name not in spec.task.objects:
+            found.add(
+                f"task.goal.also.{name}",
+                f"{name!r} is no object of the task{suggest(name, list(spec.task.objects))}",
+            )
+    if spec.task.goal.lift is not None and source == "ee":
         found.add(
             "task.goal.lift",
             "the lift stage raises an object: the achieved goal must be an object's position, not 'ee.position'",

@@ -298,35 +298,42 @@ def _reach_problems(spec: ComposedSpec, geometry: RobotGeometry) -> list[tuple[s
         return kinematics.solve_ik(home, point)
 
     low, high = (np.asarray(b, float) for b in goal.box)
-    probes = [np.asarray(goal.static_goal, float)] if not goal.random else _probes(low, high)
-    if not goal.within_reach:
-        probes = []  # the object gets there on its own
-    misses = []
-    for point in probes:
-        solution = solve(point)
-        # an EE goal is sampled only where the arm can stand clear of the table; an object
-        # goal is reached by the object, the EE only needs to get there
-        if not solution.success:
-            misses.append((point, f"IK misses by {solution.position_error:.3f} m"))
-        elif ee_goal and not safety.pose_is_clear(solution.q_arm):
-            misses.append((point, "the pose there comes too near the table or the arm itself"))
-    if misses:
-        where = "task.goal.static" if not goal.random and goal.static is not None else "task.goal.box"
-        listed = "; ".join(f"{_point(point)} ({why})" for point, why in misses[:4])
-        more = f"; and {len(misses) - 4} more" if len(misses) > 4 else ""
-        what = (
-            f"{len(misses)} of the {len(probes)} probe points of the goal box (centre and corners)"
-            if goal.random
-            else "the static goal"
-        )
-        problems.append(
-            (
-                where,
-                f"the arm cannot reach {what}: {listed}{more}; valid: a goal "
-                f"{'box whose every point is ' if goal.random else ''}within reach of robot "
-                f"{spec.robot.name!r}",
+    # each part's goal is the goal moved by its offset: an object placed there must be carried there
+    for part, offset in zip(goal.parts, goal.part_offsets):
+        probes = [np.asarray(goal.static_goal, float)] if not goal.random else _probes(low, high)
+        if not goal.within_reach:
+            probes = []  # the object gets there on its own
+        misses = []
+        for point in probes:
+            point = point + offset
+            solution = solve(point)
+            # an EE goal is sampled only where the arm can stand clear of the table; an object
+            # goal is reached by the object, the EE only needs to get there
+            if not solution.success:
+                misses.append((point, f"IK misses by {solution.position_error:.3f} m"))
+            elif ee_goal and not safety.pose_is_clear(solution.q_arm):
+                misses.append((point, "the pose there comes too near the table or the arm itself"))
+        if misses:
+            where = "task.goal.static" if not goal.random and goal.static is not None else "task.goal.box"
+            if part in goal.also:
+                where = f"task.goal.also.{part}.offset"
+            listed = "; ".join(f"{_point(point)} ({why})" for point, why in misses[:4])
+            more = f"; and {len(misses) - 4} more" if len(misses) > 4 else ""
+            what = (
+                f"{len(misses)} of the {len(probes)} probe points of the goal box (centre and corners)"
+                if goal.random
+                else "the static goal"
             )
-        )
+            if part in goal.also:
+                what += f", moved by {part}'s offset {_point(offset)},"
+            problems.append(
+                (
+                    where,
+                    f"the arm cannot reach {what}: {listed}{more}; valid: a goal "
+                    f"{'box whose every point is ' if goal.random else ''}within reach of robot "
+                    f"{spec.robot.name!r}",
+                )
+            )
     for name, obj in spec.task.objects.items():
         position = np.asarray(obj.spawn.position, float)
         # a random spawn is drawn from position ± offset in x and y: its corners are probed too

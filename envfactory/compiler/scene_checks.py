@@ -119,6 +119,7 @@ def check_scene(spec: ComposedSpec, found: Findings) -> None:
     _table(spec, scene, found)
     _goal(spec, scene, found)
     _objects(spec, scene, found)
+    _spawns_apart(spec, found)
     _tolerance(spec, found)
     _observation_bounds(spec, found)
 
@@ -175,9 +176,17 @@ def _table(spec: ComposedSpec, scene: TaskFrameScene, found: Findings) -> None:
 
 
 def _goal(spec: ComposedSpec, scene: TaskFrameScene, found: Findings) -> None:
-    goal, workspace = spec.task.goal, spec.workspace
+    goal = spec.task.goal
     low, high = (np.asarray(b, float) for b in goal.box)
-    source = goal.achieved.partition(".")[0]
+    for part, offset in zip(goal.parts, goal.part_offsets):
+        path = f"task.goal.also.{part}.offset" if part in goal.also else "task.goal.box"
+        _goal_part(spec, scene, found, low + offset, high + offset, part, path)
+
+
+def _goal_part(spec, scene: TaskFrameScene, found: Findings, low, high, source: str, path: str) -> None:
+    """One part's goal box (the goal box moved by the part's offset) against the workspace, the table and the
+    heights an object is carried to."""
+    workspace = spec.workspace
     ee_low, ee_high = (np.asarray(b, float) for b in spec.robot.ee_bounds)
     other_frame = scene.other_frame_hint(spec, low[2])
     if source == "ee":
@@ -188,13 +197,13 @@ def _goal(spec: ComposedSpec, scene: TaskFrameScene, found: Findings) -> None:
     outside = [axis for axis, lo, hi, b_lo, b_hi in zip("xyz", low, high, *bounds) if lo < b_lo or hi > b_hi]
     if outside:
         found.add(
-            "task.goal.box",
+            path,
             f"goal box {_box(low, high)} leaves {name} {_box(*bounds)} in "
             f"{', '.join(outside)}; valid: a box inside it{other_frame if 'z' in outside else ''}",
         )
     if source != "ee" and source in spec.task.objects and not scene.inside_table(low[:2], high[:2]):
         found.add(
-            "task.goal.box",
+            path,
             f"goal box x/y {_box(low[:2], high[:2])} leaves the table "
             f"({scene.footprint()}); {source} goals must lie over the table",
         )
@@ -203,7 +212,7 @@ def _goal(spec: ComposedSpec, scene: TaskFrameScene, found: Findings) -> None:
     where = f"(z {scene.top_z:g} in the {spec.robot.task_frame} frame)"
     if low[2] < surface:
         found.add(
-            "task.goal.box",
+            path,
             f"goal box bottom z {low[2]:g} lies below the {what} "
             f"(z {surface:g} in the {spec.robot.task_frame} frame); valid: z >= {surface:g}"
             f"{other_frame}",
@@ -211,12 +220,12 @@ def _goal(spec: ComposedSpec, scene: TaskFrameScene, found: Findings) -> None:
     elif other_frame and scene.height(low[2]) > abs(spec.robot.mount[2]) / 2:
         # nearer the table read in the other frame than in its own: a pasted height, wherever the arm reaches
         found.add(
-            "task.goal.box",
+            path,
             f"goal box bottom z {low[2]:g} lies {scene.height(low[2]):.3g} m above the table top {where}{other_frame}",
         )
     elif source != "ee" and scene.height(high[2]) > MAX_OBJECT_GOAL_HEIGHT:
         found.add(
-            "task.goal.box",
+            path,
             f"goal box top z {high[2]:g} lies {scene.height(high[2]):.3g} m above the table "
             f"top {where}: {source} is carried there from the table, and a goal more than "
             f"{MAX_OBJECT_GOAL_HEIGHT:g} m above it is out of any pick-and-place task; valid: "
@@ -229,8 +238,7 @@ def _objects(spec: ComposedSpec, scene: TaskFrameScene, found: Findings) -> None
         path = f"task.objects.{name}.spawn"
         position = np.asarray(obj.spawn.position, float)
         half, _, half_height = obj.half_extents
-        reach = np.asarray(obj.spawn.offset if obj.spawn.random else (0.0, 0.0)) + half
-        lo, hi = position[:2] - reach, position[:2] + reach
+        lo, hi = _spawn_footprint(obj)
         if not scene.inside_table(lo, hi):
             found.add(
                 f"{path}.position",
@@ -265,6 +273,29 @@ def _objects(spec: ComposedSpec, scene: TaskFrameScene, found: Findings) -> None
                 f"{position[2] + lift.height:g}, above the workspace "
                 f"(max z {spec.workspace.max[2]:g})",
             )
+
+
+def _spawn_footprint(obj) -> tuple[np.ndarray, np.ndarray]:
+    """Where an object may stand, in x and y: its spawn point ± the random offset ± half its size."""
+    position = np.asarray(obj.spawn.position[:2], float)
+    reach = np.asarray(obj.spawn.offset if obj.spawn.random else (0.0, 0.0)) + obj.half_extents[0]
+    return position - reach, position + reach
+
+
+def _spawns_apart(spec: ComposedSpec, found: Findings) -> None:
+    """Objects are spawned each on its own: two whose spawn regions meet could be spawned inside each other."""
+    placed = []
+    for name, obj in spec.task.objects.items():
+        low, high = _spawn_footprint(obj)
+        for other, (other_low, other_high) in placed:
+            if np.all(low < other_high) and np.all(other_low < high):
+                found.add(
+                    f"task.objects.{name}.spawn",
+                    f"{name} may stand at x/y {_box(low, high)} and {other} at {_box(other_low, other_high)}: "
+                    "they could be spawned inside each other; valid: spawn points farther apart, or smaller "
+                    "offsets",
+                )
+        placed.append((name, (low, high)))
 
 
 def check_expert_workspace(spec: ComposedSpec, found: Findings) -> None:

@@ -30,6 +30,7 @@ from envfactory.geometry.object_press import ObjectPressGuard
 from envfactory.geometry.robot_model import robot_geometry
 from envfactory.geometry.vectors import length
 from envfactory.step_state import EnvState
+from envfactory.terms.goal_parts import GoalParts
 from envfactory.terms.rewards import STEP_FLAGS
 
 log = logging.getLogger("envfactory")
@@ -64,6 +65,7 @@ class RobotEnv(gym.Env):
         )
         self.home = np.asarray(robot.home, float)
         self._ee_home = self.kinematics.ee_pose(self.home, spec.gripper_assumed_at_reset)[0]
+        self.goal_parts = GoalParts.of(spec.task.goal)
         self.goals = GoalSampler(
             spec.task.goal,
             self.kinematics,
@@ -78,7 +80,7 @@ class RobotEnv(gym.Env):
         self._vector_scale = self._goal_scale = None
         if spec.env.observation.normalize:  # normalize_observations
             self._vector_scale = AffineScale(self.observations.low, self.observations.high)
-            self._goal_scale = AffineScale(*spec.task.goal.box)
+            self._goal_scale = AffineScale(*self.goal_parts.stacked_bounds(*spec.task.goal.box))
         self.images = ImageManager(blueprint.images, spec.scene.camera)
         self.action_space = spaces.Box(
             blueprint.action.policy_low.astype(np.float32),
@@ -96,7 +98,7 @@ class RobotEnv(gym.Env):
         self._timing = spec.env.timing
         self._verbose = spec.env.log_internal_state
         self._seed_pending = spec.env.seed
-        self._goal = np.zeros(3)
+        self._goal = np.zeros(self.goal_parts.size)
         self._goal_failed = False
         self._state: EnvState | None = None
         self._clipped: list[str] = []  # observation columns the last observation had to clip
@@ -152,7 +154,7 @@ class RobotEnv(gym.Env):
         state.current_goal = self.stage.current(self._goal)
 
     def achieved_goal(self, state: EnvState) -> np.ndarray:
-        return state.position_of(self.blueprint.achieved_from)
+        return self.goal_parts.achieved(state)
 
     def _vector(self, state: EnvState) -> np.ndarray:
         vector, self._clipped = self.observations.compute(state)
@@ -217,13 +219,14 @@ class RobotEnv(gym.Env):
         for tracker in self._trackers.values():
             tracker.reset()
         start = spawn[self.blueprint.achieved_from][0] if self.blueprint.achieved_from in spawn else self._ee_home
-        self._goal, self._goal_failed = self.goals.sample(self.np_random, start)
+        goal, self._goal_failed = self.goals.sample(self.np_random, start)
         if chosen is not None:
-            self._goal, self._goal_failed = chosen, False
+            goal, self._goal_failed = chosen, False
+        self._goal = self.goal_parts.expand(goal, self.np_random)
         if self.randomizer is not None:
             self.randomizer.reset(self.np_random)  # drawn after spawn and goal: those match an unrandomized env's
             self._sensing_starts = True
-        self.backend.mark_goal(self._goal)
+        self.backend.mark_goal(self.goal_parts.first(self._goal))
         self._state = self._read_state(np.zeros(self.action_space.shape, dtype=np.float32))
         self._state.previous_action = self.actions.hold_action(self._state)
         achieved = self.achieved_goal(self._state)
@@ -300,15 +303,24 @@ class RobotEnv(gym.Env):
         return observation, reward, terminated, truncated, info
 
     def _info(self, state: EnvState, achieved: np.ndarray, out_of_bounds: bool, rejection: str) -> dict:
-        distance = length(achieved - self._goal)
+        # the farthest part's: success is every part within tolerance
+        parts, tolerance = self.goal_parts, self.blueprint.spec.task.goal.tolerance
+        if len(parts.names) == 1 and not parts.turned:  # most tasks' goal: one point, measured the fast way
+            distance = length(achieved - self._goal)
+            success = distance < tolerance
+        else:  # the farthest point part's distance; success is every part within its tolerance
+            distance = float(parts.distances(achieved, self._goal).max())
+            success = bool(parts.reached(achieved, self._goal, tolerance))
         flags = (out_of_bounds, bool(rejection), self._goal_failed)
         info = {key: float(value) for key, value in zip(STEP_FLAGS, flags, strict=True)}
         info.update(
             rejection_reason=rejection,
             observation_clipped=list(self._clipped),
             distance=distance,
-            is_success=distance < self.blueprint.spec.task.goal.tolerance,
+            is_success=success,
         )
+        if parts.turned:
+            info["angle"] = float(parts.angles(achieved, self._goal).max())
         info.update(self.stage.info(self._goal))
         info.update(self.rewards.measure(state))
         if self.randomizer is not None:
@@ -366,7 +378,12 @@ class RobotEnv(gym.Env):
 
     @property
     def goal(self) -> np.ndarray:
+        """The desired goal: every part's point in turn (task.goal.also), the first part's alone in most tasks."""
         return self._goal.copy()
+
+    def goal_of(self, name: str) -> np.ndarray:
+        """One part's desired goal: the EE's or an object's."""
+        return self.goal_parts.part(self._goal, self.goal_parts.index(name)).copy()
 
     @property
     def state(self) -> EnvState | None:
@@ -380,13 +397,12 @@ class GoalRobotEnv(RobotEnv):
         spec = self.blueprint.spec
         # in float64 until the scale has mapped them: a flat goal axis (a goal on the table top) cast to float32
         # first maps to -2e-10, and the 0.0 every goal on it maps to would lie outside its own space
-        goal_low, goal_high = (np.asarray(b, float) for b in spec.task.goal.box)
-        achieved = self.blueprint.boxes.of(self.blueprint.achieved_from)
-        achieved_low, achieved_high = achieved.low, achieved.high
+        goal_low, goal_high = self.goal_parts.stacked_bounds(*spec.task.goal.box)
+        achieved_low, achieved_high = self.goal_parts.achieved_bounds(self.blueprint.boxes)
         box = (
             self._goal_scale.box
             if self._goal_scale is not None
-            else (lambda low, high: spaces.Box(low, high, dtype=np.float32))
+            else (lambda low, high: spaces.Box(low.astype(np.float32), high.astype(np.float32), dtype=np.float32))
         )
         return spaces.Dict(
             {

@@ -8,6 +8,8 @@ from __future__ import annotations
 import numpy as np
 
 from envfactory.backends.base import EpisodeAbort
+from envfactory.geometry.frames import TaskFrame
+from envfactory.geometry.obstacles import FLOOR_HALF_EXTENT
 from envfactory.schema.robot import RobotSpec
 from envfactory.step_state import EnvState
 
@@ -15,8 +17,8 @@ from envfactory.step_state import EnvState
 SPEED_FACTOR = 4.0
 # Nothing on a table top moves this fast (a fall from 2 m lands at 6.3 m/s), m/s.
 OBJECT_SPEED_LIMIT = 10.0
-# An object farther than this from the task frame's origin on any axis has left the scene, m.
-SCENE_HALF_WIDTH = 5.0
+# An object farther than this above or below the world's origin has left the scene, m.
+SCENE_HALF_HEIGHT = 5.0
 
 
 class SimulationLeftLimits(EpisodeAbort):
@@ -25,6 +27,7 @@ class SimulationLeftLimits(EpisodeAbort):
 
 class SimulationLimits:
     def __init__(self, robot: RobotSpec):
+        self.frame = TaskFrame.of(robot)
         self.names = robot.state_names
         self.units = [f"{entry.unit}/s" for entry in robot.joint_states]
         self.speed_limit = SPEED_FACTOR * np.array(
@@ -50,12 +53,15 @@ class SimulationLimits:
             f"declared velocity bound ({self.speed_limit[index] / SPEED_FACTOR:g} {self.units[index]})"
         )
 
-    @staticmethod
-    def _objects(state: EnvState) -> str:
+    def _objects(self, state: EnvState) -> str:
         for name, body in state.objects.items():
-            position, speed = np.asarray(body.position, float), float(np.linalg.norm(body.linear_velocity))
-            if not np.all(np.abs(position) <= SCENE_HALF_WIDTH):
-                return f"object {name} is at {np.round(position, 2).tolist()} m, out of the scene"
+            world, speed = self.frame.to_world(body.position), float(np.linalg.norm(body.linear_velocity))
+            # past the floor's edge it falls for ever; its observation box ends there too (geometry/point_boxes.py)
+            if not (np.all(np.abs(world[:2]) <= FLOOR_HALF_EXTENT) and abs(world[2]) <= SCENE_HALF_HEIGHT):
+                return (
+                    f"object {name} is at {np.round(world, 2).tolist()} m (world frame), out of the scene: off the "
+                    f"floor, which ends {FLOOR_HALF_EXTENT:g} m either side of the origin"
+                )
             if not speed <= OBJECT_SPEED_LIMIT:
                 return f"object {name} moves at {speed:.3g} m/s, thrown (limit {OBJECT_SPEED_LIMIT:g} m/s)"
         return ""

@@ -12,8 +12,15 @@ from envfactory.experts.pnp import PickPlaceExpert
 from envfactory.experts.push import PushExpert
 from envfactory.experts.reach import ReachExpert
 from envfactory.experts.slide import SlideExpert
+from envfactory.experts.stack import StackExpert
 
-EXPERTS = {"reach": ReachExpert, "push": PushExpert, "pnp": PickPlaceExpert, "slide": SlideExpert}
+EXPERTS = {
+    "reach": ReachExpert,
+    "push": PushExpert,
+    "pnp": PickPlaceExpert,
+    "slide": SlideExpert,
+    "stack": StackExpert,
+}
 
 
 class RandomPolicy:

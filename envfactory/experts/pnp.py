@@ -20,8 +20,9 @@ GRASP_WITHIN = 0.006  # closes within this of the grasp point, m
 LIFT_WITHIN = 0.01  # the carry height is reached within this, m
 
 
-class PickPlaceParams(TermParams):
-    object: str = "cube"
+class CarryParams(TermParams):
+    """How the gripper takes hold of a cube and carries it: one robot's geometry, whatever the task."""
+
     grasp_height: float = Field(default=0.0, ge=-0.5, le=0.5)  # EE height above the cube centre when closing, m
     clearance: float = Field(default=0.08, gt=0, le=1.0)  # EE height above the cube centre on the way in, m
     lift: float = Field(default=0.15, gt=0, le=2.0)  # carry height above the spawn point at least, m
@@ -30,6 +31,10 @@ class PickPlaceParams(TermParams):
     # the gripper command that holds the object (default: fully closed). A value just past contact
     # keeps the commanded finger sweep, and so the room the safety check needs below it, short.
     grip: float | None = None
+
+
+class PickPlaceParams(CarryParams):
+    object: str = "cube"
 
 
 class PickPlaceExpert(Expert):
@@ -56,8 +61,8 @@ class PickPlaceExpert(Expert):
             )
         ]
         goal = spec.task.goal
-        if goal.achieved.partition(".")[0] == params.object:
-            low, high = (np.asarray(b, float) for b in goal.box)
+        if params.object in goal.parts:
+            low, high = (np.asarray(b, float) + goal.part_offsets[goal.parts.index(params.object)] for b in goal.box)
             corners = np.array(
                 [[x, y, z] for x in (low[0], high[0]) for y in (low[1], high[1]) for z in (low[2], high[2])]
             )
@@ -65,7 +70,7 @@ class PickPlaceExpert(Expert):
             points += [
                 ExpertPoint(
                     "place",
-                    "task.goal.box",
+                    "task.goal.box" if params.object == goal.parts[0] else f"task.goal.also.{params.object}.offset",
                     corners + [0, 0, params.grasp_height],
                     params.grasp_height,
                     (grip,),
@@ -135,7 +140,7 @@ class PickPlaceExpert(Expert):
                 self.hold_offset = cube - ee
             else:
                 return motion.toward(grasp, rotation, grip, p.step / 2)
-        goal = env.goal
+        goal = env.goal_of(p.object)
         ee_goal = goal - self.hold_offset
         carry_z = max(ee_goal[2], self.floor_z - self.hold_offset[2] + p.lift)
         if self.phase == "lift":

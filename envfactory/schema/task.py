@@ -75,6 +75,26 @@ class LiftSpec(Model):
     height: Annotated[Positive, Field(le=2.0)] = 0.15  # lift_height, m
 
 
+class GoalPartSpec(Model):
+    """Another object's goal, held at a fixed offset from the goal (task frame): a stacked cube's, on top of
+    the cube the goal places."""
+
+    offset: Position
+
+
+TURN_AXES = {"x": (1.0, 0.0, 0.0), "-x": (-1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "-y": (0.0, -1.0, 0.0)}
+TURN_AXES.update({"z": (0.0, 0.0, 1.0), "-z": (0.0, 0.0, -1.0)})
+
+
+class OrientationGoalSpec(Model):
+    """An object's orientation as part of the goal: as it spawns (upright), turned by `angle` about one of `axes`
+    of the task frame, drawn at each reset."""
+
+    tolerance: Annotated[Positive, Field(le=3.1416)]  # rad: the angle between the object's orientation and the goal's
+    angle: Annotated[Positive, Field(le=180.0)] = 90.0  # degrees: a quarter turn puts a side face down
+    axes: list[Literal["x", "-x", "y", "-y", "z", "-z"]] = Field(default=["x", "-x", "y", "-y"], min_length=1)
+
+
 class GoalSpec(Model):
     achieved: str  # "ee.position" or "<object>.position"
     tolerance: Positive
@@ -89,6 +109,12 @@ class GoalSpec(Model):
     # false: the object travels to the goal on its own (struck or thrown), so the goal box may lie beyond the
     # arm's reach and `validate` does not ask the arm to reach it
     within_reach: bool = True
+    # more objects with goals, each at the goal plus its offset: the desired and achieved goals hold every
+    # part in turn (the achieved object's first), and success needs each within tolerance
+    also: dict[str, GoalPartSpec] = {}
+    # objects' orientations as part of the goal, after the positions in the goal vectors: a quaternion (x, y, z, w)
+    # in the task frame each, w >= 0; success needs each within its own angle tolerance too
+    orientation: dict[str, OrientationGoalSpec] = {}
 
     @field_validator("box")
     @classmethod
@@ -104,9 +130,30 @@ class GoalSpec(Model):
         low, high = self.box
         if self.static is not None and not all(lo <= v <= hi for v, lo, hi in zip(self.static, low, high)):
             raise located("static", f"static goal {list(self.static)} lies outside the goal box")
-        if not self.within_reach and self.achieved.partition(".")[0] == "ee":
+        source = self.achieved.partition(".")[0]
+        if not self.within_reach and source == "ee":
             raise located("within_reach", "the EE is the arm's own: its goal must be within reach")
+        if self.also and source == "ee":
+            raise located("also", "goals of several parts are objects' goals: the achieved goal must be an object's")
+        if source in self.also:
+            raise located(f"also.{source}", f"{source!r} is the achieved goal already: an object has one goal")
+        if self.also and self.lift is not None:
+            raise located("lift", "the lift stage raises one object: it cannot go with goals for several ('also')")
+        if self.orientation and self.lift is not None:
+            raise located("lift", "the lift stage's goal is a point: it cannot go with an orientation goal")
+        if "ee" in self.orientation:
+            raise located("orientation.ee", "orientation goals are objects': the EE's is the arm's own")
         return self
+
+    @property
+    def parts(self) -> tuple[str, ...]:
+        """What the goal places, in the goal vectors' order: the achieved point, then each 'also' object."""
+        return (self.achieved.partition(".")[0], *self.also)
+
+    @property
+    def part_offsets(self) -> np.ndarray:
+        """Each part's goal from the goal, (parts, 3), task frame."""
+        return np.array([np.zeros(3), *(np.asarray(part.offset, float) for part in self.also.values())])
 
     @property
     def static_goal(self) -> tuple[float, float, float]:

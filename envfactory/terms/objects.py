@@ -2,8 +2,13 @@
 
 from __future__ import annotations
 
-import numpy as np
+from dataclasses import dataclass
 
+import numpy as np
+import pinocchio as pin
+
+from envfactory.geometry.kinematics import quaternion_to_matrix
+from envfactory.terms.goal_parts import TURN, GoalParts
 from envfactory.terms.library import Description, TermParams, constant_bounds, fixed, observation_term
 from envfactory.terms.observations import TWO_PI, box_bounds
 
@@ -79,3 +84,60 @@ def object_angular_velocity(state, params):
 def object_relative_to_ee(state, params):
     """The object's position minus the EE's (bounds: the object box minus the EE box)."""
     return state.objects[params.object].position - state.ee_position
+
+
+@dataclass(frozen=True)
+class OrientationGoal:
+    """An orientation column's bound params: the object, and its goal quaternion's columns in the goal vector."""
+
+    object: str
+    start: int
+    stop: int
+
+
+def bind_orientation_goal(layout, params) -> OrientationGoal:
+    bind_object(layout, params)
+    turned = list(layout.task.goal.orientation)
+    if params.object not in turned:
+        raise ValueError(
+            f"'object: {params.object}' has no orientation goal (task.goal.orientation: {turned or 'none'})"
+        )
+    start = GoalParts.of(layout.task.goal).points_size + TURN * turned.index(params.object)
+    return OrientationGoal(params.object, start, start + TURN)
+
+
+def _turn_to_goal(state, params) -> np.ndarray:
+    goal = quaternion_to_matrix(state.current_goal[params.start : params.stop])
+    return pin.log3(goal @ state.objects[params.object].rotation.T)
+
+
+@observation_term(
+    size=fixed(3),
+    bounds=constant_bounds(-np.pi, np.pi),
+    describe=lambda layout, params: Description(
+        f"Rotation {params.object} → its goal orientation", "axis × angle, task frame", "rad"
+    ),
+    params=ObjectParams,
+    goal_dependent=True,
+    bind=bind_orientation_goal,
+    unit="rad",
+)
+def goal_rotation(state, params):
+    """The rotation (axis times angle, task frame) that turns the object into its goal orientation."""
+    return _turn_to_goal(state, params)
+
+
+@observation_term(
+    size=fixed(1),
+    bounds=constant_bounds(0.0, np.pi),
+    describe=lambda layout, params: Description(
+        f"Angle {params.object} → its goal orientation", "‖goal_rotation‖", "rad"
+    ),
+    params=ObjectParams,
+    goal_dependent=True,
+    bind=bind_orientation_goal,
+    unit="rad",
+)
+def goal_angle(state, params):
+    """The angle between the object's orientation and its goal orientation."""
+    return np.array([np.linalg.norm(_turn_to_goal(state, params))])

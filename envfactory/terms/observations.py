@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from pydantic import ConfigDict, Field
 
 from envfactory.geometry.point_boxes import Box
 from envfactory.geometry.vectors import length
 from envfactory.schema.numbers import TWO_PI
+from envfactory.terms.goal_parts import POINT
 from envfactory.terms.library import Description, TermParams, constant_bounds, fixed, observation_term, size_of
 
 
@@ -15,10 +18,12 @@ def box_bounds(box) -> tuple[np.ndarray, np.ndarray]:
     return box.low.copy(), box.high.copy()
 
 
-def goal_box(layout) -> Box:
-    """Where the current goal can be: the goal box, and with a lift stage the lifted spawn points."""
+def goal_box(layout, part: int = 0) -> Box:
+    """Where a part's current goal can be: the goal box moved by the part's offset, and with a lift stage the
+    lifted spawn points."""
     goal = layout.task.goal
-    box = Box(*(np.asarray(b, float) for b in goal.box))
+    offset = goal.part_offsets[part]
+    box = Box(*(np.asarray(b, float) + offset for b in goal.box))
     if goal.lift is not None:
         for obj in layout.task.objects.values():
             spawn = np.asarray(obj.spawn.position, float) + [0.0, 0.0, goal.lift.height]
@@ -27,9 +32,16 @@ def goal_box(layout) -> Box:
     return box
 
 
+def goal_part(layout, name: str) -> int:
+    """The goal part a point is measured against: its own goal if it has one, else the first part's."""
+    parts = layout.task.goal.parts
+    return parts.index(name) if name in parts else 0
+
+
 def goal_distance_bounds(layout, params, size):
     # no farther than the farthest two points of the two boxes
-    return np.zeros(size), np.full(size, layout.boxes.of(params.from_).farthest_from(goal_box(layout)))
+    box = goal_box(layout, goal_part(layout, params.from_))
+    return np.zeros(size), np.full(size, layout.boxes.of(params.from_).farthest_from(box))
 
 
 joint_state_count = size_of("one per joint_states entry", lambda layout, params: len(layout.robot.joint_states))
@@ -45,10 +57,12 @@ def _point_label(name: str) -> str:
     return "EE" if name == "ee" else name
 
 
-def _goal_label(layout) -> str:
+def _goal_label(layout, name: str) -> str:
     # with a lift stage the columns follow the stage's goal, as the reference pages name it
-    lift = layout.task.goal.lift
-    return "current goal" if lift is not None and lift.enabled else "goal"
+    goal = layout.task.goal
+    if len(goal.parts) > 1:
+        return f"{goal.parts[goal_part(layout, name)]}'s goal"
+    return "current goal" if goal.lift is not None and goal.lift.enabled else "goal"
 
 
 def _point_symbol(name: str) -> str:
@@ -59,7 +73,17 @@ def _bind_point(layout, params):
     if params.from_ != "ee" and params.from_ not in layout.task.objects:
         known = ["ee", *layout.task.objects]
         raise ValueError(f"'from: {params.from_}' names no object of the task (known: {known})")
-    return params
+    part = goal_part(layout, params.from_)
+    return GoalPoint(params.from_, POINT * part, POINT * (part + 1))
+
+
+@dataclass(frozen=True)
+class GoalPoint:
+    """A goal column's bound params: the point it measures from, and its goal's columns in the goal vector."""
+
+    from_: str
+    start: int  # its goal's columns in the goal vector
+    stop: int
 
 
 def _joint_units(layout, per_second: bool) -> str:
@@ -94,7 +118,7 @@ def ee_rpy(state, params):
     size=fixed(3),
     bounds=constant_bounds(-1.0, 1.0),
     describe=lambda layout, params: Description(
-        f"Unit vector {_point_label(params.from_)} → {_goal_label(layout)}", "normalized", "unitless"
+        f"Unit vector {_point_label(params.from_)} → {_goal_label(layout, params.from_)}", "normalized", "unitless"
     ),
     params=FromPoint,
     goal_dependent=True,
@@ -102,8 +126,8 @@ def ee_rpy(state, params):
     unit="unitless",
 )
 def goal_direction(state, params):
-    """Unit vector from the EE or an object to the current goal."""
-    offset = state.current_goal - state.position_of(params.from_)
+    """Unit vector from the EE or an object to the current goal (its own, in a goal of several parts)."""
+    offset = state.current_goal[params.start : params.stop] - state.position_of(params.from_)
     norm = length(offset)
     return offset / norm if norm > 1e-9 else np.zeros(3)
 
@@ -112,7 +136,7 @@ def goal_direction(state, params):
     size=fixed(1),
     bounds=goal_distance_bounds,
     describe=lambda layout, params: Description(
-        f"Euclidean distance {_point_label(params.from_)} → {_goal_label(layout)}",
+        f"Euclidean distance {_point_label(params.from_)} → {_goal_label(layout, params.from_)}",
         f"‖goal − {_point_symbol(params.from_)}‖",
         "m",
     ),
@@ -123,7 +147,7 @@ def goal_direction(state, params):
 )
 def goal_distance(state, params):
     """Distance from the EE or an object to the current goal (bound: the farthest it can be from the goal box)."""
-    return length(state.current_goal - state.position_of(params.from_))
+    return length(state.current_goal[params.start : params.stop] - state.position_of(params.from_))
 
 
 @observation_term(

@@ -8,12 +8,15 @@ it does not derive from the desired goal, so relabelled rewards stay exact.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 
-from envfactory.geometry.vectors import lengths
-from envfactory.terms.library import TermParams, reward_term, termination_term
+from envfactory.geometry.vectors import length, lengths
+from envfactory.schema.errors import suggest
+from envfactory.terms.goal_parts import POINT, GoalParts
+from envfactory.terms.library import TermParams, UnknownReference, reward_term, termination_term
 from envfactory.terms.stages import STAGE_KEYS
 
 # Step info the env records at every step, declared here once: the step writes these keys
@@ -31,7 +34,12 @@ def step_info_keys() -> tuple[str, ...]:
     return (*STEP_FLAGS, *STAGE_KEYS)
 
 
-class GoalChoice(TermParams):
+class PartChoice(TermParams):
+    # one part of a goal of several ('task.goal.also'): its object's name; every part if unset
+    object: str | None = None
+
+
+class GoalChoice(PartChoice):
     # current: the lift stage's goal while it lasts, then the desired goal
     goal: Literal["current", "final"]
 
@@ -42,6 +50,36 @@ class CurrentGoal(GoalChoice):
 
 class FinalGoal(GoalChoice):
     goal: Literal["current", "final"] = "final"
+
+
+@dataclass(frozen=True)
+class GoalTarget:
+    """A goal term's params bound to the task's goal parts: which goal, which part (None: every part) and the
+    layout of the goal vectors."""
+
+    goal: str
+    part: int | None
+    parts: GoalParts
+
+
+def bind_part(layout, params) -> GoalTarget:
+    return _bound(layout, params, layout.task.goal.parts, "goal")
+
+
+def bind_turn(layout, params) -> GoalTarget:
+    if not layout.task.goal.orientation:
+        raise UnknownReference("the goal holds no orientation: declare task.goal.orientation")
+    return _bound(layout, params, tuple(layout.task.goal.orientation), "orientation goal")
+
+
+def _bound(layout, params, names: tuple[str, ...], what: str) -> GoalTarget:
+    if params.object is not None and params.object not in names:
+        raise UnknownReference(
+            f"object {params.object!r} has no {what}; the {what}'s parts: {', '.join(names)}"
+            f"{suggest(params.object, names)}"
+        )
+    part = None if params.object is None else names.index(params.object)
+    return GoalTarget(getattr(params, "goal", "final"), part, GoalParts.of(layout.task.goal))
 
 
 def _target(desired, info, params):
@@ -55,23 +93,63 @@ def _target(desired, info, params):
     return np.where(active[..., None], info["intermediate_goal"], desired)
 
 
-def _distance(achieved, desired):
-    return lengths(achieved - desired)
+def _distances(achieved, desired, target: GoalTarget):
+    """Each measured point part's distance to its goal, (..., parts): the bound part alone, or every one."""
+    size = target.parts.points_size
+    offset = np.asarray(achieved, float)[..., :size] - np.asarray(desired, float)[..., :size]
+    if target.part is not None:
+        offset = offset[..., POINT * target.part : POINT * (target.part + 1)]
+    if offset.ndim == 1 and offset.size == POINT:  # a step's goal of one part: plain floats are faster
+        return np.asarray([length(offset)])
+    return lengths(offset.reshape(*offset.shape[:-1], -1, POINT))
 
 
-@reward_term(description="‖achieved − goal‖", params=CurrentGoal, info_keys=STAGE_KEYS)
+def _angles(achieved, desired, target: GoalTarget):
+    """Each measured orientation part's angle to its goal, (..., parts): the bound part alone, or every one."""
+    angles = target.parts.angles(achieved, desired)
+    return angles if target.part is None else angles[..., target.part : target.part + 1]
+
+
+def _reached(achieved, desired, target: GoalTarget, tolerance):
+    # every part within tolerance: a stack is not half built when one cube is far and the other exact
+    reached = (_distances(achieved, desired, target) < tolerance).all(axis=-1)
+    if target.parts.turned and target.part is None:  # and every orientation within its own
+        reached = reached & (_angles(achieved, desired, target) < np.asarray(target.parts.turn_tolerances)).all(-1)
+    return reached
+
+
+@reward_term(
+    description="Σ over the goal's parts of ‖achieved − goal‖",
+    params=CurrentGoal,
+    info_keys=STAGE_KEYS,
+    bind=bind_part,
+)
 def goal_distance(achieved, desired, info, params, tolerance):
-    return _distance(achieved, _target(desired, info, params))
+    return _distances(achieved, _target(desired, info, params), params).sum(axis=-1)
 
 
-@reward_term(description="1 if ‖achieved − goal‖ < tolerance", params=FinalGoal, info_keys=STAGE_KEYS)
+@reward_term(
+    description="1 if every part's ‖achieved − goal‖ < tolerance",
+    params=FinalGoal,
+    info_keys=STAGE_KEYS,
+    bind=bind_part,
+)
 def goal_reached(achieved, desired, info, params, tolerance):
-    return (_distance(achieved, _target(desired, info, params)) < tolerance).astype(float)
+    return _reached(achieved, _target(desired, info, params), params, tolerance).astype(float)
 
 
-@reward_term(description="0 if ‖achieved − goal‖ < tolerance else -1")
+@reward_term(description="0 if every part's ‖achieved − goal‖ < tolerance else -1", params=PartChoice, bind=bind_part)
 def goal_reached_sparse(achieved, desired, info, params, tolerance):
-    return (_distance(achieved, desired) < tolerance).astype(float) - 1.0
+    return _reached(achieved, desired, params, tolerance).astype(float) - 1.0
+
+
+@reward_term(
+    description="Σ over the goal's orientation parts of the angle to the goal, rad",
+    params=PartChoice,
+    bind=bind_turn,
+)
+def goal_angle(achieved, desired, info, params, tolerance):
+    return _angles(achieved, desired, params).sum(axis=-1)
 
 
 @reward_term(description="1 every step")
@@ -91,6 +169,11 @@ for _key, _description in STEP_FLAGS.items():
     _info_flag(_key, _description)
 
 
-@termination_term(name="goal_reached", description="‖achieved − goal‖ < tolerance")
+@termination_term(
+    name="goal_reached",
+    description="every part's ‖achieved − goal‖ < tolerance",
+    params=PartChoice,
+    bind=bind_part,
+)
 def goal_reached_termination(achieved, desired, info, params, tolerance):
-    return _distance(achieved, desired) < tolerance
+    return _reached(achieved, desired, params, tolerance)

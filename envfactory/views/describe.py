@@ -17,6 +17,7 @@ from envfactory.geometry.frames import TaskFrame
 from envfactory.geometry.object_press import ObjectPressGuard
 from envfactory.geometry.robot_model import robot_geometry
 from envfactory.geometry.safety import SafetyCheck
+from envfactory.terms.goal_parts import GoalParts
 
 
 def _table(title: str, *columns: str) -> Table:
@@ -38,11 +39,26 @@ def observation_table(compiled: Blueprint) -> Table:
     return table
 
 
+def goal_size(compiled: Blueprint) -> int:
+    """The desired (and achieved) goal's size: three coordinates for each point the goal places, four for each
+    orientation."""
+    return GoalParts.of(compiled.spec.task.goal).size
+
+
 def goal_table(compiled: Blueprint) -> Table:
     goal = compiled.spec.task.goal
-    table = _table("desired_goal: Box(3,)", "Idx", "Dim", "Component", "Min", "Max")
-    for index, axis in enumerate("xyz"):
-        table.add_row(str(index), "1", f"goal {axis}", f"{goal.box[0][index]:.3f}", f"{goal.box[1][index]:.3f}")
+    table = _table(f"desired_goal: Box({goal_size(compiled)},)", "Idx", "Dim", "Component", "Min", "Max")
+    several = len(goal.parts) > 1
+    for part, (name, offset) in enumerate(zip(goal.parts, goal.part_offsets)):
+        for index, axis in enumerate("xyz"):
+            low, high = goal.box[0][index] + offset[index], goal.box[1][index] + offset[index]
+            component = f"{name}'s goal {axis}" if several else f"goal {axis}"
+            table.add_row(str(3 * part + index), "1", component, f"{low:.3f}", f"{high:.3f}")
+    start = 3 * len(goal.parts)
+    for turn, name in enumerate(goal.orientation):
+        for index, axis in enumerate("xyzw"):
+            low = "0.000" if axis == "w" else "-1.000"  # w >= 0: one quaternion per orientation
+            table.add_row(str(start + 4 * turn + index), "1", f"{name}'s orientation q{axis}", low, "1.000")
     return table
 
 
@@ -216,7 +232,8 @@ def kwarg_lines(compiled: Blueprint) -> list[str]:
 
 def id_summary(compiled: Blueprint) -> tuple[str, str, str, str, str]:
     """Robot, task, backend, observation size and action size: an ID's row in `envfactory list`."""
-    obs = str(compiled.observation_size) + (" + goal 3+3" if compiled.goal_env else "")
+    size = goal_size(compiled)
+    obs = str(compiled.observation_size) + (f" + goal {size}+{size}" if compiled.goal_env else "")
     return compiled.spec.robot.name, compiled.spec.task.name, compiled.backend, obs, str(compiled.action.size)
 
 
@@ -319,9 +336,16 @@ def description_parts(compiled: Blueprint) -> list[Part]:
     ]
     if compiled.goal_env:
         parts.append(Part("goal", goal_table(compiled)))
-        source = "EE" if compiled.achieved_from == "ee" else compiled.achieved_from
+        sources = (
+            " then ".join([*("EE" if name == "ee" else name for name in spec.task.goal.parts)])
+            + " XYZ"
+            + "".join(f", then {name}'s orientation (x, y, z, w)" for name in spec.task.goal.orientation)
+        )
         parts.append(
-            Part("achieved goal", f"achieved_goal: Box(3,) — current {source} XYZ, same frame as desired_goal\n")
+            Part(
+                "achieved goal",
+                f"achieved_goal: Box({goal_size(compiled)},) — current {sources}, same frame as desired_goal\n",
+            )
         )
     else:
         goal = spec.task.goal
