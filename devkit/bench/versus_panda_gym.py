@@ -45,6 +45,7 @@ PANDA_TWIN = {
     "Push": "PandaPush-v3",
     "PnP": "PandaPickAndPlace-v3",
     "Slide": "PandaSlide-v3",
+    "Stack": "PandaStack-v3",
 }
 ENVFACTORY_IDS = [
     "UR5eReacherSim-v0",
