@@ -21,8 +21,8 @@ scripted experts are envfactory's own and, for panda-gym, a proportional
 controller of the same stages (reach; push from behind; pick and place).
 With --engines, each envfactory ID runs on each engine named (a row per
 engine); physics time is MuJoCo's rollout and mj_step calls there. "touching %" is the
-share of steps that end with the robot within 2 mm of the cube (each engine's
-own distance query, outside the timed step): how much of the run is contact.
+share of steps that end with the robot within 2 mm of a task object (the cube, the puck, either of Stack's
+cubes; each engine's own distance query, outside the timed step): how much of the run is contact.
 """
 
 from __future__ import annotations
@@ -165,30 +165,36 @@ class PandaExpert:
 
 
 def _touching(env, env_id: str):
-    """A function telling whether the robot ends a step within 2 mm of the cube, or None without a cube."""
+    """A function telling whether the robot ends a step within 2 mm of any of the task's objects (a cube, a puck,
+    both of Stack's cubes), or None without one."""
     unwrapped = env.unwrapped
     if is_panda_gym(env_id):
-        if "Reach" in env_id:
-            return None
         sim = unwrapped.sim
-        robot, cube = sim._bodies_idx["panda"], sim._bodies_idx["object"]
-        return lambda: bool(sim.physics_client.getClosestPoints(robot, cube, 0.002))
+        # panda-gym names its task bodies "object", or "object1" and "object2" (Stack)
+        objects = [index for name, index in sim._bodies_idx.items() if name.startswith("object")]
+        if not objects:
+            return None
+        robot = sim._bodies_idx["panda"]
+        return lambda: any(sim.physics_client.getClosestPoints(robot, body, 0.002) for body in objects)
     backend = unwrapped.backend
-    if "cube" not in unwrapped.blueprint.spec.task.objects:
+    names = list(unwrapped.blueprint.spec.task.objects)
+    if not names:
         return None
     if hasattr(backend, "client"):
         import pybullet
 
-        return lambda: bool(
-            pybullet.getClosestPoints(backend.body, backend.objects["cube"], 0.002, physicsClientId=backend.client)
+        bodies = [backend.objects[name] for name in names]
+        return lambda: any(
+            pybullet.getClosestPoints(backend.body, body, 0.002, physicsClientId=backend.client) for body in bodies
         )
     import mujoco
 
     model, data = backend.model, backend.data
-    cube = next(g for g in range(model.ngeom) if model.geom_bodyid[g] == backend.handles.object_body["cube"])
+    bodies = {backend.handles.object_body[name] for name in names}
+    objects = [g for g in range(model.ngeom) if model.geom_bodyid[g] in bodies]
     robot = [g for g in range(model.ngeom) if model.body(model.geom_bodyid[g]).name.startswith("robot/")]
     # mj_geomDistance returns distmax itself for anything farther: ask up to 1 cm, count what is nearer than 2 mm
-    return lambda: any(mujoco.mj_geomDistance(model, data, g, cube, 0.01, None) < 0.002 for g in robot)
+    return lambda: any(mujoco.mj_geomDistance(model, data, g, o, 0.01, None) < 0.002 for g in robot for o in objects)
 
 
 def _policy(env, env_id: str, kind: str, seed: int):
