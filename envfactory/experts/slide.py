@@ -43,8 +43,10 @@ class SlideExpert(PushExpert):
     def __call__(self, observation):
         state = self.env.state
         puck = state.objects[self.params.object]
-        if np.linalg.norm(puck.linear_velocity[:2]) > SLIDING:
-            # it is on its way: rise clear of it, ready for a next strike
+        tolerance = self.env.blueprint.spec.task.goal.tolerance
+        arrived = np.linalg.norm(puck.position - self.env.goal_of(self.params.object)) < tolerance
+        if arrived or np.linalg.norm(puck.linear_velocity[:2]) > SLIDING:
+            # on its way, or there: rise clear of it (ready for a next strike, should it stop short or slide on)
             ee = state.ee_position
             clear = np.append(ee[:2], puck.position[2] + self.params.clearance)
             return self.motion.toward(clear, max_step=self.params.step)
