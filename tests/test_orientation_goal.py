@@ -1,7 +1,5 @@
-"""An orientation as part of the goal (task.goal.orientation), on a test task that turns the cube a quarter about x:
-the goal vectors carry a quaternion after the position, and the rewards measure the angle between orientations."""
-
-from pathlib import Path
+"""An orientation as part of the goal (task.goal.orientation), on Flip, which turns the cube a quarter about x: the
+goal vectors carry a quaternion after the position, and the rewards measure the angle between orientations."""
 
 import gymnasium as gym
 import numpy as np
@@ -9,19 +7,9 @@ import pybullet as p
 import pytest
 
 import envfactory
-from envfactory.factory import register_specs, unregister_folder
 from envfactory.schema.errors import SpecError
 
-FOLDER = Path(__file__).parent / "spec_folders" / "turn"
-TOLERANCE, TURN_TOLERANCE = 0.04, 0.3  # the test family's, m and rad
-
-
-@pytest.fixture(scope="module", autouse=True)
-def turn_ids():
-    added, problems = register_specs(FOLDER)
-    assert problems == [] and sorted(added) == ["TurnGoalSim-v0", "TurnSim-v0"]
-    yield
-    unregister_folder(FOLDER)
+TOLERANCE, TURN_TOLERANCE = 0.04, 0.3  # the UR5e family's, m and rad
 
 
 def _rodrigues(axis_angle: np.ndarray) -> np.ndarray:
@@ -51,7 +39,7 @@ def _hold(env):
 def test_the_goal_vectors_carry_the_cubes_quaternion_after_its_position():
     """achieved_goal is the cube's centre, then its orientation as PyBullet holds it (the UR5e's task frame is the
     world); desired_goal's quaternion is a quarter turn about x, either way, with w >= 0."""
-    env = gym.make("TurnGoalSim-v0")
+    env = gym.make("UR5eFlipGoalSim-v0")
     try:
         turns = set()
         for seed in range(8):
@@ -95,7 +83,7 @@ def test_compute_reward_measures_the_angle_between_orientations_over_a_batch():
         ("Sparse", both - 1.0),
         ("Dense", -2.0 * distance - 0.5 * angle + 20.0 * both - 0.5),  # the task's weights; nothing grasped
     ):
-        env = gym.make("TurnGoalSim-v0", reward_type=reward_type)
+        env = gym.make("UR5eFlipGoalSim-v0", reward_type=reward_type)
         try:
             _, info = env.reset(seed=0)
             rewards = env.unwrapped.compute_reward(achieved, desired, np.array([info] * count))
@@ -105,7 +93,7 @@ def test_compute_reward_measures_the_angle_between_orientations_over_a_batch():
 
 
 def test_success_needs_the_turn_as_well_as_the_place():
-    env = gym.make("TurnGoalSim-v0")
+    env = gym.make("UR5eFlipGoalSim-v0")
     try:
         observation, _ = env.reset(seed=3)
         goal = observation["desired_goal"]
@@ -121,7 +109,7 @@ def test_success_needs_the_turn_as_well_as_the_place():
 
 def test_the_observation_holds_the_turn_still_to_make():
     """goal_rotation is the rotation vector that turns the upright cube into its goal: a quarter about x."""
-    env = gym.make("TurnSim-v0")
+    env = gym.make("UR5eFlipSim-v0")
     try:
         observation, _ = env.reset(seed=1)
         slots = {s.term.name: s for s in env.unwrapped.blueprint.policy_observation}
@@ -146,7 +134,7 @@ def test_the_observation_holds_the_turn_still_to_make():
 )
 def test_orientation_mistakes_are_named(override, message):
     with pytest.raises(SpecError, match=message):
-        envfactory.blueprint("TurnSim-v0", [override])
+        envfactory.blueprint("UR5eFlipSim-v0", [override])
 
 
 def test_an_angle_term_without_an_orientation_goal_is_named():

@@ -141,6 +141,12 @@ def test_ee_mode_shrinks_previous_action():
         ("VX300SStackSim-v0", 71, 68, 63),
         ("RX200StackSim-v0", 68, 66, 60),
         ("NED2StackSim-v0", 69, 66, 61),
+        # Flip: Pick-and-Place's layout with the turn still to make (goal_rotation 3, goal_angle 1); goal envs drop
+        # those with the goal direction and distance (8)
+        ("UR5eFlipSim-v0", 51, 48, 43),
+        ("PandaFlipSim-v0", 56, 52, 48),
+        ("VX300SFlipSim-v0", 55, 52, 47),
+        ("NED2FlipSim-v0", 53, 50, 45),
     ],
 )
 def test_observation_sizes(env_id, standard, ee_mode, goal_env):

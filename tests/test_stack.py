@@ -5,9 +5,9 @@ import mujoco
 import numpy as np
 import pybullet as p
 import pytest
+from expert_runs import full_episodes
 
-from envfactory.envs.episodes import run_episodes, success_rate
-from envfactory.experts import make_policy
+from envfactory.envs.episodes import success_rate
 
 STACK_IDS = ["PandaStackSim-v0", "UR5eStackSim-v0", "VX300SStackSim-v0", "RX200StackSim-v0", "NED2StackSim-v0"]
 EDGE = 0.04  # the cubes' edge, and the upper goal's height over the lower one's
@@ -133,21 +133,13 @@ def test_the_expert_stacks():
     """A quick sample in the default run (the 20-seed figures are the slow test below). Each episode runs to its
     time limit and counts its last step: the expert lets go of the upper cube, so a success is a stack that
     stands on its own, not one the hand still holds together."""
-    env = gym.make("UR5eStackSim-v0")
-    try:
-        results = run_episodes(env, make_policy("scripted", env), episodes=3, seed=0, stop_on_success=False)
-        assert success_rate(results) >= 2 / 3, [(r.seed, r.length, r.success) for r in results]
-        assert sum(r.rejected for r in results) == 0  # the expert never asks for an unsafe motion
-    finally:
-        env.close()
+    results = full_episodes("UR5eStackSim-v0", episodes=3)
+    assert success_rate(results) >= 2 / 3, [(r.seed, r.length, r.success) for r in results]
+    assert sum(r.rejected for r in results) == 0  # the expert never asks for an unsafe motion
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("env_id", STACK_IDS)
 def test_the_expert_stacks_over_20_seeds(env_id):
-    env = gym.make(env_id)
-    try:
-        results = run_episodes(env, make_policy("scripted", env), episodes=20, seed=0, stop_on_success=False)
-        assert success_rate(results) >= 0.8, [(r.seed, r.length) for r in results if not r.success]
-    finally:
-        env.close()
+    results = full_episodes(env_id, episodes=20)
+    assert success_rate(results) >= 0.8, [(r.seed, r.length) for r in results if not r.success]

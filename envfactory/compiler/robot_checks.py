@@ -355,6 +355,29 @@ def _reach_problems(spec: ComposedSpec, geometry: RobotGeometry) -> list[tuple[s
     return problems
 
 
+def _held_turned(point, kinematics, safety, home: np.ndarray) -> list[tuple[str, str]]:
+    """A point the expert holds with the gripper turned (any of its rotations will do): the arm must reach one
+    of them, clear of the table and itself."""
+    target, gripper = point.points[0], point.gripper[0]
+    misses = []
+    for rotation in point.rotations:
+        solution = kinematics.solve_ik(home, target, target_rotation=rotation, gripper=gripper, rotation_weight=1.0)
+        if not solution.success:
+            misses.append(f"IK misses by {solution.position_error:.3f} m")
+            continue
+        verdict = safety.check(solution.q_arm, solution.q_arm, gripper)
+        if verdict.accepted:
+            return []
+        misses.append(verdict.reason)
+    return [
+        (
+            point.param,
+            f"the arm cannot hold the object as the expert's '{point.name}' asks, at {_point(target)} "
+            f"(either way round: {'; '.join(misses)})",
+        )
+    ]
+
+
 def _expert_problems(spec: ComposedSpec, geometry: RobotGeometry) -> list[tuple[str, str]]:
     """The expert's grasp and push points must be poses the safety check accepts: a point where the fingers
     come within the safety margin of the table is refused at every try, and the expert stalls above it."""
@@ -369,6 +392,9 @@ def _expert_problems(spec: ComposedSpec, geometry: RobotGeometry) -> list[tuple[
     closing = "xyz".index(robot.gripper.closing_axis) if robot.gripper is not None else 1
     problems = []
     for point in expert_points(spec):
+        if point.rotations is not None:
+            problems += _held_turned(point, kinematics, safety, home)
+            continue
         if point.name not in ("grasp", "push"):
             continue
         # the expert squares the fingers to the object (a quarter turn grips alike) or lays them across the push

@@ -8,6 +8,7 @@ names its expert and the expert's params in YAML; robot-specific numbers
 
 from __future__ import annotations
 
+from envfactory.experts.flip import FlipExpert
 from envfactory.experts.pnp import PickPlaceExpert
 from envfactory.experts.push import PushExpert
 from envfactory.experts.reach import ReachExpert
@@ -20,6 +21,7 @@ EXPERTS = {
     "pnp": PickPlaceExpert,
     "slide": SlideExpert,
     "stack": StackExpert,
+    "flip": FlipExpert,
 }
 
 

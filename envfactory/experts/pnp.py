@@ -104,7 +104,7 @@ class PickPlaceExpert(Expert):
         grip = gripper.closed if p.grip is None else p.grip
         if self.floor_z is None:
             self.floor_z = cube[2]
-        rotation = motion.square_to(float(cube_state.rpy[2]))
+        rotation = self.grasp_rotation(cube_state)
         above = np.append(cube[:2], cube[2] + p.clearance)
         grasp = np.append(cube[:2], cube[2] + p.grasp_height)
 
@@ -138,6 +138,7 @@ class PickPlaceExpert(Expert):
             if self.closing > p.close_steps:
                 self.phase = "lift"
                 self.hold_offset = cube - ee
+                self.grasped()
             else:
                 return motion.toward(grasp, rotation, grip, p.step / 2)
         goal = env.goal_of(p.object)
@@ -149,8 +150,26 @@ class PickPlaceExpert(Expert):
                 return motion.toward(np.append(ee[:2], carry_z), state.ee_rotation, grip, p.step)
             self.phase = "carry"
         if self.phase == "carry" and np.linalg.norm(ee[:2] - ee_goal[:2]) > 0.01:
-            return motion.toward(np.append(ee_goal[:2], carry_z), state.ee_rotation, grip, p.step)
+            return motion.toward(np.append(ee_goal[:2], carry_z), self.held_rotation(), grip, p.step)
         self.phase = "place"
+        return self.place(goal, grip)
+
+    # ------------------------------------------------------------ what a variant of the task changes
+
+    def grasp_rotation(self, cube_state):
+        """The EE's orientation when it closes: square to the cube's faces."""
+        return self.motion.square_to(float(cube_state.rpy[2]))
+
+    def grasped(self) -> None:
+        """The grip just closed on the cube."""
+
+    def held_rotation(self):
+        """The EE's orientation while it carries the cube: as it is."""
+        return self.env.state.ee_rotation
+
+    def place(self, goal: np.ndarray, grip: float):
         # closed on the cube itself: a cube that turns or slides in the grip moves its offset from the EE,
         # and holding the EE where that offset once put the cube would let the cube drift off the goal
-        return motion.toward(ee + (goal - cube), state.ee_rotation, grip, p.step)
+        state = self.env.state
+        cube = state.objects[self.params.object].position
+        return self.motion.toward(state.ee_position + (goal - cube), self.held_rotation(), grip, self.params.step)

@@ -26,6 +26,9 @@ class ExpertPoint:
     # EE held this far off by the workspace still does the job
     slack: float
     direction: np.ndarray | None = None  # the push direction (x, y) of a push point
+    # the EE orientations the expert may hold there, any one of which will do (None: the gripper pointing down,
+    # squared to the object or laid across the push)
+    rotations: tuple[np.ndarray, ...] | None = None
 
 
 def spawn_spots(obj) -> np.ndarray:
