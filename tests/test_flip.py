@@ -44,3 +44,11 @@ def test_the_expert_flips():
 def test_the_expert_flips_over_20_seeds(env_id):
     results = full_episodes(env_id, episodes=20)
     assert success_rate(results) >= 0.8, [(r.seed, r.length) for r in results if not r.success]
+
+
+def test_ee_mode_is_refused_for_a_goal_that_turns_the_cube():
+    """EE mode holds the gripper pointing down: an env whose goal asks for a turn could never be solved in it."""
+    import envfactory
+
+    with pytest.raises(envfactory.SpecError, match="gym.make kwarg ee_action_type=True: env.action.ee: the goal turns"):
+        gym.make("PandaFlipSim-v0", ee_action_type=True)

@@ -397,6 +397,14 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
     terminations = _terminations(spec, layout, found)
     _check_info_keys(spec, rewards, terminations, found)
     achieved_from = _achieved_from(spec, found)
+    if spec.env.action.ee and spec.task.goal.orientation:
+        # EE mode moves the EE with the gripper held pointing down: no action turns what it holds
+        found.add(
+            "env.action.ee",
+            f"the goal turns {', '.join(spec.task.goal.orientation)} (task.goal.orientation), and EE mode "
+            "(ee_action_type) moves the EE with the gripper held pointing down, so no action could turn it: "
+            "use joint mode",
+        )
     _check_expert(spec, found)
     check_expert_workspace(spec, found)
     images = _images(spec, found)
