@@ -14,6 +14,12 @@ SIM_IDS = sorted(env_id for env_id, record in envfactory.records().items() if re
 REAL_IDS = sorted(env_id for env_id, record in envfactory.records().items() if record.backend == "rosbridge")
 
 
+def action_modes(env_id: str) -> tuple[bool, ...]:
+    """The ee_action_type values an ID accepts: EE mode is refused where the goal turns an object (Flip), since
+    no EE-mode action turns the gripper."""
+    return (False,) if envfactory.blueprint(env_id).spec.task.goal.orientation else (False, True)
+
+
 @pytest.fixture
 def make():
     """gym.make that closes every env it opened."""

@@ -14,6 +14,7 @@ import gymnasium as gym
 import numba
 import numpy as np
 import pytest
+from conftest import action_modes
 
 import envfactory
 from envfactory.geometry.kernels import serving, warmup
@@ -69,7 +70,7 @@ def both_forms(monkeypatch):
 @pytest.mark.parametrize("env_id", SIM_IDS)
 def test_the_interpreted_kernels_answer_as_the_compiled_ones_at_the_types_warmup_compiles(env_id, both_forms):
     seen, differences = both_forms
-    for ee_action_type in (False, True):
+    for ee_action_type in action_modes(env_id):
         env = gym.make(env_id, ee_action_type=ee_action_type)
         env.reset(seed=3)
         env.action_space.seed(3)

@@ -4,7 +4,7 @@ interrupted by extreme actions (which knocks and flings the cube in Push and PnP
 
 import numpy as np
 import pytest
-from conftest import SIM_IDS
+from conftest import SIM_IDS, action_modes
 
 from devkit.oracles.bullet_judge import POLICIES
 from envfactory.experts import make_policy
@@ -73,8 +73,11 @@ def test_observations_stay_inside_the_declared_space(env_id, make):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("ee", [False, True], ids=["joint", "ee"])
-@pytest.mark.parametrize("env_id", SIM_IDS)
+@pytest.mark.parametrize(
+    "env_id, ee",
+    [(env_id, ee) for env_id in SIM_IDS for ee in action_modes(env_id)],
+    ids=lambda value: {False: "joint", True: "ee"}.get(value, value) if isinstance(value, bool) else value,
+)
 def test_observations_stay_inside_the_declared_space_10k(env_id, ee, make):
     env = make(env_id, ee_action_type=ee)
     assert drive(env, steps=10_000, seed=1) >= 9_995

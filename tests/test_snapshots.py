@@ -142,16 +142,20 @@ def test_ee_mode_shrinks_previous_action():
         ("RX200StackSim-v0", 68, 66, 60),
         ("NED2StackSim-v0", 69, 66, 61),
         # Flip: Pick-and-Place's layout with the turn still to make (goal_rotation 3, goal_angle 1); goal envs drop
-        # those with the goal direction and distance (8)
-        ("UR5eFlipSim-v0", 51, 48, 43),
-        ("PandaFlipSim-v0", 56, 52, 48),
-        ("VX300SFlipSim-v0", 55, 52, 47),
-        ("NED2FlipSim-v0", 53, 50, 45),
+        # those with the goal direction and distance (8); EE mode is refused (no EE-mode action turns the cube)
+        ("UR5eFlipSim-v0", 51, None, 43),
+        ("PandaFlipSim-v0", 56, None, 48),
+        ("VX300SFlipSim-v0", 55, None, 47),
+        ("NED2FlipSim-v0", 53, None, 45),
     ],
 )
 def test_observation_sizes(env_id, standard, ee_mode, goal_env):
     assert envfactory.blueprint(env_id).observation_size == standard
-    assert envfactory.blueprint(env_id, ee_action_type=True).observation_size == ee_mode
+    if ee_mode is None:
+        with pytest.raises(envfactory.SpecError, match="env.action.ee: the goal turns"):
+            envfactory.blueprint(env_id, ee_action_type=True)
+    else:
+        assert envfactory.blueprint(env_id, ee_action_type=True).observation_size == ee_mode
     assert envfactory.blueprint(env_id.replace("Sim", "GoalSim")).observation_size == goal_env
 
 
