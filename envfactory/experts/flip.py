@@ -47,7 +47,7 @@ class FlipExpert(PickPlaceExpert):
             return points
         down = pin.rpy.rpyToMatrix(*robot.top_down_rpy)
         closing = "xyz".index(robot.gripper.closing_axis)
-        grip = robot.gripper.closed if params.grip is None else params.grip
+        grip = params.holding(robot.gripper)
         centre = np.mean(np.asarray(spec.task.goal.box, float), axis=0) + [0.0, 0.0, params.drop]
         for axis in turn.axes:
             direction = np.asarray(TURN_AXES[axis])
@@ -108,8 +108,7 @@ class FlipExpert(PickPlaceExpert):
         cube = state.objects[p.object].position
         lifted = cube + [0.0, 0.0, p.lift]
         over = env.goal_of(p.object) + [0.0, 0.0, p.drop]
-        gripper = self.motion.gripper
-        grip = gripper.closed if p.grip is None else p.grip
+        grip = p.holding(self.motion.gripper)
         q = state.q_arm
         for point in (lifted, over):
             solution = env.kinematics.solve_ik(
@@ -139,7 +138,7 @@ class FlipExpert(PickPlaceExpert):
             return self.motion.toward(
                 self.lifted_at,
                 self.target,
-                self.motion.gripper.closed if self.params.grip is None else self.params.grip,
+                self.params.holding(self.motion.gripper),
                 self.params.step,
             )
         return super().__call__(observation)

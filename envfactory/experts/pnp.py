@@ -32,6 +32,10 @@ class CarryParams(TermParams):
     # keeps the commanded finger sweep, and so the room the safety check needs below it, short.
     grip: float | None = None
 
+    def holding(self, gripper) -> float:
+        """The gripper command that holds the object: `grip`, or fully closed."""
+        return gripper.closed if self.grip is None else self.grip
+
 
 class PickPlaceParams(CarryParams):
     object: str = "cube"
@@ -48,7 +52,7 @@ class PickPlaceExpert(Expert):
         if obj is None:
             return []
         gripper = spec.robot.gripper
-        grip = (gripper.closed if params.grip is None else params.grip) if gripper is not None else 0.0
+        grip = params.holding(gripper) if gripper is not None else 0.0
         held = (gripper.open, grip) if gripper is not None else (0.0,)
         points = [
             ExpertPoint(
@@ -101,7 +105,7 @@ class PickPlaceExpert(Expert):
         cube_state = state.objects[p.object]
         cube, ee = cube_state.position, state.ee_position
         gripper = motion.gripper
-        grip = gripper.closed if p.grip is None else p.grip
+        grip = p.holding(gripper)
         if self.floor_z is None:
             self.floor_z = cube[2]
         rotation = self.grasp_rotation(cube_state)

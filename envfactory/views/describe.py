@@ -48,17 +48,12 @@ def goal_size(compiled: Blueprint) -> int:
 def goal_table(compiled: Blueprint) -> Table:
     goal = compiled.spec.task.goal
     table = _table(f"desired_goal: Box({goal_size(compiled)},)", "Idx", "Dim", "Component", "Min", "Max")
+    low, high = GoalParts.of(goal).stacked_bounds(*goal.box)
     several = len(goal.parts) > 1
-    for part, (name, offset) in enumerate(zip(goal.parts, goal.part_offsets)):
-        for index, axis in enumerate("xyz"):
-            low, high = goal.box[0][index] + offset[index], goal.box[1][index] + offset[index]
-            component = f"{name}'s goal {axis}" if several else f"goal {axis}"
-            table.add_row(str(3 * part + index), "1", component, f"{low:.3f}", f"{high:.3f}")
-    start = 3 * len(goal.parts)
-    for turn, name in enumerate(goal.orientation):
-        for index, axis in enumerate("xyzw"):
-            low = "0.000" if axis == "w" else "-1.000"  # w >= 0: one quaternion per orientation
-            table.add_row(str(start + 4 * turn + index), "1", f"{name}'s orientation q{axis}", low, "1.000")
+    names = [f"{name}'s goal {axis}" if several else f"goal {axis}" for name in goal.parts for axis in "xyz"]
+    names += [f"{name}'s orientation q{axis}" for name in goal.orientation for axis in "xyzw"]
+    for index, name in enumerate(names):
+        table.add_row(str(index), "1", name, f"{low[index]:.3f}", f"{high[index]:.3f}")
     return table
 
 
