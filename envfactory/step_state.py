@@ -15,6 +15,8 @@ class ObjectState:
     rpy: np.ndarray
     linear_velocity: np.ndarray
     angular_velocity: np.ndarray
+    joint: float = 0.0  # a fixture's joint past its lower limit (m); 0 for a free object
+    joint_velocity: float = 0.0
 
 
 @dataclass

@@ -147,6 +147,11 @@ def test_ee_mode_shrinks_previous_action():
         ("PandaFlipSim-v0", 56, None, 48),
         ("VX300SFlipSim-v0", 55, None, 47),
         ("NED2FlipSim-v0", 53, None, 45),
+        # Drawer: the arm's rows, the handle's point and its offset from the EE, the drawer's joint and its
+        # velocity, is_grasped; goal envs drop the goal direction and distance (4)
+        ("UR5eDrawerSim-v0", 40, 37, 36),
+        ("PandaDrawerSim-v0", 45, 41, 41),
+        ("VX300SDrawerSim-v0", 44, 41, 40),
     ],
 )
 def test_observation_sizes(env_id, standard, ee_mode, goal_env):

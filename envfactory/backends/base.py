@@ -34,6 +34,7 @@ class ObjectReading:
     position: np.ndarray
     quaternion: np.ndarray  # x, y, z, w
     stamp: float
+    joint: float | None = None  # a fixture's joint, past its lower limit (m); None for a free object
 
 
 @dataclass(frozen=True)
@@ -140,7 +141,8 @@ class Backend(Protocol):
         block; on a real path a reading older than its limit raises StaleFeed."""
 
     def read_object(self, name: str) -> ObjectReading:
-        """The newest pose of a task object, in the task frame. Does not block; stale raises StaleFeed."""
+        """The newest pose of a task object, in the task frame; of a fixture (task.fixtures), its moving link's pose
+        and its joint's value past the lower limit. Does not block; stale raises StaleFeed."""
 
     def mark_goal(self, position: np.ndarray) -> None:
         """Show the goal to people watching (a marker in sim); never part of an observation."""

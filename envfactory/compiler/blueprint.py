@@ -165,6 +165,8 @@ class Blueprint:
     events: tuple[EventSlot, ...] = field(default=())  # declared ones, applied only when randomized
     sensing: tuple[SensingSlot, ...] = field(default=())
     randomized: bool = False  # task.randomization.enabled (the randomize kwarg)
+    # (fixture, the folder its URDF path is relative to): where the task file naming it lies
+    fixture_folders: tuple[tuple[str, Path], ...] = field(default=())
 
     @property
     def policy_observation(self) -> tuple[ObservationSlot, ...]:

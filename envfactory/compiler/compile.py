@@ -3,7 +3,9 @@ checks that need the robot model (`robot_checks`) and the scene (`scene_checks`)
 
 from __future__ import annotations
 
+import xml.etree.ElementTree as ElementTree
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 from pydantic import BaseModel, ValidationError
@@ -24,6 +26,8 @@ from envfactory.compiler.blueprint import (
 )
 from envfactory.compiler.scene_checks import check_expert_workspace, check_scene
 from envfactory.experts import EXPERTS
+from envfactory.geometry.fixtures import FixtureError, fixture_urdf, read_fixture
+from envfactory.geometry.frames import TaskFrame
 from envfactory.geometry.point_boxes import derived_boxes
 from envfactory.schema.compose import LoadedSpec
 from envfactory.schema.errors import suggest
@@ -261,10 +265,28 @@ def _check_info_keys(spec: ComposedSpec, rewards, terminations, found: Findings)
                     )
 
 
+def _fixtures(loaded: LoadedSpec, found: Findings) -> tuple[tuple[tuple[str, Path], ...], dict]:
+    """Each fixture's URDF read as the checks see it: ((name, folder), ...) and {name: FixtureModel}; a fixture
+    that cannot be used is a problem at its field."""
+    spec, folders, models = loaded.spec, [], {}
+    frame = TaskFrame.of(spec.robot)
+    for name, fixture in spec.task.fixtures.items():
+        folder = loaded.file_of(f"task.fixtures.{name}.urdf").parent
+        try:
+            models[name] = read_fixture(name, fixture_urdf(fixture.urdf, folder), fixture, frame)
+        except FixtureError as exc:
+            found.add(f"task.fixtures.{name}.{exc.field}", str(exc))
+        except (OSError, ElementTree.ParseError, AttributeError, ValueError) as exc:  # unreadable or malformed
+            found.add(f"task.fixtures.{name}.urdf", f"cannot read {fixture.urdf}: {type(exc).__name__}: {exc}")
+        folders.append((name, folder))
+    return tuple(folders), models
+
+
 def _achieved_from(spec: ComposedSpec, found: Findings) -> str:
     source, _, quantity = spec.task.goal.achieved.partition(".")
-    valid = ["ee.position", *(f"{name}.position" for name in spec.task.objects)]
-    if quantity != "position" or (source != "ee" and source not in spec.task.objects):
+    placeable = [*spec.task.objects, *spec.task.fixtures]
+    valid = ["ee.position", *(f"{name}.position" for name in placeable)]
+    if quantity != "position" or (source != "ee" and source not in placeable):
         found.add(
             "task.goal.achieved",
             f"unknown achieved goal {spec.task.goal.achieved!r}{suggest(spec.task.goal.achieved, valid)}",
@@ -310,10 +332,11 @@ def _check_expert(spec: ComposedSpec, found: Findings) -> None:
     params = _params(expert.Params, ref.params, "task.expert.params", found)
     if params is None:
         return
-    if getattr(params, "object", None) not in (None, *spec.task.objects):
+    known = [*spec.task.objects, *spec.task.fixtures]
+    if getattr(params, "object", None) not in (None, *known):
         found.add(
             "task.expert.params.object",
-            f"'object: {params.object}' names no object of the task (known: {list(spec.task.objects) or 'none'})",
+            f"'object: {params.object}' names no object or fixture of the task (known: {known or 'none'})",
         )
     for name, message in expert.check(params, spec):
         found.add(f"task.expert.params.{name}", message)
@@ -341,6 +364,13 @@ def _check_backend(spec: ComposedSpec, env_id: str, backend: str, found: Finding
     if backend != "rosbridge":
         return
     ros = spec.robot.ros
+    if spec.task.fixtures:
+        found.add(
+            path,
+            f"the task stands fixtures ({', '.join(spec.task.fixtures)}), and no robot topic carries a "
+            "fixture's joint: tasks with fixtures are simulation-only",
+        )
+        return
     if spec.robot.simulation_only is not None:
         found.add(path, f"robot {spec.robot.name!r} is simulation-only: {spec.robot.simulation_only}")
         return
@@ -378,6 +408,9 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
     scene.raise_if_any(loaded.family.name)
     found = loaded.findings()
     _import_terms(loaded, found)
+    fixture_folders, fixtures = _fixtures(loaded, found)
+    if len(fixtures) < len(spec.task.fixtures):
+        found.raise_if_any(env_id)  # every term and check below reads the fixtures: one that did not load is said alone
     action = _action_layout(spec)
     layout = TermContext(
         spec.robot,
@@ -385,8 +418,9 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
         action.size,
         action.policy_low,
         action.policy_high,
-        derived_boxes(spec, loaded.file_of("robot.model").parent),
+        derived_boxes(spec, loaded.file_of("robot.model").parent, fixtures),
         episode_steps=spec.registration.max_episode_steps,
+        fixtures=fixtures,
     )
     observation = _observation(spec, layout, found)
     reward_set = "sparse" if spec.env.reward_type == "Sparse" else "dense"
@@ -416,7 +450,9 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
         sim_checks.check_engine_settings(backend, found)
         sim_checks.check_display(spec, backend, found)
     if not found:
-        robot_checks.check(spec, loaded.file_of("robot.model").parent, found, loaded.family.path, env_id)
+        robot_checks.check(
+            spec, loaded.file_of("robot.model").parent, found, loaded.family.path, env_id, fixture_folders
+        )
     found.raise_if_any(env_id)
     info_keys = tuple(sorted({key for t in (*rewards, *terminations) for key in t.term.info_keys}))
     return Blueprint(
@@ -439,4 +475,5 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
         events=events,
         sensing=sensing,
         randomized=spec.task.randomization.enabled,
+        fixture_folders=fixture_folders,
     )

@@ -37,7 +37,14 @@ PAIRS_PATH = "robot.safety.collision_pairs"
 _found: dict[str, tuple[tuple[str, str], ...]] = {}  # what the checks found, per robot, task, scene and settings
 
 
-def check(spec: ComposedSpec, asset_root: Path, found: Findings, family: Path | None = None, env_id: str = "") -> None:
+def check(
+    spec: ComposedSpec,
+    asset_root: Path,
+    found: Findings,
+    family: Path | None = None,
+    env_id: str = "",
+    fixture_folders=(),
+) -> None:
     """Every problem `make` or `reset` would hit in the robot model and the reach of the task. The checks
     run once per robot, task, scene and settings: what they find is kept as (dotted path, message). `family`
     and `env_id` say whose pair list it is, for the advice on writing it."""
@@ -50,10 +57,11 @@ def check(spec: ComposedSpec, asset_root: Path, found: Findings, family: Path | 
             spec.workspace.model_dump_json(),
             str(asset_root),
             _pairs_text(spec, asset_root),
+            str(tuple(fixture_folders)),
         )
     )
     if key not in _found:
-        _found[key] = tuple(_problems(spec, asset_root))
+        _found[key] = tuple(_problems(spec, asset_root, fixture_folders))
     for path, message in _found[key]:
         if path == PAIRS_PATH:
             written = found.sources.locate("robot.safety.padding")
@@ -90,7 +98,7 @@ def _pairs_text(spec: ComposedSpec, asset_root: Path) -> str:
     return pairs.read_text() if pairs is not None and pairs.is_file() else ""
 
 
-def _problems(spec: ComposedSpec, asset_root: Path) -> list[tuple[str, str]]:
+def _problems(spec: ComposedSpec, asset_root: Path, fixture_folders=()) -> list[tuple[str, str]]:
     try:
         urdf = assemble(spec.robot.model, asset_root, spec.robot.name)
     except AssemblyError as exc:
@@ -114,7 +122,7 @@ def _problems(spec: ComposedSpec, asset_root: Path) -> list[tuple[str, str]]:
     if problems:
         return problems
     try:
-        geometry = robot_geometry(spec, asset_root)
+        geometry = robot_geometry(spec, asset_root, fixture_folders)
     except StalePairs as exc:
         return [(PAIRS_PATH, str(exc))]
     except (ValueError, ArithmeticError, np.linalg.LinAlgError, RuntimeError) as exc:

@@ -58,18 +58,22 @@ class ObjectTracker:
 
     def update(self, reading: ObjectReading) -> ObjectState:
         previous = self._previous
+        joint = 0.0 if reading.joint is None else float(reading.joint)
         if previous is not None and _same_pose(reading, previous[0]):
             # an object at rest (most steps): its rotation and angles stand, and it did not move
             state = previous[1]
             self._previous = (reading, state)
-            return ObjectState(reading.position, state.rotation, state.rpy, np.zeros(3), np.zeros(3))
+            return ObjectState(reading.position, state.rotation, state.rpy, np.zeros(3), np.zeros(3), joint)
         rotation = quaternion_to_matrix(reading.quaternion)
-        linear, angular = np.zeros(3), np.zeros(3)
+        linear, angular, joint_velocity = np.zeros(3), np.zeros(3), 0.0
         if previous is not None and reading.stamp > previous[0].stamp:
             dt = reading.stamp - previous[0].stamp
             linear = (reading.position - previous[0].position) / dt
             angular = pin.log3(rotation @ previous[1].rotation.T) / dt
-        state = ObjectState(reading.position, rotation, pin.rpy.matrixToRpy(rotation), linear, angular)
+            joint_velocity = (joint - previous[1].joint) / dt
+        state = ObjectState(
+            reading.position, rotation, pin.rpy.matrixToRpy(rotation), linear, angular, joint, joint_velocity
+        )
         self._previous = (reading, state)
         return state
 

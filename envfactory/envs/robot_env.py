@@ -54,7 +54,9 @@ class RobotEnv(gym.Env):
         robot = spec.robot
         self.metadata = {**self.metadata, "render_fps": 1.0 / spec.env.timing.action_cycle_time}
         self.task_frame = TaskFrame.of(robot)
-        geometry = robot_geometry(spec, blueprint.asset_root)  # shared with every env of this robot
+        geometry = robot_geometry(
+            spec, blueprint.asset_root, blueprint.fixture_folders
+        )  # shared with every env of this robot
         self.safety = geometry.safety_check(spec.env.safety)  # this env's own: it measures and remembers
         self.kinematics = self.safety.kinematics
         self.actions = ActionAdapter(
@@ -93,7 +95,9 @@ class RobotEnv(gym.Env):
         self._gripper_in_states = robot.gripper_state_index
         self._gripper_reset = spec.gripper_at_reset
         self.spawner = ObjectSpawner(spec.task.objects, spec.scene.table, self.task_frame)
-        self._trackers = {name: ObjectTracker() for name in spec.task.objects}
+        # fixtures are read as objects are: their moving link's pose, and their joint
+        self._trackers = {name: ObjectTracker() for name in (*spec.task.objects, *spec.task.fixtures)}
+        self.fixtures = geometry.fixtures
         self.stage = blueprint.stage()  # the task's stage before the desired goal, if it declares one
         self._timing = spec.env.timing
         self._verbose = spec.env.log_internal_state
@@ -104,8 +108,11 @@ class RobotEnv(gym.Env):
         self._clipped: list[str] = []  # observation columns the last observation had to clip
         self._clip_logged: set[str] = set()  # columns whose clipping this env has logged (info flags each step)
 
+        # only a backend that stands fixtures is told of them: others keep their signature, and the compiler
+        # refuses fixtures on them
+        fixtures = {"fixtures": geometry.fixtures} if geometry.fixtures else {}
         self.backend = backend_factory(blueprint.backend)(
-            spec, geometry.urdf, self.task_frame, render_mode, **backend_options
+            spec, geometry.urdf, self.task_frame, render_mode, **backend_options, **fixtures
         )
         self.backend.attach_geometry(self.safety.collision)
         # a simulator can leave its physics; a real arm's readings have their own checks on the real path
@@ -218,7 +225,7 @@ class RobotEnv(gym.Env):
         self.safety.forget()
         for tracker in self._trackers.values():
             tracker.reset()
-        start = spawn[self.blueprint.achieved_from][0] if self.blueprint.achieved_from in spawn else self._ee_home
+        start = self._start_of(self.blueprint.achieved_from, spawn)
         goal, self._goal_failed = self.goals.sample(self.np_random, start)
         if chosen is not None:
             goal, self._goal_failed = chosen, False
@@ -246,13 +253,15 @@ class RobotEnv(gym.Env):
             action = self.randomizer.act(action)  # a delayed action is judged and played when it lands
         command = self.actions.translate(action, state)
         rejection = command.rejection
+        for name in self.fixtures:  # the drawer is where it was read: the check keeps the arm off it there
+            self.safety.place_fixture(name, state.objects[name].joint)
         if not rejection:
             verdict = self.safety.check(state.q_arm, command.q_arm, state.gripper, command.gripper)
             rejection = verdict.reason
         if not rejection and self.object_guard is not None:
             gripper_to = state.gripper if command.gripper is None else command.gripper
             rejection = self.object_guard.check(
-                state.q_arm, command.q_arm, state.gripper, gripper_to, state.objects
+                state.q_arm, command.q_arm, state.gripper, gripper_to, self._free_objects(state)
             ).reason
         if rejection and self._verbose:
             log.info("%s: action rejected: %s", self.blueprint.env_id, rejection)
@@ -274,6 +283,20 @@ class RobotEnv(gym.Env):
             self._stop_backend()  # any failure mid-step stops a real arm before it propagates
             raise
         return self._finish(self._state, command.out_of_bounds, rejection)
+
+    def _start_of(self, name: str, spawn: dict) -> np.ndarray:
+        """Where the achieved point starts an episode: an object's spawn, a fixture's point at its lower limit, or
+        the EE at home."""
+        if name in spawn:
+            return spawn[name][0]
+        if name in self.fixtures:
+            return self.task_frame.to_task(self.fixtures[name].point)
+        return self._ee_home
+
+    def _free_objects(self, state: EnvState) -> dict:
+        return (
+            {name: state.objects[name] for name in self.blueprint.spec.task.objects} if self.fixtures else state.objects
+        )
 
     def _checked_action(self, action) -> np.ndarray:
         """The action as an array of the action space's shape; anything else is refused before it moves the arm."""

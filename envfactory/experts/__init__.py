@@ -8,6 +8,7 @@ names its expert and the expert's params in YAML; robot-specific numbers
 
 from __future__ import annotations
 
+from envfactory.experts.drawer import DrawerExpert
 from envfactory.experts.flip import FlipExpert
 from envfactory.experts.pnp import PickPlaceExpert
 from envfactory.experts.push import PushExpert
@@ -22,6 +23,7 @@ EXPERTS = {
     "slide": SlideExpert,
     "stack": StackExpert,
     "flip": FlipExpert,
+    "drawer": DrawerExpert,
 }
 
 

@@ -7,7 +7,7 @@ exactly the scene it moves in.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -31,12 +31,15 @@ SURFACE_FRICTION = (0.5, 0.0, 0.0)
 
 @dataclass(frozen=True)
 class Obstacle:
-    """An axis-aligned box in the world frame."""
+    """An axis-aligned box in the world frame: fixed, or part of a fixture that rides on its joint."""
 
     name: str
     center: tuple[float, float, float]
     half_extents: tuple[float, float, float]
     rgba: tuple[float, float, float, float] = (0.5, 0.5, 0.5, 1.0)
+    moves_with: str = ""  # the fixture whose joint carries it (its reading moves it before each check)
+    travel: tuple[float, float, float] = (0.0, 0.0, 0.0)  # m of world displacement per unit of the joint's value
+    touchable: bool = False  # the gripper's fingers may touch it (a drawer's handle): not measured against them
 
     @property
     def low(self) -> np.ndarray:
@@ -49,7 +52,7 @@ class Obstacle:
     def widened(self, margin_xy: float) -> "Obstacle":
         """The same box grown sideways: room for a table placed a little off its nominal spot."""
         x, y, z = self.half_extents
-        return Obstacle(self.name, self.center, (x + margin_xy, y + margin_xy, z), self.rgba)
+        return replace(self, half_extents=(x + margin_xy, y + margin_xy, z))
 
 
 def table_obstacles(table: TableSpec) -> list[Obstacle]:

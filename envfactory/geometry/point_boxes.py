@@ -103,7 +103,7 @@ def reach_sphere(kinematics) -> tuple[np.ndarray, float]:
     return kinematics.to_task(data.oMi[first].translation), radius
 
 
-def point_boxes(spec, kinematics) -> PointBoxes:
+def point_boxes(spec, kinematics, fixtures=None) -> PointBoxes:
     robot = spec.robot
     frame = TaskFrame.of(robot)
     origin = frame.origin
@@ -127,6 +127,10 @@ def point_boxes(spec, kinematics) -> PointBoxes:
             # to rest anywhere on the floor
             box = box.union(_floor_box(frame, floor_z, top + half_diagonal))
         objects[name] = box
+    for name, fixture in (fixtures or {}).items():
+        # a fixture's point moves only along its joint's travel
+        ends = np.array([frame.to_task(fixture.point_at(v)) for v in (fixture.lower, fixture.upper)])
+        objects[name] = Box(ends.min(axis=0), ends.max(axis=0)).grown(JOINT_STOP_SOFTNESS)
     return PointBoxes(ee, objects, spec.env.timing.action_cycle_time, *_joint_boxes(robot, kinematics))
 
 
@@ -158,11 +162,11 @@ def _joint_boxes(robot, kinematics) -> tuple[Box, Box]:
     return positions.union(stops), velocities.union(Box(-speed, speed))
 
 
-def derived_boxes(spec, asset_root) -> PointBoxes:
+def derived_boxes(spec, asset_root, fixtures=None) -> PointBoxes:
     """The boxes of a spec's robot; the declared EE box alone when the robot model does not load
     (the compiler's robot checks then name what is wrong, and nothing is built from these)."""
     try:
         _, kinematics = robot_chain(spec, asset_root)
-        return point_boxes(spec, kinematics)
+        return point_boxes(spec, kinematics, fixtures)
     except Exception:  # a model or a joint name that does not resolve: the robot model checks report it
-        return point_boxes(spec, None)
+        return point_boxes(spec, None, fixtures)

@@ -18,6 +18,7 @@ from pathlib import Path
 
 from envfactory.geometry.collision import CollisionModel
 from envfactory.geometry.collision_pairs import DEFAULT_SAMPLES, pairs_file, read_pairs, sample_pairs, write_pairs
+from envfactory.geometry.fixtures import FixtureModel, fixture_models
 from envfactory.geometry.frames import TaskFrame
 from envfactory.geometry.kinematics import Kinematics
 from envfactory.geometry.obstacles import guarded_obstacles, scene_obstacles
@@ -43,6 +44,7 @@ class RobotGeometry:
     urdf: Path
     kinematics: Kinematics
     collision: CollisionModel
+    fixtures: dict[str, FixtureModel]  # the task's fixtures in the world; their boxes are obstacles of `collision`
 
     def safety_check(self, settings: SafetySettings) -> SafetyCheck:
         """A safety check of the caller's own (it remembers its last motion) over its own measuring copy."""
@@ -84,14 +86,17 @@ def robot_chain(spec: ComposedSpec, asset_root: Path) -> tuple[Path, Kinematics]
     return _chains.get_or_build(key, build)
 
 
-def robot_geometry(spec: ComposedSpec, asset_root: Path) -> RobotGeometry:
-    """The shared geometry of a spec's robot in its scene; StalePairs when its generated pair list no longer
-    matches it. The key covers the pair list's text, so a regenerated or edited list is read again."""
+def robot_geometry(spec: ComposedSpec, asset_root: Path, fixture_folders=()) -> RobotGeometry:
+    """The shared geometry of a spec's robot in its scene, with the task's fixtures (`fixture_folders`: (name,
+    folder its URDF path is relative to) pairs); StalePairs when its generated pair list no longer matches it.
+    The key covers the pair list's text, so a regenerated or edited list is read again."""
     pairs = pairs_file(spec, asset_root)
     pairs_text = pairs.read_text() if pairs is not None and pairs.is_file() else ""
     key = _digest(
         spec.robot.model_dump_json(include=COLLISION_FIELDS),
         spec.scene.model_dump_json(),
+        spec.task.model_dump_json(include={"fixtures"}),
+        str(tuple(fixture_folders)),
         spec.env.safety.model_dump_json(),
         str(asset_root),
         pairs_text,
@@ -99,11 +104,13 @@ def robot_geometry(spec: ComposedSpec, asset_root: Path) -> RobotGeometry:
 
     def build():
         urdf, kinematics = robot_chain(spec, asset_root)
-        collision = CollisionModel(kinematics, guarded_obstacles(spec), dict(spec.robot.safety.padding))
+        fixtures = fixture_models(spec, dict(fixture_folders))
+        obstacles = guarded_obstacles(spec) + [o for fixture in fixtures.values() for o in fixture.obstacles()]
+        collision = CollisionModel(kinematics, obstacles, dict(spec.robot.safety.padding))
         if pairs is not None:
             collision.set_ignored_pairs(read_pairs(pairs, collision, spec.env.safety.surface_margin))
         builds["collision"] += 1
-        return RobotGeometry(urdf, kinematics, collision)
+        return RobotGeometry(urdf, kinematics, collision, fixtures)
 
     return _geometries.get_or_build(key, build)
 

@@ -136,6 +136,12 @@ class SafetyCheck:
         """The arm moved without a check (a reset): the remembered end pose no longer applies."""
         self._last_end = None
 
+    def place_fixture(self, name: str, opening: float) -> None:
+        """A fixture's joint reads `opening` past its lower limit: its moving boxes go there, and a remembered end
+        pose, measured against them where they were, no longer applies."""
+        if self.collision.move_fixture(name, opening):
+            self._last_end = None
+
     def _motion_verdict(self, q_from, q_to, gripper_from, gripper_to, finest, remember) -> Verdict:
         collision = self.collision
         # The gripper moves on its own clock: any of its values between start and target may meet

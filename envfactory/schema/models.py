@@ -39,6 +39,7 @@ from envfactory.schema.settings import (
 )
 from envfactory.schema.task import (
     ExpertRef,
+    FixtureSpec,
     GoalSpec,
     GripperUse,
     LiftSpec,
@@ -117,6 +118,7 @@ __all__ = [
     "GoalSpec",
     "GripperCommand",
     "GripperSpec",
+    "FixtureSpec",
     "GripperUse",
     "IdEntry",
     "JointStateEntry",

@@ -62,6 +62,22 @@ class ObjectSpec(Model):
         return float(np.linalg.norm(self.half_extents))
 
 
+class FixtureSpec(Model):
+    """An articulated body standing fixed in the scene (a cabinet with a drawer): its URDF, where it stands, and
+    the one joint a task works. Its reading, under the fixture's name, is the pose of that joint's child link
+    (the cabinet's: the handle's centre) and the joint's value."""
+
+    urdf: str  # relative to the tasks/ folder of the spec folder (or the built-in one): boxes only
+    position: Position  # the URDF's base origin, task frame
+    yaw: Literal[0, 90, 180, 270] = 0  # degrees about z from the task frame: its boxes stay axis-aligned
+    joint: str  # the one moving joint (prismatic), closed (at its lower limit) at every reset
+    # links the gripper's fingers may touch (the handle); the safety check keeps every other robot shape from
+    # them, and every robot shape from the fixture's other links
+    touchable: list[str] = []
+    friction: Annotated[NonNegative, Field(le=100.0)] = 1.0  # N: the joint's dry friction
+    damping: Annotated[NonNegative, Field(le=100.0)] = 2.0  # N s/m: the joint's viscous damping
+
+
 class GripperUse(Model):
     in_action: bool = False
     at_reset: Literal["open", "closed", "unchanged"] | Real = "unchanged"  # or a joint value
@@ -193,6 +209,8 @@ class TaskSpec(Model):
     label: str
     gripper: GripperUse = GripperUse()
     objects: dict[str, ObjectSpec] = {}
+    # articulated bodies fixed in the scene; a goal, a term or an expert names one as it names an object
+    fixtures: dict[str, FixtureSpec] = {}
     goal: GoalSpec
     observation: list[dict[str, dict[str, Any]]] = Field(min_length=1)
     reward: RewardSets
@@ -201,6 +219,15 @@ class TaskSpec(Model):
     # sim-to-real: sampled physics, sensing and timing (off unless randomization.enabled, the randomize kwarg)
     randomization: RandomizationSpec = RandomizationSpec()
     kwargs: dict[str, str] = {}
+
+    @model_validator(mode="after")
+    def _fixture_names(self) -> "TaskSpec":
+        for name in self.fixtures:
+            if name in self.objects or name == "ee":
+                raise located(
+                    f"fixtures.{name}", f"{name!r} names an object already: a fixture needs a name of its own"
+                )
+        return self
 
     @field_validator("observation", mode="before")
     @classmethod

@@ -41,6 +41,7 @@ class TermContext:
     boxes: Any = None  # envfactory.geometry.point_boxes.PointBoxes: where the EE and each object can be
     observation_slots: tuple = ()  # the compiled observation layout, for sensing terms (after it is laid out)
     episode_steps: int = 100  # the ID's max_episode_steps: how long a drifting sensor drifts
+    fixtures: Any = None  # {name: envfactory.geometry.fixtures.FixtureModel}: the task's fixtures as read
 
 
 @dataclass(frozen=True)

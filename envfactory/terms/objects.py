@@ -18,9 +18,11 @@ class ObjectParams(TermParams):
 
 
 def bind_object(layout, params):
-    if params.object not in layout.task.objects:
-        known = list(layout.task.objects) or "none"
-        raise ValueError(f"'object: {params.object}' names no object of the task (known: {known})")
+    # a fixture's reading is a pose as an object's is (its moving link's): the pose terms serve both
+    known = [*layout.task.objects, *layout.task.fixtures]
+    if params.object not in known:
+        what = "object or fixture" if layout.task.fixtures else "object"
+        raise ValueError(f"'object: {params.object}' names no {what} of the task (known: {known or 'none'})")
     return params
 
 

@@ -70,9 +70,10 @@ def _point_symbol(name: str) -> str:
 
 
 def _bind_point(layout, params):
-    if params.from_ != "ee" and params.from_ not in layout.task.objects:
-        known = ["ee", *layout.task.objects]
-        raise ValueError(f"'from: {params.from_}' names no object of the task (known: {known})")
+    if params.from_ != "ee" and params.from_ not in (*layout.task.objects, *layout.task.fixtures):
+        known = ["ee", *layout.task.objects, *layout.task.fixtures]
+        what = "object or fixture" if layout.task.fixtures else "object"
+        raise ValueError(f"'from: {params.from_}' names no {what} of the task (known: {known})")
     part = goal_part(layout, params.from_)
     return GoalPoint(params.from_, POINT * part, POINT * (part + 1))
 

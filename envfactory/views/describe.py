@@ -234,7 +234,7 @@ def id_summary(compiled: Blueprint) -> tuple[str, str, str, str, str]:
 
 def safety_table(compiled: Blueprint) -> Table:
     """The geometry the safety check keeps clear: each link's collision shapes and what they are checked against."""
-    collision = robot_geometry(compiled.spec, compiled.asset_root).collision
+    collision = robot_geometry(compiled.spec, compiled.asset_root, compiled.fixture_folders).collision
     settings = compiled.spec.env.safety
     margin = settings.surface_margin
     table = _table(

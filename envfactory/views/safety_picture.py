@@ -16,7 +16,7 @@ NEAR, CLOSE, CLEAR = (0.9, 0.1, 0.1, 1.0), (0.95, 0.75, 0.1, 1.0), (0.2, 0.75, 0
 
 def link_clearances(compiled, q_arm, gripper: float) -> dict[str, float]:
     """The lowest clearance of each link's shapes, from the scene and the arm's other links."""
-    collision = robot_geometry(compiled.spec, compiled.asset_root).collision.measuring_copy()
+    collision = robot_geometry(compiled.spec, compiled.asset_root, compiled.fixture_folders).collision.measuring_copy()
     collision.pose(np.asarray(q_arm, float), gripper)
     clearance = collision.all_exact()
     lowest: dict[str, float] = {}
@@ -40,7 +40,9 @@ def render_clearance(compiled, out: Path, q_arm=None, width: int = 800, height: 
     gripper = spec.gripper_assumed_at_reset
     margin = spec.env.safety.surface_margin
     lowest = link_clearances(compiled, q_arm, gripper)
-    backend = PyBulletBackend(spec, robot_geometry(spec, compiled.asset_root).urdf, TaskFrame.of(robot))
+    backend = PyBulletBackend(
+        spec, robot_geometry(spec, compiled.asset_root, compiled.fixture_folders).urdf, TaskFrame.of(robot)
+    )
     try:
         backend.reset(q_arm, gripper, {})
         client, body = backend.client, backend.body

@@ -41,7 +41,14 @@ class MujocoBackend:
 
     teleports_on_reset = True  # reset sets the joints directly; no path is driven
 
-    def __init__(self, spec: ComposedSpec, urdf_path, task_frame: TaskFrame, render_mode: str | None = None):
+    def __init__(
+        self,
+        spec: ComposedSpec,
+        urdf_path,
+        task_frame: TaskFrame,
+        render_mode: str | None = None,
+        fixtures: dict | None = None,
+    ):
         if spec.env.gui or render_mode == "human":
             raise BackendError(
                 "the MuJoCo engine runs headless: a GUI (gui=True, render_mode='human') is "
@@ -50,9 +57,9 @@ class MujocoBackend:
         self.spec = spec
         self.robot = spec.robot
         self.task_frame = task_frame
-        self.model, self.handles = build(spec, urdf_path)
+        self.model, self.handles = build(spec, urdf_path, fixtures)
         self.data = mujoco.MjData(self.model)
-        self.cycles = FastCycles(spec, self.model, self.data, self.handles)
+        self.cycles = FastCycles(spec, self.model, self.data, self.handles, fixtures)
         self._driver_readings = DriverReadings(self.robot)
         self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
         self._realtime = spec.env.timing.realtime
@@ -94,6 +101,8 @@ class MujocoBackend:
             x, y, z, w = self.task_frame.quaternion_to_world(quaternion)
             address = handles.object_qpos[name]
             data.qpos[address : address + 7] = [*self.task_frame.to_world(position), w, x, y, z]
+        for address, _, lower in handles.fixture_joint.values():  # every fixture closed
+            data.qpos[address] = lower
         mujoco.mj_forward(model, data)
 
     def command_joints(self, q_arm_target, duration: float) -> None:
@@ -156,12 +165,19 @@ class MujocoBackend:
         return JointReading(position, velocity, self.cycles.sim_time)
 
     def read_object(self, name: str) -> ObjectReading:
-        body = self.handles.object_body[name]
+        handles, joint = self.handles, None
+        if name in handles.fixture_body:
+            body = handles.fixture_body[name]
+            address, _, lower = handles.fixture_joint[name]
+            joint = float(self.data.qpos[address]) - lower
+        else:
+            body = handles.object_body[name]
         w, x, y, z = self.data.xquat[body]
         return ObjectReading(
             self.task_frame.to_task(self.data.xpos[body].copy()),
             self.task_frame.quaternion_to_task([x, y, z, w]),
             self.cycles.sim_time,
+            joint,
         )
 
     def mark_goal(self, position: np.ndarray) -> None:

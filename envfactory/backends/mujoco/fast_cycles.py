@@ -45,13 +45,18 @@ SETTLE_TIME = 0.1
 REST_CHECK_EVERY = 8
 
 
-def objects_at_rest(data, object_dofs: dict[str, int]) -> bool:
-    """Every object's free joint slower than the rest limits (linear, then angular: its six dofs), squared speeds
-    against squared limits on plain floats: a test every cycle makes."""
+def objects_at_rest(data, object_dofs: dict[str, int], fixture_dofs=()) -> bool:
+    """Every object's free joint slower than the rest limits (linear, then angular: its six dofs), and every
+    fixture's slide slower than the linear one; squared speeds against squared limits on plain floats: a test
+    every cycle makes."""
     for dof in object_dofs.values():
         vx, vy, vz, wx, wy, wz = data.qvel[dof : dof + 6].tolist()
         # asked as "below the limits", so that a NaN (a blown-up state) is never taken for rest
         if not (vx * vx + vy * vy + vz * vz < OBJECT_REST**2 and wx * wx + wy * wy + wz * wz < OBJECT_SPIN_REST**2):
+            return False
+    for dof in fixture_dofs:
+        speed = float(data.qvel[dof])
+        if not speed * speed < OBJECT_REST**2:
             return False
     return True
 
@@ -76,7 +81,7 @@ class FastCycles:
     """The cycles of one env's MuJoCo data: the commanded profiles, the clock, and how each cycle is played
     (at rest, kinematic, carried or dynamic; only dynamic under `full`). `counts` says how they were played."""
 
-    def __init__(self, spec: ComposedSpec, model, data, handles):
+    def __init__(self, spec: ComposedSpec, model, data, handles, fixtures: dict | None = None):
         self.model, self.data, self.handles = model, data, handles
         self.robot = spec.robot
         self.dt = model.opt.timestep
@@ -96,8 +101,16 @@ class FastCycles:
         self._gripper: Profile | None = None
         self.sim_time = 0.0
         self._clearance: ObjectClearance | None = None  # once attach gives the safety check's shapes
-        self._object_radii = np.array([obj.bounding_radius for obj in spec.task.objects.values()])
-        self._object_bodies = [handles.object_body[name] for name in spec.task.objects]
+        fixtures = fixtures or {}
+        # what the fingers could touch: each object's bounding sphere, and each fixture's touchable part's
+        self._object_radii = np.array(
+            [obj.bounding_radius for obj in spec.task.objects.values()]
+            + [fixture.touch_radius for fixture in fixtures.values()]
+        )
+        self._object_bodies = [handles.object_body[name] for name in spec.task.objects] + [
+            handles.fixture_body[name] for name in fixtures
+        ]
+        self._fixture_dofs = tuple(dof for _, dof, _ in handles.fixture_joint.values())
         self.counts = CycleCounts()
         self._settled = False
         self._arm_q, self._arm_v = _as_slice(handles.arm_qpos), _as_slice(handles.arm_dof)
@@ -114,7 +127,7 @@ class FastCycles:
         self._carry: Carry | None = None
         if self.fast and spec.sim.mujoco.carry_held and spec.robot.gripper is not None and spec.task.objects:
             pads = {model.body(ROBOT_PREFIX + link).id for link in spec.robot.gripper.pads.links}
-            radii = dict(zip(spec.task.objects, self._object_radii))
+            radii = dict(zip(spec.task.objects, self._object_radii[: len(spec.task.objects)]))
             self._carry = Carry(model, handles, pads, scene_obstacles(spec), radii)
 
     def attach(self, collision) -> None:
@@ -310,7 +323,7 @@ class FastCycles:
 
     def _scene_at_rest(self) -> bool:
         handles = self.handles
-        return objects_at_rest(self.data, handles.object_dof) and robot_at_rest(
+        return objects_at_rest(self.data, handles.object_dof, self._fixture_dofs) and robot_at_rest(
             self.data, self._arm_v, handles.gripper_dof
         )
 
@@ -358,7 +371,7 @@ class FastCycles:
         data, handles = self.data, self.handles
         if (
             self._clearance is None
-            or not objects_at_rest(data, handles.object_dof)
+            or not objects_at_rest(data, handles.object_dof, self._fixture_dofs)
             or not self._arm_lands_unsimulated(end)
         ):
             return False
@@ -380,7 +393,9 @@ class FastCycles:
         q_from, g_from = data.qpos[self._arm_q].copy(), self._gripper_value()
         if self._landing(q_from, g_from, end) is None:
             return False, 0
-        done, rested = self._play_until_rest(0, steps, lambda: objects_at_rest(data, handles.object_dof))
+        done, rested = self._play_until_rest(
+            0, steps, lambda: objects_at_rest(data, handles.object_dof, self._fixture_dofs)
+        )
         landing = self._landing(q_from, g_from, end) if rested and done < steps else None
         if landing is None:
             return False, done

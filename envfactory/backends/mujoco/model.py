@@ -20,7 +20,7 @@ Choices where MuJoCo and PyBullet differ, each a setting of the model built here
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import mujoco
@@ -69,6 +69,9 @@ class Handles:
     object_dof: dict[str, int]  # its first dof address
     object_body: dict[str, int]
     marker_mocap: int
+    # each fixture's joint: (qpos address, dof address, its lower limit), and the body its reading is of
+    fixture_joint: dict[str, tuple[int, int, float]] = field(default_factory=dict)
+    fixture_body: dict[str, int] = field(default_factory=dict)
     # per contact pair (in the model's order), the two surfaces it joins, and each surface's friction: what
     # a randomized friction recomputes the pair's product from
     pair_surfaces: tuple[tuple[str, str], ...] = ()
@@ -99,7 +102,7 @@ def _camera_axes(camera: CameraSpec) -> list[float]:
     return [*right, *up]
 
 
-def build(spec: ComposedSpec, urdf_path: Path) -> tuple[mujoco.MjModel, Handles]:
+def build(spec: ComposedSpec, urdf_path: Path, fixtures: dict | None = None) -> tuple[mujoco.MjModel, Handles]:
     robot_spec = spec.robot
     world = mujoco.MjSpec()
     world.option.timestep = 1.0 / spec.sim.mujoco.physics_hz
@@ -169,6 +172,10 @@ def build(spec: ComposedSpec, urdf_path: Path) -> tuple[mujoco.MjModel, Handles]
                 solimp=list(MIMIC_IMPEDANCE),
             )
 
+    fixtures = fixtures or {}
+    for fixture in fixtures.values():
+        _add_fixture(world, fixture, surfaces)
+
     for index, (name, obj) in enumerate(spec.task.objects.items()):
         body = world.worldbody.add_body(name=f"object:{name}", pos=[0.0, 0.0, -10.0 - index])
         body.add_freejoint(name=f"object:{name}")
@@ -205,7 +212,46 @@ def build(spec: ComposedSpec, urdf_path: Path) -> tuple[mujoco.MjModel, Handles]
         world.cameras[-1].alt.type = mujoco.mjtOrientation.mjORIENTATION_XYAXES
         world.cameras[-1].alt.xyaxes = _camera_axes(camera)
     model = world.compile()
-    return model, replace(_handles(model, spec), pair_surfaces=tuple(pair_surfaces), surface_friction=surfaces)
+    handles = replace(
+        _handles(model, spec),
+        pair_surfaces=tuple(pair_surfaces),
+        surface_friction=surfaces,
+        fixture_joint={
+            name: (
+                int(model.joint(f"{_fixture_prefix(name)}{f.joint}").qposadr[0]),
+                int(model.joint(f"{_fixture_prefix(name)}{f.joint}").dofadr[0]),
+                f.lower,
+            )
+            for name, f in fixtures.items()
+        },
+        fixture_body={
+            name: int(model.joint(f"{_fixture_prefix(name)}{f.joint}").bodyid[0]) for name, f in fixtures.items()
+        },
+    )
+    return model, handles
+
+
+def _fixture_prefix(name: str) -> str:
+    return f"fixture:{name}/"
+
+
+def _add_fixture(world: mujoco.MjSpec, fixture, surfaces: dict) -> None:
+    """A fixture (geometry.fixtures.FixtureModel) from its URDF by MuJoCo's import, fixed where the spec stands it:
+    scene geoms (the robot touches them, objects through explicit pairs) with PyBullet's default friction, its
+    joint with the fixture's dry friction (frictionloss) and damping."""
+    part = mujoco.MjSpec.from_file(str(fixture.urdf))
+    mount = world.worldbody.add_body(
+        name=f"fixture:{fixture.name}", pos=list(map(float, fixture.base)), quat=_wxyz(fixture.rotation)
+    )
+    world.attach(part, frame=mount.add_frame(), prefix=_fixture_prefix(fixture.name))
+    for body in [mount, *mount.find_all(mujoco.mjtObj.mjOBJ_BODY)]:
+        for index, geom in enumerate(body.geoms):
+            geom.contype, geom.conaffinity = WORLD_TYPE, WORLD_AFFINITY
+            geom.name = geom.name or f"{body.name or mount.name}#{index}"
+            surfaces[geom.name] = SURFACE_FRICTION
+    joint = world.joint(_fixture_prefix(fixture.name) + fixture.joint)
+    joint.frictionloss = fixture.friction
+    joint.damping = [fixture.damping, 0.0, 0.0]
 
 
 def _servo(world: mujoco.MjSpec, joint: str, effort: float) -> None:

@@ -53,8 +53,10 @@ class PyBulletBackend:
         task_frame: TaskFrame,
         render_mode: str | None = None,
         headless: bool = False,
+        fixtures: dict | None = None,
     ):
         self.spec = spec
+        self.fixtures = fixtures or {}  # name -> geometry.fixtures.FixtureModel
         self.robot = spec.robot
         self._urdf_path = Path(urdf_path)
         self.task_frame = task_frame
@@ -90,7 +92,7 @@ class PyBulletBackend:
         # the motors' (targets, speeds) for each substep of the motion under way, and the next row to play
         self._arm_rows: tuple[list, list] | None = None
         self._arm_row = 0
-        self._object_radii: dict[int, float] = {}
+        self._object_radii: dict[tuple[int, int], float] = {}
         self._thread = None
         if self.realtime:
             self._thread = threading.Thread(target=self._run_realtime, name="pybullet-realtime", daemon=True)
@@ -145,6 +147,8 @@ class PyBulletBackend:
             self._gripper = index[gripper.joint]
             self._gripper_followers = scene.link_gripper(c, self.body, self.robot, index, link_index)
         self.objects: dict[str, int] = {}  # spawned fresh at every reset
+        # fixtures stand for the session: the saved state below holds their joints closed for every reset
+        self._fixture_parts = {name: scene.add_fixture(c, fixture) for name, fixture in self.fixtures.items()}
         self._goal_marker = scene.add_marker(c, self.task_frame.to_world([0.0, 0.0, -10.0]))
         self._set_joint_state(np.asarray(self.robot.home, float), self._gripper_reset_value(None))
         self._hold(np.asarray(self.robot.home, float), None)
@@ -346,8 +350,11 @@ class PyBulletBackend:
 
     def _add_objects(self, objects) -> None:
         self.objects.update(scene.add_objects(self.client, self.spec.task.objects, self.task_frame, objects))
-        # the bounding sphere of each (cubic) object, for the fast fidelity's clearance
-        self._object_radii = {body: self.spec.task.objects[name].bounding_radius for name, body in self.objects.items()}
+        # the bounding sphere of each (cubic) object, and of each fixture's touchable part, for the fast fidelity
+        objects = self.spec.task.objects
+        self._object_radii = {(body, -1): objects[name].bounding_radius for name, body in self.objects.items()}
+        for name, (body, link, _) in self._fixture_parts.items():
+            self._object_radii[(body, link)] = self.fixtures[name].touch_radius
 
     def command_joints(self, q_arm_target, duration: float) -> None:
         # Every joint follows the joint-synchronous profile along the straight joint-space line the safety check
@@ -491,10 +498,18 @@ class PyBulletBackend:
         return JointReading(position, velocity, stamp)
 
     def read_object(self, name: str) -> ObjectReading:
+        joint = None
         with self._lock:
-            position, quaternion = p.getBasePositionAndOrientation(self.objects[name], physicsClientId=self.client)
+            if name in self._fixture_parts:
+                body, link, index = self._fixture_parts[name]
+                state = p.getLinkState(body, link, computeForwardKinematics=1, physicsClientId=self.client)
+                position, quaternion = state[4], state[5]
+                joint = p.getJointState(body, index, physicsClientId=self.client)[0] - self.fixtures[name].lower
+            else:
+                position, quaternion = p.getBasePositionAndOrientation(self.objects[name], physicsClientId=self.client)
             stamp = self._sim_time
-        return ObjectReading(self.task_frame.to_task(position), self.task_frame.quaternion_to_task(quaternion), stamp)
+        task = self.task_frame
+        return ObjectReading(task.to_task(position), task.quaternion_to_task(quaternion), stamp, joint)
 
     def mark_goal(self, position: np.ndarray) -> None:
         with self._lock:

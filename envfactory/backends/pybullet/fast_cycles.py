@@ -181,8 +181,9 @@ class FastCycles:
 
     # ---------------------------------------------------------------- one cycle
 
-    def play(self, seconds: float, objects: dict[int, float]) -> int:
-        """Let one cycle pass; `objects` maps each movable body to its bounding-sphere radius.
+    def play(self, seconds: float, objects: dict[tuple[int, int], float]) -> int:
+        """Let one cycle pass; `objects` maps each movable (body, link) to the radius of the sphere about its frame
+        that holds what the fingers could touch of it (link -1: a free object's base; else a fixture's moving link).
         Returns the substeps run."""
         substeps = max(1, round(seconds / self.rig.dt))
         q, q_speed = self._arm_state()
@@ -243,9 +244,9 @@ class FastCycles:
                 return None
             gripper_end, gripper_speed = response
         if objects:
-            bodies = list(objects)
-            centers = np.array([p.getBasePositionAndOrientation(b, physicsClientId=rig.client)[0] for b in bodies])
-            radii = np.array([objects[b] for b in bodies])
+            parts = list(objects)
+            centers = np.array([self._frame_position(part) for part in parts])
+            radii = np.array([objects[part] for part in parts])
             if not self.clearance.motion_is_clear(
                 q,
                 0.0 if gripper is None else gripper,
@@ -305,10 +306,21 @@ class FastCycles:
             return False
         return max(speeds) < JOINT_REST
 
+    def _frame_position(self, part: tuple[int, int]):
+        body, link = part
+        if link < 0:
+            return p.getBasePositionAndOrientation(body, physicsClientId=self.rig.client)[0]
+        return p.getLinkState(body, link, computeForwardKinematics=1, physicsClientId=self.rig.client)[4]
+
     def _objects_at_rest(self, objects) -> bool:
-        rig = self.rig
-        for body in objects:
-            linear, angular = p.getBaseVelocity(body, physicsClientId=rig.client)
+        client = self.rig.client
+        for body, link in objects:
+            if link < 0:
+                linear, angular = p.getBaseVelocity(body, physicsClientId=client)
+            else:
+                linear, angular = p.getLinkState(
+                    body, link, computeLinkVelocity=1, computeForwardKinematics=1, physicsClientId=client
+                )[6:8]
             if np.linalg.norm(linear) >= OBJECT_REST or np.linalg.norm(angular) >= OBJECT_SPIN_REST:
                 return False
         return True

@@ -5,6 +5,7 @@ task's objects, the goal marker), the gripper's linkage of gear constraints and 
 from __future__ import annotations
 
 import numpy as np
+import pinocchio as pin
 import pybullet as p
 
 from envfactory.backends.base import BackendError
@@ -72,6 +73,34 @@ def add_objects(client: int, declared: dict[str, ObjectSpec], task_frame, object
             client, declared[name], task_frame.to_world(position), task_frame.quaternion_to_world(quaternion)
         )
     return bodies
+
+
+def add_fixture(client: int, fixture) -> tuple[int, int, int]:
+    """A fixture (geometry.fixtures.FixtureModel) from its URDF, fixed where the spec stands it, its joint at the
+    lower limit with its dry friction (a velocity motor held at zero, up to that force) and damping; (body, the
+    joint's child link, the joint's index)."""
+    x, y, z, w = pin.Quaternion(fixture.rotation).coeffs()
+    body = p.loadURDF(
+        str(fixture.urdf),
+        basePosition=list(map(float, fixture.base)),
+        baseOrientation=[x, y, z, w],
+        useFixedBase=True,
+        flags=p.URDF_USE_INERTIA_FROM_FILE,
+        physicsClientId=client,
+    )
+    names = [
+        p.getJointInfo(body, j, physicsClientId=client)[1].decode()
+        for j in range(p.getNumJoints(body, physicsClientId=client))
+    ]
+    if fixture.joint not in names:
+        raise BackendError(f"fixture {fixture.name!r}: PyBullet finds no joint {fixture.joint!r} in {fixture.urdf}")
+    index = names.index(fixture.joint)
+    p.resetJointState(body, index, fixture.lower, physicsClientId=client)
+    p.setJointMotorControl2(
+        body, index, p.VELOCITY_CONTROL, targetVelocity=0.0, force=fixture.friction, physicsClientId=client
+    )
+    p.changeDynamics(body, index, jointDamping=fixture.damping, physicsClientId=client)
+    return body, index, index  # a joint's child link has the joint's index
 
 
 def add_marker(client: int, position, radius: float = 0.025) -> int:

@@ -28,6 +28,10 @@ from envfactory.geometry.kernels.serving import kernels
 from envfactory.geometry.kinematics import Kinematics
 from envfactory.geometry.obstacles import Obstacle
 
+# The margin a finger keeps from a part it may touch (task.fixtures.*.touchable): none, so deep that no clearance
+# the pair can have falls short of it (a finite number: the proofs' arithmetic never meets an infinity)
+TOUCH_ALLOWED = -1.0
+
 
 class PairRules(dict):
     """What a generated pair list says of the self pairs: shape-name pairs -> why they are skipped (the
@@ -114,8 +118,23 @@ class CollisionModel:
         )
 
         moving = np.flatnonzero(moved)
+        # every moving shape against every obstacle, in the order the compiled kernels number them
         self.scene_shape = np.repeat(moving, len(obstacles))
         self.scene_obstacle = np.tile(np.arange(len(obstacles)), len(moving))
+        # a touchable part (a drawer's handle) is for the fingers: their pairs with it keep no margin at all
+        touchable = np.array([o.touchable for o in obstacles], dtype=bool)
+        self._scene_margin = np.where(
+            touchable[self.scene_obstacle] & self.moved_by_gripper[self.scene_shape], TOUCH_ALLOWED, np.nan
+        )
+        # obstacles riding on a fixture's joint: their rows at the joint's lower limit, and their travel per unit
+        self._fixture_rows = {}
+        for row, obstacle in enumerate(obstacles):
+            if obstacle.moves_with:
+                self._fixture_rows.setdefault(obstacle.moves_with, []).append(row)
+        self._closed_low, self._closed_high = self.obstacle_low.copy(), self.obstacle_high.copy()
+        self._travel = np.array([o.travel for o in obstacles], float).reshape(-1, 3)
+        self._first_obstacle = first_obstacle
+        self._fixture_values: dict[str, float] = {}
         self.self_pairs: list[tuple[int, int, str]] = []  # (shape, shape, why a pair is skipped or "")
         for a in range(len(self.shapes)):
             for b in range(a + 1, len(self.shapes)):
@@ -155,7 +174,23 @@ class CollisionModel:
         twin.data = self.kinematics.model.createData()
         twin.gripper_sweep = copy.copy(self.gripper_sweep)
         twin.gripper_sweep.collision = twin
+        if self._fixture_rows:  # each copy moves its own fixtures' boxes
+            twin.obstacle_low, twin.obstacle_high = self._closed_low.copy(), self._closed_high.copy()
+            twin._fixture_values = {}
         return twin
+
+    def move_fixture(self, name: str, value: float) -> bool:
+        """Put the boxes riding on fixture `name`'s joint where it holds them `value` past its lower limit; whether
+        they moved. The shared structure keeps them at the lower limit: only a measuring copy moves its own."""
+        rows = self._fixture_rows.get(name)
+        if rows is None or self._fixture_values.get(name) == value:
+            return False
+        shift = self._travel[rows] * value
+        self.obstacle_low[rows] = self._closed_low[rows] + shift
+        self.obstacle_high[rows] = self._closed_high[rows] + shift
+        self._fixture_values[name] = value
+        self._pinocchio_current = False
+        return True
 
     def mounted_placements(self, shapes, values) -> list[list[pin.SE3]]:
         """Per gripper value, each of these shapes' joint frame in the frame of its gripper mount."""
@@ -182,7 +217,7 @@ class CollisionModel:
         self.self_a = np.array([a for a, _ in checked], dtype=int)
         self.self_b = np.array([b for _, b in checked], dtype=int)
         # per measured pair, the margin it keeps instead of the surface margin; NaN: the surface margin
-        self.pair_margin = np.concatenate([np.full(len(self.scene_shape), np.nan), np.array(own, float)])
+        self.pair_margin = np.concatenate([self._scene_margin, np.array(own, float)])
         existing = {(p.first, p.second): k for k, p in enumerate(self.geometry.collisionPairs)}
         self._pin_pairs_self = np.array(
             [existing.get((a, b)) if (a, b) in existing else self._add_pair(a, b) for a, b in checked], dtype=int
@@ -409,6 +444,10 @@ class CollisionModel:
             )
             pin.forwardKinematics(self.kinematics.model, self.data, q)
             pin.updateGeometryPlacements(self.kinematics.model, self.data, self.geometry, self.geometry_data)
+            for rows in self._fixture_rows.values():  # the shared model holds them closed; this copy's own place
+                for row in rows:
+                    centre = (self.obstacle_low[row] + self.obstacle_high[row]) / 2
+                    self.geometry_data.oMg[self._first_obstacle + row] = pin.SE3(np.eye(3), centre)
             self._pinocchio_current = True
 
     def exact(self, pairs: np.ndarray) -> np.ndarray:
