@@ -13,7 +13,7 @@ from expert_runs import full_episodes
 from envfactory.envs.episodes import success_rate
 from envfactory.experts import make_policy
 
-DRAWER_IDS = ["PandaDrawerSim-v0", "UR5eDrawerSim-v0", "VX300SDrawerSim-v0"]
+DRAWER_IDS = ["PandaDrawerSim-v0", "UR5eDrawerSim-v0", "VX300SDrawerSim-v0", "RX200DrawerSim-v0", "NED2DrawerSim-v0"]
 TOLERANCE = 0.02  # tasks/drawer.yaml
 SURFACE_MARGIN = 0.015  # specs/_defaults.yaml
 BULLET_PADDING = 0.002  # PyBullet pads its shapes; the safety check allows for 1 mm per shape

@@ -152,6 +152,8 @@ def test_ee_mode_shrinks_previous_action():
         ("UR5eDrawerSim-v0", 40, 37, 36),
         ("PandaDrawerSim-v0", 45, 41, 41),
         ("VX300SDrawerSim-v0", 44, 41, 40),
+        ("RX200DrawerSim-v0", 41, 39, 37),
+        ("NED2DrawerSim-v0", 42, 39, 38),
     ],
 )
 def test_observation_sizes(env_id, standard, ee_mode, goal_env):

@@ -28,6 +28,7 @@ from envfactory.compiler.scene_checks import check_expert_workspace, check_scene
 from envfactory.experts import EXPERTS
 from envfactory.geometry.fixtures import FixtureError, fixture_urdf, read_fixture
 from envfactory.geometry.frames import TaskFrame
+from envfactory.geometry.obstacles import table_bounds_xy
 from envfactory.geometry.point_boxes import derived_boxes
 from envfactory.schema.compose import LoadedSpec
 from envfactory.schema.errors import suggest
@@ -41,6 +42,7 @@ from envfactory.terms.rewards import step_info_keys
 from envfactory.terms.stages import stage_factory
 
 SIMULATORS = ("pybullet", "mujoco")  # the backends that integrate physics (sim.physics_hz, sim.mujoco)
+STANDS_WITHIN = 0.002  # m: a fixture's bottom this near the table top stands on it
 
 
 def _action_layout(spec: ComposedSpec) -> ActionLayout:
@@ -274,12 +276,35 @@ def _fixtures(loaded: LoadedSpec, found: Findings) -> tuple[tuple[tuple[str, Pat
         folder = loaded.file_of(f"task.fixtures.{name}.urdf").parent
         try:
             models[name] = read_fixture(name, fixture_urdf(fixture.urdf, folder), fixture, frame)
+            for problem in _stands_on_table(models[name], spec):
+                found.add(f"task.fixtures.{name}.position", problem)
         except FixtureError as exc:
             found.add(f"task.fixtures.{name}.{exc.field}", str(exc))
         except (OSError, ElementTree.ParseError, AttributeError, ValueError) as exc:  # unreadable or malformed
             found.add(f"task.fixtures.{name}.urdf", f"cannot read {fixture.urdf}: {type(exc).__name__}: {exc}")
         folders.append((name, folder))
     return tuple(folders), models
+
+
+def _stands_on_table(fixture, spec: ComposedSpec) -> list[str]:
+    """A fixture stands on the table top, within its footprint: one that floats, sinks into the table or
+    overhangs its edge is a scene no engine holds as the spec says."""
+    table = spec.scene.table
+    low = np.min([box.center - box.half_extents for box in fixture.boxes], axis=0)
+    high = np.max([box.center + box.half_extents for box in fixture.boxes], axis=0)
+    table_low, table_high = table_bounds_xy(table, TaskFrame(np.zeros(3)))
+    problems = []
+    if abs(low[2] - table.top_z) > STANDS_WITHIN:
+        problems.append(
+            f"the fixture's lowest box's bottom is at z {low[2]:.3f} (world), the table top at {table.top_z:g}: "
+            "it would float or stand in the table"
+        )
+    if (low[:2] < table_low - STANDS_WITHIN).any() or (high[:2] > table_high + STANDS_WITHIN).any():
+        problems.append(
+            f"the fixture spans x/y {np.round(low[:2], 3).tolist()} to {np.round(high[:2], 3).tolist()} (world), "
+            f"past the table top's {np.round(table_low, 3).tolist()} to {np.round(table_high, 3).tolist()}"
+        )
+    return problems
 
 
 def _achieved_from(spec: ComposedSpec, found: Findings) -> str:
