@@ -91,6 +91,10 @@ class Backend(Protocol):
     where the arm is, all joints arriving together. Every failure is a BackendError; an EpisodeAbort subclass
     means the arm was stopped and this episode cannot go on, the env ends it with the reason."""
 
+    # A simulator is also given `fixtures=` (name -> envfactory.geometry.fixtures.FixtureModel) when the task
+    # stands fixtures: it loads each one's URDF where the model stands it, closes its joint at every reset, and
+    # reads it through read_object. The compiler refuses fixtures on every other backend.
+
     # True when reset sets the joints directly (a simulator); False when the arm drives
     # home, so the env proves that path clear first
     teleports_on_reset: bool

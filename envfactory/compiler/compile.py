@@ -386,16 +386,18 @@ def _check_backend(spec: ComposedSpec, env_id: str, backend: str, found: Finding
     if backend not in known:
         found.add(path, f"unknown backend {backend!r}{suggest(backend, known)}")
         return
-    if backend != "rosbridge":
-        return
-    ros = spec.robot.ros
-    if spec.task.fixtures:
+    if spec.task.fixtures and backend != SIMULATED:
+        # the simulators load a fixture's URDF; a real robot has no topic for its joint, nor does a plugin backend
+        # promise one
         found.add(
             path,
             f"the task stands fixtures ({', '.join(spec.task.fixtures)}), and no robot topic carries a "
             "fixture's joint: tasks with fixtures are simulation-only",
         )
         return
+    if backend != "rosbridge":
+        return
+    ros = spec.robot.ros
     if spec.robot.simulation_only is not None:
         found.add(path, f"robot {spec.robot.name!r} is simulation-only: {spec.robot.simulation_only}")
         return
