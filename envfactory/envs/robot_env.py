@@ -25,6 +25,7 @@ from envfactory.envs.managers import ImageManager, ObservationManager, RewardMan
 from envfactory.envs.objects import ObjectSpawner, ObjectTracker
 from envfactory.envs.randomization import Randomizer
 from envfactory.envs.sim_limits import SimulationLimits
+from envfactory.geometry.fixture_hold import FixtureHold
 from envfactory.geometry.frames import TaskFrame
 from envfactory.geometry.object_press import ObjectPressGuard
 from envfactory.geometry.robot_model import robot_geometry
@@ -98,6 +99,9 @@ class RobotEnv(gym.Env):
         # fixtures are read as objects are: their moving link's pose, and their joint
         self._trackers = {name: ObjectTracker() for name in (*spec.task.objects, *spec.task.fixtures)}
         self.fixtures = geometry.fixtures
+        self.fixture_hold = (
+            FixtureHold(self.safety, self.fixtures, self.task_frame, robot.gripper) if self.fixtures else None
+        )
         self.stage = blueprint.stage()  # the task's stage before the desired goal, if it declares one
         self._timing = spec.env.timing
         self._verbose = spec.env.log_internal_state
@@ -223,6 +227,8 @@ class RobotEnv(gym.Env):
                 raise BackendError(f"the move home is unsafe ({verdict.reason}); bring the arm clear by hand")
         self.backend.reset(self.home, self._gripper_reset, spawn)
         self.safety.forget()
+        if self.fixture_hold is not None:
+            self.fixture_hold.reset(self._gripper_reset)
         for tracker in self._trackers.values():
             tracker.reset()
         start = self._start_of(self.blueprint.achieved_from, spawn)
@@ -255,6 +261,8 @@ class RobotEnv(gym.Env):
         rejection = command.rejection
         for name in self.fixtures:  # the drawer is where it was read: the check keeps the arm off it there
             self.safety.place_fixture(name, state.objects[name].joint)
+        if self.fixture_hold is not None:
+            rejection = rejection or self.fixture_hold.judge(state, command.q_arm, command.gripper).reason
         if not rejection:
             verdict = self.safety.check(state.q_arm, command.q_arm, state.gripper, command.gripper)
             rejection = verdict.reason
@@ -271,6 +279,8 @@ class RobotEnv(gym.Env):
                 self.backend.command_joints(command.q_arm, self._timing.action_speed)
                 if command.gripper is not None:
                     self.backend.command_gripper(command.gripper)
+                    if self.fixture_hold is not None:
+                        self.fixture_hold.sent(command.gripper)
             self.backend.advance(self._timing.action_cycle_time)
             self._state = self._read_state(previous)
             if self.sim_limits is not None:

@@ -41,7 +41,7 @@ class FixtureBox:
     center: np.ndarray  # world, the joint at its lower limit
     half_extents: np.ndarray  # world axes
     moves: bool  # rides on the joint
-    touchable: bool  # the gripper's fingers may touch it
+    touch_depth: float  # how far the gripper's fingers may be commanded into it (0: not touchable), m
 
 
 @dataclass(frozen=True)
@@ -65,7 +65,7 @@ class FixtureModel:
     def touch_radius(self) -> float:
         """The radius of the sphere about the reading's point that holds every touchable box: all of the fixture
         the fingers may come into contact with (the safety check keeps the arm's shapes off the rest)."""
-        corners = [np.linalg.norm(np.abs(b.center - self.point) + b.half_extents) for b in self.boxes if b.touchable]
+        corners = [np.linalg.norm(np.abs(b.center - self.point) + b.half_extents) for b in self.boxes if b.touch_depth]
         return float(max(corners, default=0.0))
 
     def point_at(self, value: float) -> np.ndarray:
@@ -80,9 +80,10 @@ class FixtureModel:
                 tuple(map(float, box.center)),
                 tuple(map(float, box.half_extents)),
                 FIXTURE_RGBA,
-                moves_with=self.name if box.moves else "",
+                fixture=self.name,
+                moves=box.moves,
                 travel=tuple(map(float, self.travel)) if box.moves else (0.0, 0.0, 0.0),
-                touchable=box.touchable,
+                touch_depth=box.touch_depth,
             )
             for box in self.boxes
         ]
@@ -203,7 +204,8 @@ def read_fixture(name: str, urdf: Path, spec, frame: TaskFrame) -> FixtureModel:
                     "yaw",
                 )
             half = np.abs(placed.rotation) @ (_vector(box.get("size")) / 2)
-            boxes.append(FixtureBox(link, label, placed.translation.copy(), half, moves, link in spec.touchable))
+            depth = float(spec.touch_depth) if link in spec.touchable else 0.0
+            boxes.append(FixtureBox(link, label, placed.translation.copy(), half, moves, depth))
     return FixtureModel(
         name,
         urdf,

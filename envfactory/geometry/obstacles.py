@@ -37,9 +37,12 @@ class Obstacle:
     center: tuple[float, float, float]
     half_extents: tuple[float, float, float]
     rgba: tuple[float, float, float, float] = (0.5, 0.5, 0.5, 1.0)
-    moves_with: str = ""  # the fixture whose joint carries it (its reading moves it before each check)
+    fixture: str = ""  # the fixture it is part of (task.fixtures), if any
+    moves: bool = False  # it rides on its fixture's joint: the joint's reading moves it before each check
     travel: tuple[float, float, float] = (0.0, 0.0, 0.0)  # m of world displacement per unit of the joint's value
-    touchable: bool = False  # the gripper's fingers may touch it (a drawer's handle): not measured against them
+    # how far the gripper's fingers may be commanded into it (a drawer's handle, which they close on), m; 0: they
+    # keep the surface margin from it, as every other shape of the arm always does
+    touch_depth: float = 0.0
 
     @property
     def low(self) -> np.ndarray:

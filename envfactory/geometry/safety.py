@@ -22,6 +22,11 @@ from envfactory.geometry.judged_motion import ACCEPTED, Anchor, Motion, Verdict,
 from envfactory.geometry.kernels.motion import DOUBT_AT_ENDS, PROVEN
 from envfactory.schema.models import SafetySettings
 
+# The margin a held touchable part keeps from the fingers (a drawer's handle they pull): none, however deep the
+# commanded motion takes them into where it stands now, since it moves with them (a finite number: the proofs'
+# arithmetic never meets an infinity). fixture_hold.py allows such motions only along the part's travel.
+HELD_MARGIN = -1.0
+
 
 class SafetyCheck:
     """One env's safety check of every command (sim and real): joint bounds, the largest joint change, and the
@@ -62,6 +67,7 @@ class SafetyCheck:
         # built to take, and skipping the pair would let a motion fold those links into each other.
         # (fmin passes over NaN, which marks the pairs that keep the surface margin)
         self.margin = np.fmin(collision.pair_margin, settings.surface_margin) + tolerance
+        self._free_margin = self.margin.copy()  # a touchable part's pairs while the fingers do not hold it
         # the last accepted motion's end pose and the gripper range it was judged over
         self._last_end: tuple[Anchor, tuple[float, float]] | None = None
 
@@ -135,6 +141,19 @@ class SafetyCheck:
     def forget(self) -> None:
         """The arm moved without a check (a reset): the remembered end pose no longer applies."""
         self._last_end = None
+
+    def hold_fixture(self, name: str, held: bool) -> None:
+        """The fingers hold fixture `name`'s touchable part (fixture_hold.py) or not: held, it moves with them
+        along its joint, so their pairs with it keep no margin (HELD_MARGIN); free, they may be commanded only
+        the fixture's touch depth into it. A remembered end pose measured under the other margins no longer
+        applies."""
+        pairs = self.collision.touch_pairs.get(name)
+        if pairs is None:
+            return
+        wanted = np.full(len(pairs), HELD_MARGIN) if held else self._free_margin[pairs]
+        if not np.array_equal(self.margin[pairs], wanted):
+            self.margin[pairs] = wanted
+            self._last_end = None
 
     def place_fixture(self, name: str, opening: float) -> None:
         """A fixture's joint reads `opening` past its lower limit: its moving boxes go there, and a remembered end

@@ -28,10 +28,6 @@ from envfactory.geometry.kernels.serving import kernels
 from envfactory.geometry.kinematics import Kinematics
 from envfactory.geometry.obstacles import Obstacle
 
-# The margin a finger keeps from a part it may touch (task.fixtures.*.touchable): none, so deep that no clearance
-# the pair can have falls short of it (a finite number: the proofs' arithmetic never meets an infinity)
-TOUCH_ALLOWED = -1.0
-
 
 class PairRules(dict):
     """What a generated pair list says of the self pairs: shape-name pairs -> why they are skipped (the
@@ -121,16 +117,25 @@ class CollisionModel:
         # every moving shape against every obstacle, in the order the compiled kernels number them
         self.scene_shape = np.repeat(moving, len(obstacles))
         self.scene_obstacle = np.tile(np.arange(len(obstacles)), len(moving))
-        # a touchable part (a drawer's handle) is for the fingers: their pairs with it keep no margin at all
-        touchable = np.array([o.touchable for o in obstacles], dtype=bool)
+        # a touchable part (a drawer's handle) is for the fingers: their pairs with it keep a negative margin, the
+        # depth a closing grip may command them into it
+        depth = np.array([o.touch_depth for o in obstacles], dtype=float)
         self._scene_margin = np.where(
-            touchable[self.scene_obstacle] & self.moved_by_gripper[self.scene_shape], TOUCH_ALLOWED, np.nan
+            (depth[self.scene_obstacle] > 0) & self.moved_by_gripper[self.scene_shape],
+            -depth[self.scene_obstacle],
+            np.nan,
         )
         # obstacles riding on a fixture's joint: their rows at the joint's lower limit, and their travel per unit
         self._fixture_rows = {}
         for row, obstacle in enumerate(obstacles):
-            if obstacle.moves_with:
-                self._fixture_rows.setdefault(obstacle.moves_with, []).append(row)
+            if obstacle.moves:
+                self._fixture_rows.setdefault(obstacle.fixture, []).append(row)
+        # the measured pairs of a gripper shape with a touchable part, per fixture (fixture_hold.py)
+        touch = np.flatnonzero(np.isfinite(self._scene_margin))
+        self.touch_pairs = {
+            name: touch[[obstacles[self.scene_obstacle[pair]].fixture == name for pair in touch]]
+            for name in {obstacles[self.scene_obstacle[pair]].fixture for pair in touch}
+        }
         self._closed_low, self._closed_high = self.obstacle_low.copy(), self.obstacle_high.copy()
         self._travel = np.array([o.travel for o in obstacles], float).reshape(-1, 3)
         self._first_obstacle = first_obstacle
