@@ -190,6 +190,12 @@ def task_lines(compiled: Blueprint) -> list[str]:
         spawn = obj.spawn
         where = f"± {list(spawn.offset)} in x, y" if spawn.random else "fixed"
         lines.append(f"Object {name}: {_solid(obj)}, {obj.mass:g} kg, spawns at {list(spawn.position)} ({where})")
+    for name, fixture in task.fixtures.items():
+        touch = f", the fingers may touch {', '.join(fixture.touchable)}" if fixture.touchable else ""
+        lines.append(
+            f"Fixture {name}: {fixture.urdf} at {list(fixture.position)}, turned {fixture.yaw}°, joint "
+            f"{fixture.joint!r} closed at reset ({fixture.friction:g} N friction, {fixture.damping:g} N s/m){touch}"
+        )
     if spec.gripper_at_reset is not None or task.gripper.in_action:
         use = "action[-1], absolute" if task.gripper.in_action else "not in the action"
         lines.append(f"Gripper: {spec.gripper_at_reset} at reset, {use}")
