@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from envfactory.geometry.vectors import lengths
+from envfactory.geometry.vectors import length, lengths
 from envfactory.schema.task import TURN_AXES, GoalSpec
 
 POINT = 3  # coordinates per point part: a position, task frame
@@ -75,22 +75,29 @@ class GoalParts:
         turns = [rotation_quaternion(state.objects[name].rotation) for name in self.turned]
         return np.concatenate(points + turns)
 
-    def distances(self, achieved: np.ndarray, desired: np.ndarray) -> np.ndarray:
-        """Each point part's distance to its goal: (..., points), over a batch of goal vectors or one."""
+    def distances(self, achieved: np.ndarray, desired: np.ndarray, part: int | None = None) -> np.ndarray:
+        """Each point part's distance to its goal, or point part `part`'s alone: (..., points), over a batch of goal
+        vectors or one."""
         size = self.points_size
         offset = np.asarray(achieved, float)[..., :size] - np.asarray(desired, float)[..., :size]
+        if part is not None:
+            offset = offset[..., POINT * part : POINT * (part + 1)]
+        if offset.ndim == 1 and offset.size == POINT:  # a step's goal of one part: plain floats are faster
+            return np.asarray([length(offset)])
         return lengths(offset.reshape(*offset.shape[:-1], -1, POINT))
 
-    def angles(self, achieved: np.ndarray, desired: np.ndarray) -> np.ndarray:
-        """Each orientation part's angle to its goal, rad: (..., orientations)."""
-        return quaternion_angles(
+    def angles(self, achieved: np.ndarray, desired: np.ndarray, part: int | None = None) -> np.ndarray:
+        """Each orientation part's angle to its goal, or orientation part `part`'s alone, rad: (..., orientations)."""
+        angles = quaternion_angles(
             np.asarray(achieved)[..., self.points_size :], np.asarray(desired)[..., self.points_size :]
         )
+        return angles if part is None else angles[..., part : part + 1]
 
-    def reached(self, achieved: np.ndarray, desired: np.ndarray, tolerance: float) -> np.ndarray:
-        """Every point part within `tolerance` of its goal, and every orientation part within its own."""
-        reached = (self.distances(achieved, desired) < tolerance).all(axis=-1)
-        if self.turned:
+    def reached(self, achieved: np.ndarray, desired: np.ndarray, tolerance: float, part: int | None = None):
+        """Every point part within `tolerance` of its goal, and every orientation part within its own; or point
+        part `part` alone within `tolerance`. A stack is not half built when one cube is far and the other exact."""
+        reached = (self.distances(achieved, desired, part) < tolerance).all(axis=-1)
+        if self.turned and part is None:
             reached &= (self.angles(achieved, desired) < np.asarray(self.turn_tolerances)).all(axis=-1)
         return reached
 

@@ -13,9 +13,8 @@ from typing import Literal
 
 import numpy as np
 
-from envfactory.geometry.vectors import length, lengths
 from envfactory.schema.errors import suggest
-from envfactory.terms.goal_parts import POINT, GoalParts
+from envfactory.terms.goal_parts import GoalParts
 from envfactory.terms.library import TermParams, UnknownReference, reward_term, termination_term
 from envfactory.terms.stages import STAGE_KEYS
 
@@ -95,27 +94,16 @@ def _target(desired, info, params):
 
 def _distances(achieved, desired, target: GoalTarget):
     """Each measured point part's distance to its goal, (..., parts): the bound part alone, or every one."""
-    size = target.parts.points_size
-    offset = np.asarray(achieved, float)[..., :size] - np.asarray(desired, float)[..., :size]
-    if target.part is not None:
-        offset = offset[..., POINT * target.part : POINT * (target.part + 1)]
-    if offset.ndim == 1 and offset.size == POINT:  # a step's goal of one part: plain floats are faster
-        return np.asarray([length(offset)])
-    return lengths(offset.reshape(*offset.shape[:-1], -1, POINT))
+    return target.parts.distances(achieved, desired, target.part)
 
 
 def _angles(achieved, desired, target: GoalTarget):
     """Each measured orientation part's angle to its goal, (..., parts): the bound part alone, or every one."""
-    angles = target.parts.angles(achieved, desired)
-    return angles if target.part is None else angles[..., target.part : target.part + 1]
+    return target.parts.angles(achieved, desired, target.part)
 
 
 def _reached(achieved, desired, target: GoalTarget, tolerance):
-    # every part within tolerance: a stack is not half built when one cube is far and the other exact
-    reached = (_distances(achieved, desired, target) < tolerance).all(axis=-1)
-    if target.parts.turned and target.part is None:  # and every orientation within its own
-        reached = reached & (_angles(achieved, desired, target) < np.asarray(target.parts.turn_tolerances)).all(-1)
-    return reached
+    return target.parts.reached(achieved, desired, tolerance, target.part)
 
 
 @reward_term(
