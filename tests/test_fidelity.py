@@ -187,7 +187,7 @@ def test_motions_proven_clear_of_the_cube_are_clear_in_pybullet(env_id):
         }
         links = [link_index[name] for name in moving_links]
         cube = backend.objects["cube"]
-        radius = backend._object_radii[cube]
+        radius = backend._object_radii[(cube, -1)]  # keyed by (body, link): -1 is a free object's base
         gripper = u.blueprint.spec.robot.gripper
         low, high = sorted((gripper.open, gripper.closed))
         rng = np.random.default_rng(0)
