@@ -4,8 +4,10 @@ A drawer's handle moves with the fingers that hold it, but only along the drawer
 measures the fixture where its joint stands now, so the fingers pulling the handle are commanded into its
 present place by a whole step: while they hold it, their pairs with it keep no margin (safety.HELD_MARGIN), and
 this guard refuses instead any motion that would take the hand across the travel, where the handle cannot
-follow and the arm would strain against the cabinet. Fingers not holding it (open, or not on it) may be
-commanded only the fixture's touch depth into it: enough to close on it, not to press down on it.
+follow and the arm would strain against the cabinet. Fingers commanded shut but not yet on it may be commanded
+the fixture's touch depth into it: enough to close on it. An open hand may touch it and no more: pressed on it,
+its fingers would be forced open past their stops (measured: the UR5e knuckle 12 mrad past its stop with the
+touch depth allowed to an open hand).
 """
 
 from __future__ import annotations
@@ -41,6 +43,9 @@ class FixtureHold:
         self._commanded = gripper if gripper is not None else self._commanded
         self.held = {name: False for name in self.travel}
 
+    def _shut(self, command: float) -> bool:
+        return self.gripper is not None and self.gripper.closure(command) >= self.CLOSED
+
     def sent(self, gripper: float) -> None:
         """The gripper was commanded to `gripper` (an accepted step's command)."""
         self._commanded = gripper
@@ -48,15 +53,16 @@ class FixtureHold:
     def judge(self, state, q_target: np.ndarray, gripper_target: float | None) -> Verdict:
         """Whether each fixture's touchable part is held as this step starts (the safety check's margins follow),
         and whether the commanded motion keeps a held part to its travel."""
-        commanded = state.gripper if self._commanded is None else self._commanded
-        closed = self.gripper is not None and self.gripper.closure(commanded) >= self.CLOSED
+        last = state.gripper if self._commanded is None else self._commanded
+        closed = self._shut(last)  # as the step starts
+        closing = closed or (gripper_target is not None and self._shut(gripper_target))
         for name in self.travel:
             held = False
             if closed:
                 self.collision.pose(state.q_arm, state.gripper)
                 held = bool(self.collision.exact(self.collision.touch_pairs[name]).min() <= self.CONTACT)
             self.held[name] = held
-            self.safety.hold_fixture(name, held)
+            self.safety.touch_fixture(name, "held" if held else "closing" if closing else "open")
         for name, held in self.held.items():
             if not held:
                 continue

@@ -67,7 +67,7 @@ class SafetyCheck:
         # built to take, and skipping the pair would let a motion fold those links into each other.
         # (fmin passes over NaN, which marks the pairs that keep the surface margin)
         self.margin = np.fmin(collision.pair_margin, settings.surface_margin) + tolerance
-        self._free_margin = self.margin.copy()  # a touchable part's pairs while the fingers do not hold it
+        self._closing_margin = self.margin.copy()  # a touchable part's pairs while the gripper closes on it
         # the last accepted motion's end pose and the gripper range it was judged over
         self._last_end: tuple[Anchor, tuple[float, float]] | None = None
 
@@ -142,15 +142,21 @@ class SafetyCheck:
         """The arm moved without a check (a reset): the remembered end pose no longer applies."""
         self._last_end = None
 
-    def hold_fixture(self, name: str, held: bool) -> None:
-        """The fingers hold fixture `name`'s touchable part (fixture_hold.py) or not: held, it moves with them
-        along its joint, so their pairs with it keep no margin (HELD_MARGIN); free, they may be commanded only
-        the fixture's touch depth into it. A remembered end pose measured under the other margins no longer
-        applies."""
+    def touch_fixture(self, name: str, grip: str) -> None:
+        """How the fingers meet fixture `name`'s touchable part (fixture_hold.py), and the margin their pairs with it
+        keep: `held` (closed on it: it moves with them along its joint) none at all (HELD_MARGIN); `closing` (the
+        gripper commanded shut) the fixture's touch depth into it, enough to close on it; `open` none into it, as
+        far as touching it, so that an open hand never forces its fingers apart on it. A remembered end pose
+        measured under other margins no longer applies."""
         pairs = self.collision.touch_pairs.get(name)
         if pairs is None:
             return
-        wanted = np.full(len(pairs), HELD_MARGIN) if held else self._free_margin[pairs]
+        if grip == "held":
+            wanted = np.full(len(pairs), HELD_MARGIN)
+        elif grip == "closing":
+            wanted = self._closing_margin[pairs]
+        else:
+            wanted = self._closing_margin[pairs] - self.collision.pair_margin[pairs]  # the margin 0 + tolerance
         if not np.array_equal(self.margin[pairs], wanted):
             self.margin[pairs] = wanted
             self._last_end = None

@@ -74,8 +74,9 @@ class FixtureSpec(Model):
     # links the gripper's fingers may touch (the handle); the safety check keeps every other robot shape from
     # them, and every robot shape from the fixture's other links
     touchable: list[str] = []
-    # how far the fingers may be commanded into a touchable link, m: a grip closing on the handle commands them past
-    # its surface (half the bar's width each, fully closed); an arm that pushes them in deeper is refused
+    # how far the fingers of a gripper commanded shut may be commanded into a touchable link, m: a grip closing on
+    # the handle commands them past its surface (half the bar's width each, fully closed); an open hand may only
+    # touch it (envfactory/geometry/fixture_hold.py)
     touch_depth: Annotated[Positive, Field(le=0.05)] = 0.01
     friction: Annotated[NonNegative, Field(le=100.0)] = 1.0  # N: the joint's dry friction
     damping: Annotated[NonNegative, Field(le=100.0)] = 2.0  # N s/m: the joint's viscous damping
