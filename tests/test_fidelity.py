@@ -14,7 +14,14 @@ import pybullet as p
 import pytest
 
 import envfactory
-from devkit.oracles.fidelity_probe import assert_within, expert_success, paired_episode, read_scene, trajectory_gaps
+from devkit.oracles.fidelity_probe import (
+    assert_within,
+    expert_success,
+    full_spread,
+    paired_episode,
+    read_scene,
+    trajectory_gaps,
+)
 from envfactory.backends.pybullet.fast_cycles import SETTLE_SUBSTEPS
 from envfactory.geometry.object_clearance import NEAR_CONTACT
 
@@ -156,7 +163,9 @@ def test_fidelity_over_many_episodes(env_id):
         for policy in ("random", "scripted"):
             gaps, _ = paired_episode(env_id, policy, seed=seed)
             assert_within(gaps, f"{env_id} {policy} seed {seed}")
-        assert_within(trajectory_gaps(env_id, seed=seed, steps=100), f"{env_id} trajectory seed {seed}")
+        # a strike that tumbles the cube is chaotic: the bar is full dynamics' own spread there, where larger
+        trajectory, spread = trajectory_gaps(env_id, seed=seed, steps=100), full_spread(env_id, seed=seed, steps=100)
+        assert_within(trajectory, f"{env_id} trajectory seed {seed}", spread)
     # Seed by seed, an episode the expert only just wins or loses can go either way: the UR5e PnP
     # expert on seed 4 is refused at the safety margin for many steps in both fidelities, and one
     # escapes by a 0.1 mm difference. The success count over 20 seeds may move by one episode.

@@ -9,7 +9,12 @@ Two measures, both on ordinary episodes of an env made with the fast fidelity:
   trajectories (a closed-loop expert amplifies any gap into different actions).
   The episode goes on from the fast outcome, as a fast env would.
 - trajectories: a fast and a full env from the same seed, fed the same actions;
-  the gap at the end of every step, accumulated over the episode.
+  the gap at the end of every step, accumulated over the episode. A strike that
+  tumbles an object is chaotic: full dynamics does not reproduce it against
+  itself either. So the trajectory's bar is the tolerance or, where larger, the
+  spread of full dynamics over the same actions with the objects nudged 1 µm at
+  reset (full_spread): the fast player is not asked to be more repeatable than
+  the reference is.
 
 Used by tests/test_fidelity.py and devkit/bench/fidelity.py.
 """
@@ -20,7 +25,9 @@ import copy
 from dataclasses import dataclass, field
 
 import gymnasium as gym
+import mujoco
 import numpy as np
+import pybullet as p
 
 from envfactory.experts import make_policy
 from envfactory.geometry.kinematics import quaternion_to_matrix
@@ -79,7 +86,8 @@ def read_scene(env) -> SceneReading:
     gripper = float(reading.position[u._gripper_in_states]) if u._gripper_in_states is not None else 0.0
     ee, _ = u.kinematics.ee_pose(q_arm, gripper)
     objects = {}
-    for name in u.blueprint.spec.task.objects:  # spawned by every reset, on either engine
+    task = u.blueprint.spec.task
+    for name in (*task.objects, *task.fixtures):  # spawned by every reset, or standing (a drawer's handle)
         obj = u.backend.read_object(name)
         objects[name] = (obj.position.copy(), quaternion_to_matrix(obj.quaternion))
     return SceneReading(q_arm.copy(), gripper, ee.copy(), objects)
@@ -219,6 +227,47 @@ def trajectory_gaps(env_id: str, seed: int, steps: int, **kwargs) -> Gaps:
             env.close()
 
 
+NUDGE = 1e-6  # m: how far full_spread moves each free object at reset
+
+
+def _nudge(env, distance: float) -> None:
+    """Move every free object `distance` along x in the engine, at rest: a difference far below any sensor's."""
+    u = env.unwrapped
+    backend = u.backend
+    for name in u.blueprint.spec.task.objects:
+        if hasattr(backend, "model"):  # MuJoCo
+            address = backend.handles.object_qpos[name]
+            backend.data.qpos[address] += distance
+            mujoco.mj_forward(backend.model, backend.data)
+        else:
+            body, client = backend.objects[name], backend.client
+            position, orientation = p.getBasePositionAndOrientation(body, physicsClientId=client)
+            moved = [position[0] + distance, position[1], position[2]]
+            p.resetBasePositionAndOrientation(body, moved, orientation, physicsClientId=client)
+
+
+def full_spread(env_id: str, seed: int, steps: int, **kwargs) -> Gaps:
+    """Full dynamics against itself: two full envs from one seed, fed trajectory_gaps' actions, the second's
+    objects nudged NUDGE at reset. How far the reference itself strays where the episode is chaotic."""
+    envs = [gym.make(env_id, physics_fidelity="full", **kwargs) for _ in range(2)]
+    try:
+        for env in envs:
+            env.reset(seed=seed)
+        _nudge(envs[1], NUDGE)
+        envs[0].action_space.seed(seed)
+        gaps = Gaps()
+        for _ in range(steps):
+            action = envs[0].action_space.sample()
+            ends = [env.step(action)[2:4] for env in envs]
+            gaps.add(read_scene(envs[1]), read_scene(envs[0]))
+            if any(terminated or truncated for terminated, truncated in ends):
+                break
+        return gaps
+    finally:
+        for env in envs:
+            env.close()
+
+
 def expert_success(env_id: str, fidelity: str, seeds, **kwargs) -> list[bool]:
     """The scripted expert's success per seed, with the given fidelity: the goal reached at some step."""
     env = gym.make(env_id, physics_fidelity=fidelity, **kwargs)
@@ -241,13 +290,22 @@ def expert_success(env_id: str, fidelity: str, seeds, **kwargs) -> list[bool]:
         env.close()
 
 
-def assert_within(gaps, what: str) -> None:
+def assert_within(gaps, what: str, spread: Gaps | None = None) -> None:
+    """Every gap within its tolerance, or within full dynamics' own spread (full_spread) where that is larger."""
+
+    def bar(tolerance: float, name: str) -> float:
+        own = getattr(spread, name) if spread is not None else []
+        return max(tolerance, max(own, default=0.0))
+
     assert gaps.ee, f"{what}: no step was measured"
-    assert max(gaps.ee) <= EE_TOLERANCE, f"{what}: EE {1e3 * max(gaps.ee):.3f} mm from full dynamics"
+    ee = bar(EE_TOLERANCE, "ee")
+    assert max(gaps.ee) <= ee, f"{what}: EE {1e3 * max(gaps.ee):.3f} mm from full dynamics (bar {1e3 * ee:.3f})"
     if gaps.object_position:
-        assert max(gaps.object_position) <= OBJECT_TOLERANCE, (
-            f"{what}: object {1e3 * max(gaps.object_position):.3f} mm from full dynamics"
+        position, angle = bar(OBJECT_TOLERANCE, "object_position"), bar(ANGLE_TOLERANCE, "object_angle")
+        assert max(gaps.object_position) <= position, (
+            f"{what}: object {1e3 * max(gaps.object_position):.3f} mm from full dynamics (bar {1e3 * position:.3f})"
         )
-        assert max(gaps.object_angle) <= ANGLE_TOLERANCE, (
-            f"{what}: object turned {np.degrees(max(gaps.object_angle)):.3f}° from full dynamics"
+        assert max(gaps.object_angle) <= angle, (
+            f"{what}: object turned {np.degrees(max(gaps.object_angle)):.3f}° from full dynamics "
+            f"(bar {np.degrees(angle):.3f}°)"
         )
