@@ -22,6 +22,7 @@ import pinocchio as pin
 from envfactory.geometry.frames import TaskFrame
 from envfactory.geometry.obstacles import Obstacle
 from envfactory.schema.errors import suggest
+from envfactory.schema.folders import builtin_root
 
 FIXTURE_RGBA = (0.62, 0.48, 0.33, 1.0)
 
@@ -92,8 +93,6 @@ class FixtureModel:
 def fixture_urdf(relative: str, folder: Path | None) -> Path:
     """A fixture's URDF: relative to the folder of the file that names it (a task file's), else to the built-in
     tasks/ folder (a user's task may stand the shipped cabinet); or an absolute path."""
-    from envfactory.schema.folders import builtin_root
-
     path = Path(relative)
     if path.is_absolute():
         candidates = [path]
