@@ -155,8 +155,21 @@ def table(results: dict, steps: list[int]) -> str:
     return "\n".join(lines)
 
 
-def goal_table(results: dict, steps: list[int], goal: float) -> str:
-    """When each run first reaches `goal`, in env steps and wall-clock time, and its success at a few steps."""
+def demonstration_counts(results: dict, args) -> dict:
+    """How many expert episodes each run learned from (its model.json's record), 0 for a run without."""
+    counts = {}
+    for env_id, variant, seed in results:
+        try:
+            demos = RunRecord.read(folder_of(env_id, variant, seed, args)).data.get("demos") or {}
+        except RunFolderError:
+            demos = {}
+        counts[(env_id, variant, seed)] = int(demos.get("episodes", 0))
+    return counts
+
+
+def goal_table(results: dict, steps: list[int], goal: float, demonstrations: dict) -> str:
+    """When each run first reaches `goal`, in env steps and wall-clock time, and its success at a few steps;
+    `demonstrations`: each run's count of expert episodes (demonstration_counts)."""
     # the evaluation steps some run has reached, at most eight of them spread evenly
     reached_steps = max((rows[-1].timesteps for rows in results.values() if rows), default=steps[-1])
     shown = [s for s in steps if s <= reached_steps] or steps[:1]
@@ -175,8 +188,9 @@ def goal_table(results: dict, steps: list[int], goal: float) -> str:
         cells = [f"{by_step[s]:.0%}" if s in by_step else "–" for s in marks]
         best = f"{max(r.success_rate for r in rows):.0%}" if rows else "–"
         done = f"{rows[-1].timesteps:,}" if rows else "0"
+        count = demonstrations.get((env_id, variant, seed), 0)
         lines.append(
-            f"| {env_id} | {'yes' if variant == 'demos' else 'no'} | {seed} | {reached[0]} | {reached[1]} | "
+            f"| {env_id} | {count if count else 'none'} | {seed} | {reached[0]} | {reached[1]} | "
             + " | ".join(cells)
             + f" | {best} | {done} |"
         )
@@ -233,14 +247,14 @@ def docs_page(results: dict, steps: list[int], args, command: str) -> str:
         "Each run is `envfactory train` with the shipped hyperparameters "
         f"(`specs/train/{args.algo}.yaml`), evaluated every {args.every:,} steps on {episodes} deterministic "
         f"episodes on the same goals each time (seeds {EVAL_SEED}…{EVAL_SEED + episodes - 1}). "
-        "With demonstrations, the scripted expert's episodes "
-        f"({args.demo_episodes}, collected with the run's env kwargs by `envfactory collect`) seed the replay "
+        "With demonstrations, the scripted expert's episodes (as many as the table's demonstrations column "
+        "says, collected with the run's env kwargs by `envfactory collect`) seed the replay "
         "buffer and the Q-filtered behaviour-cloning term (the `demos` block). Wall-clock time is the run's own, "
         "evaluations included, on a machine shared with other work: compare it within this page only.",
         "",
         f"The goal: at least {GOAL:.0%} success within {args.steps:,} env steps, seed 0.",
         "",
-        goal_table(results, steps, GOAL),
+        goal_table(results, steps, GOAL, demonstration_counts(results, args)),
         "",
     ]
     for env_id in args.ids:
@@ -312,7 +326,11 @@ def main() -> None:
         results = {key: rows for key, rows in results.items() if rows}
     steps = list(range(args.every, args.steps + 1, args.every))
     settings = {env_id: load(args.algo, env_id, args.hyperparameter).values for env_id in args.ids}
-    markdown = table(results, steps) if args.variants == ["plain"] else goal_table(results, steps, GOAL)
+    markdown = (
+        table(results, steps)
+        if args.variants == ["plain"]
+        else goal_table(results, steps, GOAL, demonstration_counts(results, args))
+    )
     print(markdown)
     (args.out / "learning.md").write_text(markdown + "\n")
     (args.out / "learning.json").write_text(
