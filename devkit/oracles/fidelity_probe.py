@@ -207,21 +207,27 @@ def paired_episode(env_id: str, policy: str, seed: int, steps: int | None = None
         env.close()
 
 
+def _same_actions(envs, seed: int, steps: int) -> Gaps:
+    """Two envs (reset already) fed the same random actions from `seed`: the gap of the first from the second at
+    the end of every step, until either episode ends."""
+    envs[0].action_space.seed(seed)
+    gaps = Gaps()
+    for _ in range(steps):
+        action = envs[0].action_space.sample()
+        ends = [env.step(action)[2:4] for env in envs]
+        gaps.add(read_scene(envs[0]), read_scene(envs[1]))
+        if any(terminated or truncated for terminated, truncated in ends):
+            break
+    return gaps
+
+
 def trajectory_gaps(env_id: str, seed: int, steps: int, **kwargs) -> Gaps:
     """A fast and a full env from one seed, fed the same random actions."""
     envs = [gym.make(env_id, physics_fidelity=fidelity, **kwargs) for fidelity in ("fast", "full")]
     try:
         for env in envs:
             env.reset(seed=seed)
-        envs[0].action_space.seed(seed)
-        gaps = Gaps()
-        for _ in range(steps):
-            action = envs[0].action_space.sample()
-            ends = [env.step(action)[2:4] for env in envs]
-            gaps.add(read_scene(envs[0]), read_scene(envs[1]))
-            if any(terminated or truncated for terminated, truncated in ends):
-                break
-        return gaps
+        return _same_actions(envs, seed, steps)
     finally:
         for env in envs:
             env.close()
@@ -247,22 +253,14 @@ def _nudge(env, distance: float) -> None:
 
 
 def full_spread(env_id: str, seed: int, steps: int, **kwargs) -> Gaps:
-    """Full dynamics against itself: two full envs from one seed, fed trajectory_gaps' actions, the second's
+    """Full dynamics against itself: two full envs from one seed, fed trajectory_gaps' actions, the first's
     objects nudged NUDGE at reset. How far the reference itself strays where the episode is chaotic."""
     envs = [gym.make(env_id, physics_fidelity="full", **kwargs) for _ in range(2)]
     try:
         for env in envs:
             env.reset(seed=seed)
-        _nudge(envs[1], NUDGE)
-        envs[0].action_space.seed(seed)
-        gaps = Gaps()
-        for _ in range(steps):
-            action = envs[0].action_space.sample()
-            ends = [env.step(action)[2:4] for env in envs]
-            gaps.add(read_scene(envs[1]), read_scene(envs[0]))
-            if any(terminated or truncated for terminated, truncated in ends):
-                break
-        return gaps
+        _nudge(envs[0], NUDGE)
+        return _same_actions(envs, seed, steps)
     finally:
         for env in envs:
             env.close()
