@@ -21,8 +21,8 @@ BULLET_PADDING = 0.002  # PyBullet pads its shapes; the safety check allows for 
 
 def _cabinet(env):
     backend = env.unwrapped.backend
-    body, link, joint = backend._fixture_parts["cabinet"]
-    return backend.client, body, link, joint
+    body, joint = backend._fixture_parts["cabinet"]
+    return backend.client, body, joint, joint  # PyBullet gives a joint's child link the joint's index
 
 
 def _travel(env) -> np.ndarray:

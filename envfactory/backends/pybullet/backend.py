@@ -353,8 +353,8 @@ class PyBulletBackend:
         # the bounding sphere of each (cubic) object, and of each fixture's touchable part, for the fast fidelity
         objects = self.spec.task.objects
         self._object_radii = {(body, -1): objects[name].bounding_radius for name, body in self.objects.items()}
-        for name, (body, link, _) in self._fixture_parts.items():
-            self._object_radii[(body, link)] = self.fixtures[name].touch_radius
+        for name, (body, joint) in self._fixture_parts.items():  # the joint's index is its child link's
+            self._object_radii[(body, joint)] = self.fixtures[name].touch_radius
 
     def command_joints(self, q_arm_target, duration: float) -> None:
         # Every joint follows the joint-synchronous profile along the straight joint-space line the safety check
@@ -501,8 +501,8 @@ class PyBulletBackend:
         joint = None
         with self._lock:
             if name in self._fixture_parts:
-                body, link, index = self._fixture_parts[name]
-                state = p.getLinkState(body, link, computeForwardKinematics=1, physicsClientId=self.client)
+                body, index = self._fixture_parts[name]  # the joint's index is its child link's
+                state = p.getLinkState(body, index, computeForwardKinematics=1, physicsClientId=self.client)
                 position, quaternion = state[4], state[5]
                 joint = p.getJointState(body, index, physicsClientId=self.client)[0] - self.fixtures[name].lower
             else:

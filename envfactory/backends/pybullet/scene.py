@@ -75,10 +75,10 @@ def add_objects(client: int, declared: dict[str, ObjectSpec], task_frame, object
     return bodies
 
 
-def add_fixture(client: int, fixture) -> tuple[int, int, int]:
+def add_fixture(client: int, fixture) -> tuple[int, int]:
     """A fixture (geometry.fixtures.FixtureModel) from its URDF, fixed where the spec stands it, its joint at the
     lower limit with its dry friction (a velocity motor held at zero, up to that force) and damping; (body, the
-    joint's child link, the joint's index)."""
+    joint's index, which PyBullet also gives the joint's child link)."""
     x, y, z, w = pin.Quaternion(fixture.rotation).coeffs()
     body = p.loadURDF(
         str(fixture.urdf),
@@ -100,7 +100,7 @@ def add_fixture(client: int, fixture) -> tuple[int, int, int]:
         body, index, p.VELOCITY_CONTROL, targetVelocity=0.0, force=fixture.friction, physicsClientId=client
     )
     p.changeDynamics(body, index, jointDamping=fixture.damping, physicsClientId=client)
-    return body, index, index  # a joint's child link has the joint's index
+    return body, index
 
 
 def add_marker(client: int, position, radius: float = 0.025) -> int:
