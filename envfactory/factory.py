@@ -7,8 +7,11 @@ import functools
 from pathlib import Path
 from typing import Any, Iterable
 
+from gymnasium.vector import AutoresetMode
+
 from envfactory.compiler import compile_blueprint
-from envfactory.envs import GoalRobotEnv, RobotEnv
+from envfactory.envs.robot_env import env_for
+from envfactory.envs.vector_env import RobotVectorEnv, vector_env
 from envfactory.registration import registry, validation_cache
 from envfactory.registration.registry import BUILTIN_SOURCE, CALL_SOURCE, IdRecord
 from envfactory.schema.compose import composed_config, kwarg_aliases, load_env_spec
@@ -103,11 +106,22 @@ def blueprint(env_id: str, overrides: Iterable[str] = (), **kwargs):
 
 def make_env(env_id: str, overrides: Iterable[str] = (), render_mode: str | None = None, **kwargs):
     """The gym entry point of every registered ID."""
-    if isinstance(overrides, str):
-        overrides = [overrides]
-    compiled = blueprint(env_id, overrides, **kwargs)
-    env_class = GoalRobotEnv if compiled.goal_env else RobotEnv
-    return env_class(compiled, render_mode=render_mode)
+    return env_for(blueprint(env_id, [overrides] if isinstance(overrides, str) else overrides, **kwargs), render_mode)
+
+
+def make_vector_env(
+    env_id: str,
+    num_envs: int = 1,
+    overrides: Iterable[str] = (),
+    render_mode: str | None = None,
+    max_episode_steps: int | None = None,
+    autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
+    **kwargs,
+) -> RobotVectorEnv:
+    """The gym vector entry point of every registered ID: `num_envs` envs in this process, on one blueprint
+    (gym.make_vec passes the ID's time limit as `max_episode_steps`)."""
+    compiled = blueprint(env_id, [overrides] if isinstance(overrides, str) else overrides, **kwargs)
+    return vector_env(compiled, num_envs, max_episode_steps, autoreset_mode, render_mode)
 
 
 # What only a simulator has: its engine, rate and fidelity, and the sampled physics and imitated sensing of

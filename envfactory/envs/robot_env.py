@@ -471,3 +471,9 @@ class GoalRobotEnv(RobotEnv):
     def compute_truncated(self, achieved_goal, desired_goal, info):
         # truncation is the registered time limit's job
         return np.zeros(np.asarray(achieved_goal).shape[:-1], dtype=bool)
+
+
+def env_for(blueprint: Blueprint, render_mode: str | None = None, **backend_options) -> RobotEnv:
+    """The env of a blueprint: the Dict-observation GoalRobotEnv for a goal env, else a RobotEnv."""
+    env_class = GoalRobotEnv if blueprint.goal_env else RobotEnv
+    return env_class(blueprint, render_mode=render_mode, **backend_options)

@@ -28,6 +28,7 @@ from envfactory.schema.sources import Findings, SourceMap, load_plain
 from envfactory.schema.validation import validation_problems
 
 ENTRY_POINT = "envfactory.factory:make_env"  # gymnasium imports it at the first make
+VECTOR_ENTRY_POINT = "envfactory.factory:make_vector_env"  # gym.make_vec's default: N envs in one process
 SPEC_PATH_VARIABLE = "ENVFACTORY_SPEC_PATH"
 # Bounded work: validating a family compiles each distinct ID, so their number is capped, as the family file's
 # size is (schema.folders.MAX_SPEC_BYTES); both caps are stated in docs/concepts/specs-and-overrides.md
@@ -182,6 +183,7 @@ def _register_family(records: list[IdRecord]) -> None:
             gym.register(
                 id=record.env_id,
                 entry_point=ENTRY_POINT,
+                vector_entry_point=VECTOR_ENTRY_POINT,
                 kwargs={"env_id": record.env_id},
                 max_episode_steps=record.max_episode_steps,
             )

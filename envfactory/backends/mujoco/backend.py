@@ -20,7 +20,7 @@ from envfactory.backends.base import (
 )
 from envfactory.backends.driver_readings import DriverReadings
 from envfactory.backends.mujoco.fast_cycles import FastCycles
-from envfactory.backends.mujoco.model import CAMERA, build
+from envfactory.backends.mujoco.model import CAMERA, Handles, build
 from envfactory.backends.view import RENDER_SIZE, RENDER_VIEW
 from envfactory.geometry.frames import TaskFrame
 from envfactory.geometry.obstacles import TABLE_TOP
@@ -48,7 +48,10 @@ class MujocoBackend:
         task_frame: TaskFrame,
         render_mode: str | None = None,
         fixtures: dict | None = None,
+        built: tuple[mujoco.MjModel, Handles] | None = None,
     ):
+        """`built`: another backend's `built` of the same spec, whose model this one runs on with its own data
+        (RobotVectorEnv's sharing); only for a model nothing rewrites, as randomized physics does."""
         if spec.env.gui or render_mode == "human":
             raise BackendError(
                 "the MuJoCo engine runs headless: a GUI (gui=True, render_mode='human') is "
@@ -57,7 +60,7 @@ class MujocoBackend:
         self.spec = spec
         self.robot = spec.robot
         self.task_frame = task_frame
-        self.model, self.handles = build(spec, urdf_path, fixtures)
+        self.model, self.handles = built if built is not None else build(spec, urdf_path, fixtures)
         self.data = mujoco.MjData(self.model)
         self.cycles = FastCycles(spec, self.model, self.data, self.handles, fixtures)
         self._driver_readings = DriverReadings(self.robot)
@@ -74,6 +77,10 @@ class MujocoBackend:
         camera = spec.scene.camera
         if spec.env.observation.camera_images and camera is not None:
             self._renderer(camera.width, camera.height)  # images are part of every observation: fail at make
+
+    @property
+    def built(self) -> tuple[mujoco.MjModel, Handles]:
+        return self.model, self.handles
 
     # ---------------------------------------------------------------- protocol
 
