@@ -261,6 +261,39 @@ def test_rllib_trains_a_few_iterations_on_a_goal_id_by_name():
     assert spaces == [expected, expected] and made.action_space.shape != gym.spec(GOAL_REACH).make().action_space.shape
 
 
+def test_rllib_runs_the_native_vector_env_in_each_runner():
+    """RLlib's vector-entry-point mode: each runner asks the creator for its envs at once and holds one native
+    vector env, N envs in its process."""
+    from ray.rllib.algorithms.ppo import PPOConfig
+
+    from envfactory.cluster import rllib
+
+    rllib.register([GOAL_REACH])
+    config = (
+        PPOConfig()
+        .environment(GOAL_REACH, env_config={"ee_action_type": True, "flatten_observation": True})
+        .env_runners(
+            num_env_runners=1,
+            num_envs_per_env_runner=3,
+            gym_env_vectorize_mode=gym.VectorizeMode.VECTOR_ENTRY_POINT,
+            rollout_fragment_length=40,
+        )
+        .training(train_batch_size_per_learner=120, minibatch_size=60, num_epochs=1)
+        .rl_module(model_config={"fcnet_hiddens": [16, 16]})
+    )
+    algo = config.build_algo()
+    try:
+        sampled = algo.train()["env_runners"]["num_env_steps_sampled_lifetime"]
+        held = algo.env_runner_group.foreach_env_runner(
+            lambda runner: (type(runner.env.unwrapped).__name__, len(runner.env.unwrapped.envs)),
+            local_env_runner=False,
+        )
+    finally:
+        algo.stop()
+    assert sampled >= 120
+    assert held == [("RobotVectorEnv", 3)]
+
+
 def test_the_creator_refuses_a_flatten_option_that_is_no_switch():
     from envfactory.cluster import rllib
 
@@ -277,10 +310,10 @@ def test_an_rllib_env_creator_makes_a_user_id_in_a_worker(user_folder):
 
     @ray.remote
     def make_and_reset(make):
-        env = make({"num_envs": 1})  # a key RLlib adds: no kwarg of the env
+        env = make({"num_envs": 1})  # RLlib's vector entry point: a native vector env of one
         observation, _ = env.reset(seed=0)
         env.close()
-        return env.spec.id, observation.tolist()
+        return env.spec.id, observation[0].tolist()
 
     env = creator({})
     try:

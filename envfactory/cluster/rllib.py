@@ -20,6 +20,11 @@ environment variables.
 `env_config` holds the ID's gym.make kwargs, plus one option of the creator: `flatten_observation: True`
 flattens a goal ID's Dict observation into one Box (gymnasium's FlattenObservation), as RLlib's default
 models take Box observations.
+
+With `.env_runners(num_envs_per_env_runner=N, gym_env_vectorize_mode=gym.VectorizeMode.VECTOR_ENTRY_POINT)`
+RLlib asks the creator for N envs at once (`num_envs` in env_config), and each runner holds envfactory's native
+vector env: N envs in its one process on one compiled blueprint and the robot's tables (MuJoCo: one model),
+where RLlib's default "sync" mode makes N separate envs and "async" N processes.
 """
 
 from __future__ import annotations
@@ -32,8 +37,7 @@ from ray.tune.registry import register_env
 from envfactory.cluster.work import ShippedFolders
 from envfactory.registration import registry
 
-# keys RLlib itself puts into env_config (a vector env's size), which are no kwargs of the env
-RLLIB_CONFIG_KEYS = ("num_envs",)
+VECTOR_SIZE = "num_envs"  # what RLlib's vector entry point adds to env_config: no kwarg of the env
 FLATTEN = "flatten_observation"  # the creator's own option (module docstring)
 
 
@@ -44,15 +48,18 @@ class EnvCreator:
     env_id: str
     workspace: ShippedFolders
 
-    def __call__(self, env_config) -> gym.Env:
+    def __call__(self, env_config) -> gym.Env | gym.vector.VectorEnv:
         self.workspace.enter([self.env_id])
-        config = dict(env_config or {})
-        flatten = config.pop(FLATTEN, False)
+        kwargs = dict(env_config or {})
+        flatten = kwargs.pop(FLATTEN, False)
         if not isinstance(flatten, bool):
             raise ValueError(f"{self.env_id}: env_config {FLATTEN}={flatten!r} must be true or false")
-        kwargs = {name: value for name, value in config.items() if name not in RLLIB_CONFIG_KEYS}
-        env = gym.make(self.env_id, **kwargs)
-        return gym.wrappers.FlattenObservation(env) if flatten else env
+        num_envs = kwargs.pop(VECTOR_SIZE, None)
+        if num_envs is None:
+            env = gym.make(self.env_id, **kwargs)
+            return gym.wrappers.FlattenObservation(env) if flatten else env
+        vector = gym.make_vec(self.env_id, num_envs=int(num_envs), vectorization_mode="vector_entry_point", **kwargs)
+        return gym.wrappers.vector.FlattenObservation(vector) if flatten else vector
 
 
 def register(env_ids: list[str] | None = None) -> list[str]:
