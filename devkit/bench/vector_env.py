@@ -1,13 +1,15 @@
 """The native vector env: memory per env and steps per core, beside one env of ours and panda-gym's.
 
-    python -m devkit.bench.vector_env [--ids ID ...] [--engines pybullet mujoco] [--sizes 1 4 16] [--steps 100]
-        [--rounds 2] [--markdown [PATH]]
+    python -m devkit.bench.vector_env [--ids ID ...] [--engines pybullet mujoco] [--sizes 1 4 16] [--steps 1000]
+        [--rounds 3] [--markdown [PATH]]
 
-Each row is one fresh process, random actions. "RSS after make" is the process's resident memory once the env
-(or the N envs) is made; "peak RSS" is its high-water mark after the timed steps (getrusage's ru_maxrss, as the
-panda-gym side-by-side page measures it). Steps per core are env steps (vector steps times N) over the process's
-CPU time, so a busy machine slows the wall clock and not the figure; the rate against the wall clock is beside
-it. panda-gym's PandaPush-v3, one env made with gym.make, is the memory reference.
+Each row is one fresh process, random actions. Every env of a vector env starts from the one env's seed and takes
+the one env's actions, so each does the one env's work and the rates compare like with like. "RSS after make"
+is the process's resident memory once the env (or the N envs) is made; "peak RSS" is its high-water mark after
+the timed steps (getrusage's ru_maxrss, as the panda-gym side-by-side page measures it). Steps per core are env
+steps (vector steps times N) over the process's CPU time, so a busy machine slows the wall clock and not the
+figure; the rate against the wall clock is beside it. panda-gym's PandaPush-v3, one env made with gym.make, is
+the memory reference.
 """
 
 from __future__ import annotations
@@ -51,16 +53,24 @@ def work(env_id: str, num_envs: int, steps: int, seed: int, engine: str) -> dict
         env = gym.make(env_id, **kwargs)
     make_s = time.perf_counter() - start
     rss_after_make = _rss_mb()
-    env.reset(seed=seed)
-    env.action_space.seed(seed)
-    for _ in range(WARM_UP):  # compiled kernels load, engine caches warm: kept out of the rate
-        env.step(env.action_space.sample())
-    actions = [env.action_space.sample() for _ in range(steps)]
+    # every env of a vector env starts from the one env's seed and gets its actions: each does the one env's work,
+    # so the rates compare the same work (random actions' costs vary widely with where the arm goes)
+    single = env.single_action_space if num_envs else env.action_space
+    single.seed(seed)
+    actions = [single.sample() for _ in range(WARM_UP + steps)]
+    if num_envs:
+        env.reset(seed=[seed] * num_envs)
+        actions = [np.tile(action, (num_envs, 1)) for action in actions]
+    else:
+        env.reset(seed=seed)
+    for action in actions[:WARM_UP]:  # compiled kernels load, engine caches warm: kept out of the rate
+        env.step(action)
+    actions = actions[WARM_UP:]
     wall, cpu = time.perf_counter(), time.process_time()
     for action in actions:
         _, _, terminated, truncated, _ = env.step(action)
         if not num_envs and (terminated or truncated):
-            env.reset()
+            env.reset()  # unseeded, as the vector env's autoreset resets its envs: the same next episode
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     env.close()
     env_steps = steps * max(1, num_envs)
@@ -93,8 +103,8 @@ def main() -> None:
     parser.add_argument("--ids", nargs="*", default=["UR5ePushSim-v0", "VX300SPushSim-v0"])
     parser.add_argument("--engines", nargs="*", default=["pybullet", "mujoco"])
     parser.add_argument("--sizes", nargs="*", type=int, default=[1, 4, 16])
-    parser.add_argument("--steps", type=int, default=100, help="vector steps timed per process")
-    parser.add_argument("--rounds", type=int, default=2)
+    parser.add_argument("--steps", type=int, default=1000, help="vector steps timed per process")
+    parser.add_argument("--rounds", type=int, default=3)
     add_markdown_option(parser)
     parser.add_argument("--worker", help=argparse.SUPPRESS)
     parser.add_argument("--worker-envs", type=int, default=0, help=argparse.SUPPRESS)
