@@ -225,7 +225,8 @@ def test_train_with_demos_records_the_dataset_and_resumes_with_it(tmp_path, data
     meta = json.loads((out / "model.json").read_text())
     demos = meta["demos"]
     assert demos["dataset_id"] == "test/reach/expert-v0" and demos["episodes"] == 4 and demos["terminated"] == 4
-    assert demos["cloning"] == {"bc_weight": 2.0, "bc_batch_size": 128, "q_filter": True}
+    assert demos["cloning"] == {"bc_weight": 2.0, "bc_batch_size": 128, "q_filter": True, "clone_episodes": "all"}
+    assert demos["cloned_episodes"] == 4
     assert meta["algorithm_kwargs"]["bc_weight"] == 2.0 and "--demos" in meta["command"]
     with open(out / "replay_buffer.pkl", "rb") as handle:
         buffer = pickle.load(handle)
@@ -251,6 +252,31 @@ def test_the_demos_block_is_checked(tmp_path, dataset):
     )
     assert result.exit_code == 1 and "q_filter='maybe' must be true or false" in result.output
     assert not (tmp_path / "run").exists()
+
+
+def test_clone_episodes_successful_clones_only_the_episodes_that_reached_the_goal(dataset):
+    """The replay buffer gets every episode; the cloning term's buffer only those whose last step terminated."""
+    from dataclasses import replace
+
+    from envfactory.learn.bc import CloningSettings
+    from envfactory.learn.demo_replay import DemonstrationError, open_demonstrations
+    from envfactory.learn.trainer import _attach_demonstrations
+
+    demos = open_demonstrations(str(dataset))
+    first = demos.episodes[0]
+    missed = replace(first, terminations=np.zeros_like(first.terminations), truncations=np.ones_like(first.truncations))
+    mixed = replace(demos, episodes=[missed, *demos.episodes[1:]])
+    model, env = _model(cloning=CloningSettings(clone_episodes="successful"))
+    try:
+        assert _attach_demonstrations(model, mixed, seed_replay=True) == len(demos.episodes) - 1
+        assert model.replay_buffer.pos == mixed.transitions  # every episode, the missed one too
+        assert model.demo_buffer.size() == mixed.transitions - len(missed.actions)
+    finally:
+        env.close()
+    with pytest.raises(DemonstrationError, match="none of its 1 episodes reached the goal"):
+        replace(demos, episodes=[missed]).successful()
+    with pytest.raises(HyperparameterError, match="clone_episodes='best' must be one of all, successful"):
+        CloningSettings.from_hyperparameters(load("sac", ENV_ID, ["demos.clone_episodes=best"]))
 
 
 def test_every_demonstration_action_goes_through_the_scaling_it_is_given(dataset):

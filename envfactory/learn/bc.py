@@ -6,7 +6,11 @@ rates the demonstrated action above the actor's own (the Q filter): early on
 the demonstrations teach, and once the policy does better they stop holding it
 back. The training config sets the term (the `demos` block):
 
-    demos: {bc_weight: 1.0, bc_batch_size: 128, q_filter: true}
+    demos: {bc_weight: 1.0, bc_batch_size: 128, q_filter: true, clone_episodes: all}
+
+`clone_episodes: successful` clones only the episodes that reached the goal (ended terminated); the replay
+buffer still gets every episode, as HER learns from a miss too. An expert that misses half the time (UR5e
+Slide: 273 of 500 episodes reached the goal) otherwise also teaches its misses, refused steps included.
 
 How it joins the update: SB3's SAC, TD3 and TQC compute the actor loss, zero
 the actor's gradients, back-propagate and step the actor's optimizer. A step
@@ -24,12 +28,15 @@ from dataclasses import asdict, dataclass
 
 from envfactory.learn.hyperparams import HyperparameterError, Hyperparameters
 
+CLONED_EPISODES = ("all", "successful")
+
 
 @dataclass(frozen=True)
 class CloningSettings:
     bc_weight: float = 1.0  # 0: the demonstrations only seed the replay buffer
     bc_batch_size: int = 128
     q_filter: bool = True
+    clone_episodes: str = "all"  # or "successful": the cloning term's buffer holds only episodes that reached the goal
 
     @classmethod
     def from_hyperparameters(cls, hyper: Hyperparameters) -> "CloningSettings":
@@ -58,6 +65,10 @@ class CloningSettings:
             raise HyperparameterError(f"{where}: bc_batch_size={settings.bc_batch_size!r} must be an integer >= 1")
         if not isinstance(settings.q_filter, bool):
             raise HyperparameterError(f"{where}: q_filter={settings.q_filter!r} must be true or false")
+        if settings.clone_episodes not in CLONED_EPISODES:
+            raise HyperparameterError(
+                f"{where}: clone_episodes={settings.clone_episodes!r} must be one of {', '.join(CLONED_EPISODES)}"
+            )
         return settings
 
     def as_dict(self) -> dict:
@@ -83,9 +94,11 @@ class CloningTerm:
         bc_weight: float = CloningSettings.bc_weight,
         bc_batch_size: int = CloningSettings.bc_batch_size,
         q_filter: bool = CloningSettings.q_filter,
+        clone_episodes: str = CloningSettings.clone_episodes,
         **kwargs,
     ):
         self.bc_weight, self.bc_batch_size, self.q_filter = float(bc_weight), int(bc_batch_size), bool(q_filter)
+        self.clone_episodes = str(clone_episodes)
         self.demo_buffer = None
         super().__init__(*args, **kwargs)
 

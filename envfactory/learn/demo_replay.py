@@ -9,7 +9,7 @@ them and actions in the buffer's [-1, 1] scale, as SB3 stores its own transition
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Iterator
 
@@ -45,6 +45,17 @@ class Demonstrations:
     @property
     def transitions(self) -> int:
         return sum(len(e.actions) for e in self.episodes)
+
+    def successful(self) -> "Demonstrations":
+        """The episodes that reached the goal (their last step terminated), for a cloning term that clones only
+        those."""
+        kept = [e for e in self.episodes if bool(e.terminations[-1])]
+        if not kept:
+            raise DemonstrationError(
+                f"--demos {self.reference}: none of its {len(self.episodes)} episodes reached the goal, and the run "
+                f"clones only those (demos.clone_episodes=successful)"
+            )
+        return replace(self, episodes=kept)
 
     def summary(self) -> dict:
         """What model.json records, and what a resumed run checks the dataset against."""

@@ -134,8 +134,8 @@ def train(
         model, constructor_kwargs = make_model(env_id, hyper, normalizer or env, seed, limit, cloning)
         demo_summary = None
         if demonstrations is not None:
-            _attach_demonstrations(model, demonstrations, seed_replay=True)
-            demo_summary = {**demonstrations.summary(), "cloning": cloning.as_dict()}
+            cloned = _attach_demonstrations(model, demonstrations, seed_replay=True)
+            demo_summary = {**demonstrations.summary(), "cloning": cloning.as_dict(), "cloned_episodes": cloned}
         created = claim(folder)  # last, after everything that can refuse the settings
         record = RunRecord(
             folder,
@@ -260,16 +260,18 @@ def resume(
         eval_env.close()
 
 
-def _attach_demonstrations(model, demonstrations, seed_replay: bool) -> None:
-    """Demonstrations into the replay buffer (a new run's) and into the cloning term's own buffer."""
+def _attach_demonstrations(model, demonstrations, seed_replay: bool) -> int:
+    """Demonstrations into the replay buffer (a new run's) and into the cloning term's own buffer; the number of
+    episodes cloned."""
     if seed_replay:
         fill(model.replay_buffer, demonstrations, model.policy.scale_action)
-    if model.bc_weight > 0:
-        model.attach_demonstrations(
-            cloning_buffer(
-                demonstrations, model.observation_space, model.action_space, model.policy.scale_action, model.device
-            )
-        )
+    if model.bc_weight == 0:
+        return 0
+    cloned = demonstrations.successful() if model.clone_episodes == "successful" else demonstrations
+    model.attach_demonstrations(
+        cloning_buffer(cloned, model.observation_space, model.action_space, model.policy.scale_action, model.device)
+    )
+    return len(cloned.episodes)
 
 
 def _same_dataset(demonstrations, recorded: dict, folder: Path) -> None:
