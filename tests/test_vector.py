@@ -179,3 +179,8 @@ def test_vector_env_refuses_wrong_seeds_and_masks():
             vector.reset(options={"reset_mask": np.array([1, 0])})
     finally:
         vector.close()
+
+
+def test_a_vector_env_of_several_envs_on_a_real_robot_is_refused_before_anything_connects():
+    with pytest.raises(ValueError, match="would send 2 envs' commands to one robot"):
+        gym.make_vec("UR5eReacherReal-v0", num_envs=2)

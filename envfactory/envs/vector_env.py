@@ -18,6 +18,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array, iterate
 
+from envfactory.compiler.compile import SIMULATORS
 from envfactory.envs.robot_env import RobotEnv, env_for
 
 Transition = tuple[Any, float, bool, bool, dict]
@@ -169,6 +170,13 @@ def build_envs(blueprint, num_envs: int, render_mode: str | None = None) -> list
     """`num_envs` envs of one blueprint; on MuJoCo, unless randomized, the later ones run on the first's model."""
     if num_envs < 1:
         raise ValueError(f"num_envs must be at least 1, not {num_envs}")
+    if num_envs > 1 and blueprint.backend not in SIMULATORS:
+        # N envs over one robot's driver would each command the same arm
+        raise ValueError(
+            f"{blueprint.env_id}: a vector env of {num_envs} envs on the {blueprint.backend} backend would send "
+            f"{num_envs} envs' commands to one robot; vector envs of more than one env are for the simulators "
+            f"({', '.join(SIMULATORS)})"
+        )
     first = env_for(blueprint, render_mode)
     shared = {}
     if blueprint.backend == "mujoco" and not blueprint.randomized:
