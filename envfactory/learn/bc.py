@@ -9,8 +9,9 @@ back. The training config sets the term (the `demos` block):
     demos: {bc_weight: 1.0, bc_batch_size: 128, q_filter: true, clone_episodes: all}
 
 `clone_episodes: successful` clones only the episodes that reached the goal (ended terminated); the replay
-buffer still gets every episode, as HER learns from a miss too. An expert that misses half the time (UR5e
-Slide: 273 of 500 episodes reached the goal) otherwise also teaches its misses, refused steps included.
+buffer still gets every episode, as HER learns from a miss too. It keeps an expert's misses, refused steps
+included, out of the cloned actions. Tried once on UR5e Slide, whose expert misses half its EE-mode episodes: 14%
+success at 100k steps, against 26% cloning every episode (one seed each); the shipped settings clone every one.
 
 How it joins the update: SB3's SAC, TD3 and TQC compute the actor loss, zero
 the actor's gradients, back-propagate and step the actor's optimizer. A step
