@@ -95,24 +95,25 @@ def _blueprint_cached(env_id: str, overrides: tuple[str, ...], frozen_kwargs: tu
         raise
 
 
-def blueprint(env_id: str, overrides: Iterable[str] = (), **kwargs):
-    """The compiled blueprint of an ID, cached per (ID, overrides, kwargs)."""
+def blueprint(env_id: str, overrides: str | Iterable[str] = (), **kwargs):
+    """The compiled blueprint of an ID, cached per (ID, overrides, kwargs); one override may come as a string."""
+    overrides = (overrides,) if isinstance(overrides, str) else tuple(overrides)
     items = tuple(sorted(kwargs.items()))
     try:
-        return _blueprint_cached(env_id, tuple(overrides), _freeze(kwargs), items)
+        return _blueprint_cached(env_id, overrides, _freeze(kwargs), items)
     except TypeError:  # unhashable kwarg values: compile without the cache
-        return _blueprint_cached.__wrapped__(env_id, tuple(overrides), (), items)
+        return _blueprint_cached.__wrapped__(env_id, overrides, (), items)
 
 
-def make_env(env_id: str, overrides: Iterable[str] = (), render_mode: str | None = None, **kwargs):
+def make_env(env_id: str, overrides: str | Iterable[str] = (), render_mode: str | None = None, **kwargs):
     """The gym entry point of every registered ID."""
-    return env_for(blueprint(env_id, [overrides] if isinstance(overrides, str) else overrides, **kwargs), render_mode)
+    return env_for(blueprint(env_id, overrides, **kwargs), render_mode)
 
 
 def make_vector_env(
     env_id: str,
     num_envs: int = 1,
-    overrides: Iterable[str] = (),
+    overrides: str | Iterable[str] = (),
     render_mode: str | None = None,
     max_episode_steps: int | None = None,
     autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
@@ -120,8 +121,7 @@ def make_vector_env(
 ) -> RobotVectorEnv:
     """The gym vector entry point of every registered ID: `num_envs` envs in this process, on one blueprint
     (gym.make_vec passes the ID's time limit as `max_episode_steps`)."""
-    compiled = blueprint(env_id, [overrides] if isinstance(overrides, str) else overrides, **kwargs)
-    return vector_env(compiled, num_envs, max_episode_steps, autoreset_mode, render_mode)
+    return vector_env(blueprint(env_id, overrides, **kwargs), num_envs, max_episode_steps, autoreset_mode, render_mode)
 
 
 # What only a simulator has: its engine, rate and fidelity, and the sampled physics and imitated sensing of

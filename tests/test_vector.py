@@ -118,6 +118,7 @@ def test_native_vector_env_on_mujoco_shares_one_model_and_equals_single_envs(env
         assert len(models) == 1 and len(datas) == 3
         checks = {id(env.safety) for env in vector.unwrapped.envs}
         assert len(checks) == 3, "each env keeps its own safety check"
+        assert len({id(env.blueprint) for env in vector.unwrapped.envs}) == 1, "one compiled blueprint"
     finally:
         vector.close()
 

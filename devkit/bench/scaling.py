@@ -26,17 +26,11 @@ from pathlib import Path
 
 import ray
 
+from devkit.bench.workers import rss_mb
 from devkit.report import Report, add_markdown_option
 from envfactory.cluster import pool
 from envfactory.cluster.work import Collection, SeedEvaluation, run_here
 from envfactory.learn.demonstrations import collect
-
-
-def _rss_mb(pid: int) -> float:
-    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-        if line.startswith("VmRSS:"):
-            return int(line.split()[1]) / 1024
-    return float("nan")
 
 
 def _ray_processes_mb() -> float:
@@ -48,7 +42,7 @@ def _ray_processes_mb() -> float:
         try:
             command = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
             if ("gcs_server" in command or "raylet" in command or "ray/_private" in command) and "ray::" not in command:
-                total += _rss_mb(int(entry.name))
+                total += rss_mb(int(entry.name))
         except OSError:
             continue
     return total
@@ -188,7 +182,7 @@ def main() -> None:
                     f"{collect_s / spent_collect:.2f}×",
                 )
             pids = sorted({pid for pid, _, _ in ray.get([_probe.remote(env_id) for _ in range(2 * workers)])})
-            memory = sorted(_rss_mb(pid) for pid in pids)
+            memory = sorted(rss_mb(pid) for pid in pids)
             worker_costs = {"startup": startup, "memory": memory[len(memory) // 2], "ray": _ray_processes_mb()}
             costs.add(
                 workers,

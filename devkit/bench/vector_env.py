@@ -15,23 +15,16 @@ the memory reference.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import statistics
-import subprocess
 import sys
 import time
 
+from devkit.bench.workers import emit, rss_mb, run_worker
 from devkit.report import Report, add_markdown_option
 
-RESULT = "VECTOR-RESULT "
 WARM_UP = 5
 PANDA_GYM_ID = "PandaPush-v3"
-
-
-def _rss_mb() -> float:
-    with open("/proc/self/statm") as statm:
-        return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
 
 
 def work(env_id: str, num_envs: int, steps: int, seed: int, engine: str) -> dict:
@@ -52,7 +45,7 @@ def work(env_id: str, num_envs: int, steps: int, seed: int, engine: str) -> dict
     else:
         env = gym.make(env_id, **kwargs)
     make_s = time.perf_counter() - start
-    rss_after_make = _rss_mb()
+    rss_after_make = rss_mb()
     # every env of a vector env starts from the one env's seed and gets its actions: each does the one env's work,
     # so the rates compare the same work (random actions' costs vary widely with where the arm goes)
     single = env.single_action_space if num_envs else env.action_space
@@ -83,19 +76,13 @@ def work(env_id: str, num_envs: int, steps: int, seed: int, engine: str) -> dict
         "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
         "steps_per_cpu_s": env_steps / cpu,
         "steps_per_wall_s": env_steps / wall,
-        "threads": len(os.listdir("/proc/self/task")),
-        "numpy": np.__version__,
     }
 
 
 def run_one(env_id: str, num_envs: int, steps: int, seed: int, engine: str) -> dict:
     command = [sys.executable, "-m", "devkit.bench.vector_env", "--worker", env_id, "--worker-envs", str(num_envs)]
     command += ["--steps", str(steps), "--seed", str(seed), "--worker-engine", engine]
-    done = subprocess.run(command, capture_output=True, text=True)
-    for line in done.stdout.splitlines():
-        if line.startswith(RESULT):
-            return json.loads(line[len(RESULT) :])
-    raise RuntimeError(f"{env_id} x{num_envs} ({engine}) failed:\n{done.stderr[-3000:]}")
+    return run_worker(command, f"{env_id} x{num_envs} ({engine or 'panda-gym'})")
 
 
 def main() -> None:
@@ -112,7 +99,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
-        print(RESULT + json.dumps(work(args.worker, args.worker_envs, args.steps, args.seed, args.worker_engine)))
+        emit(work(args.worker, args.worker_envs, args.steps, args.seed, args.worker_engine))
         return
 
     report = Report.start(parser, args, __doc__)

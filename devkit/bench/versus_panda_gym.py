@@ -32,10 +32,10 @@ import json
 import os
 import resource
 import statistics
-import subprocess
 import sys
 import time
 
+from devkit.bench.workers import emit, run_worker
 from devkit.report import Report, add_markdown_option
 
 WARM_UP_STEPS = 5
@@ -55,7 +55,6 @@ ENVFACTORY_IDS = [
     "VX300SPushSim-v0",
     "VX300SPnPSim-v0",
 ]
-RESULT = "RESULT "
 
 
 def is_panda_gym(env_id: str) -> bool:
@@ -342,11 +341,7 @@ def run_one(label: str, steps: int, policy: str, seed: int, kwargs: list[str], v
         str(vector),
         *[a for k in kwargs for a in ("-k", k)],
     ]
-    done = subprocess.run(command, capture_output=True, text=True)
-    for line in done.stdout.splitlines():
-        if line.startswith(RESULT):
-            return {**json.loads(line[len(RESULT) :]), "id": label}
-    raise RuntimeError(f"{env_id} ({policy}) failed:\n{done.stderr[-3000:]}")
+    return {**run_worker(command, f"{env_id} ({policy})"), "id": label}
 
 
 def parse_kwargs(pairs: list[str]) -> dict:
@@ -460,7 +455,7 @@ def main() -> None:
             result = work_vector(args.worker, args.steps, args.vector_worker, args.seed)
         else:
             result = work(args.worker, args.steps, args.policy, args.seed, parse_kwargs(args.kwarg))
-        print(RESULT + json.dumps(result), flush=True)
+        emit(result)
         return
 
     report = Report.start(parser, args, __doc__)

@@ -88,13 +88,12 @@ class RobotVectorEnv(VectorEnv):
             if mask is None or mask[index]:
                 _, info = self.reset_one(index, seeds[index], options or None)
                 infos = self._add_info(infos, info, index)
-        return self._batched(), infos
+        return self.batched_observations(), infos
 
     def step(self, actions):
-        count = len(self._observations)
-        rewards = np.zeros(count)
-        terminations = np.zeros(count, dtype=bool)
-        truncations = np.zeros(count, dtype=bool)
+        rewards = np.zeros(self.num_envs)
+        terminations = np.zeros(self.num_envs, dtype=bool)
+        truncations = np.zeros(self.num_envs, dtype=bool)
         infos: dict = {}
         for index, action in enumerate(iterate(self.action_space, actions)):
             if self._needs_reset[index] and self.autoreset_mode == AutoresetMode.NEXT_STEP:
@@ -112,7 +111,7 @@ class RobotVectorEnv(VectorEnv):
                     infos = self._add_info(infos, {"final_obs": observation, "final_info": info}, index)
                     _, info = self.reset_one(index)
             infos = self._add_info(infos, info, index)
-        return self._batched(), rewards, terminations, truncations, infos
+        return self.batched_observations(), rewards, terminations, truncations, infos
 
     def render(self) -> tuple | None:
         if self.render_mode != "rgb_array":
@@ -159,7 +158,8 @@ class RobotVectorEnv(VectorEnv):
             raise ValueError(f"reset(seed=...): {len(seeds)} seeds for {self.num_envs} envs")
         return seeds
 
-    def _batched(self):
+    def batched_observations(self):
+        """The envs' latest observations as one batch of the vector observation space."""
         if any(observation is None for observation in self._observations):
             raise RuntimeError("call reset() before step()")
         empty = create_empty_array(self.single_observation_space, self.num_envs)

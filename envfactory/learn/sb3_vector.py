@@ -12,7 +12,7 @@ vector env's one-env calls, whatever autoreset mode the vector env was made with
 
 from __future__ import annotations
 
-from typing import Any, Iterable
+from typing import Any
 
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv
@@ -33,31 +33,28 @@ class SB3VectorEnv(VecEnv):
         self._actions: np.ndarray | None = None
 
     def reset(self):
-        observations = []
         for index in range(self.num_envs):
             options = self._options[index] or None
-            observation, self.reset_infos[index] = self.vector.reset_one(index, self._seeds[index], options)
-            observations.append(observation)
+            _, self.reset_infos[index] = self.vector.reset_one(index, self._seeds[index], options)
         self._reset_seeds()
         self._reset_options()
-        return self._stacked(observations)
+        return self.vector.batched_observations()
 
     def step_async(self, actions: np.ndarray) -> None:
         self._actions = actions
 
     def step_wait(self):
-        observations, rewards, dones, infos = [], np.zeros(self.num_envs, np.float32), [], []
+        rewards, dones, infos = np.zeros(self.num_envs, np.float32), np.zeros(self.num_envs, bool), []
         for index in range(self.num_envs):
             observation, rewards[index], terminated, truncated, info = self.vector.step_one(index, self._actions[index])
             info = dict(info)
             info["TimeLimit.truncated"] = truncated and not terminated
-            if terminated or truncated:
+            dones[index] = terminated or truncated
+            if dones[index]:
                 info["terminal_observation"] = observation
-                observation, self.reset_infos[index] = self.vector.reset_one(index)
-            observations.append(observation)
-            dones.append(terminated or truncated)
+                _, self.reset_infos[index] = self.vector.reset_one(index)  # its batch row: the new episode's first
             infos.append(info)
-        return self._stacked(observations), rewards, np.array(dones), infos
+        return self.vector.batched_observations(), rewards, dones, infos
 
     def close(self) -> None:
         self.vector.close()
@@ -80,9 +77,3 @@ class SB3VectorEnv(VecEnv):
 
     def get_images(self) -> list[np.ndarray | None]:
         return [env.render() for env in self.vector.envs]
-
-    def _stacked(self, observations: Iterable):
-        observations = list(observations)
-        if isinstance(observations[0], dict):
-            return {key: np.stack([observation[key] for observation in observations]) for key in observations[0]}
-        return np.stack(observations)
