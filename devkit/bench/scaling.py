@@ -26,7 +26,7 @@ from pathlib import Path
 
 import ray
 
-from devkit.bench.workers import rss_mb
+from devkit.processes import rss_mb
 from devkit.report import Report, add_markdown_option
 from envfactory.cluster import pool
 from envfactory.cluster.work import Collection, SeedEvaluation, run_here

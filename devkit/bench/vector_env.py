@@ -20,7 +20,7 @@ import statistics
 import sys
 import time
 
-from devkit.bench.workers import emit, rss_mb, run_worker
+from devkit.processes import emit, rss_mb, run_worker
 from devkit.report import Report, add_markdown_option
 
 WARM_UP = 5

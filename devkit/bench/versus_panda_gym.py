@@ -35,7 +35,7 @@ import statistics
 import sys
 import time
 
-from devkit.bench.workers import emit, run_worker
+from devkit.processes import emit, run_worker
 from devkit.report import Report, add_markdown_option
 
 WARM_UP_STEPS = 5
