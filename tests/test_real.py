@@ -140,6 +140,8 @@ def test_malformed_joint_state_ends_the_episode(twin, make):
     env = make_real(make, "UR5ePushReal-v0", stand_in)
     env.reset(seed=0)
     stand_in.faults.corrupt(UR5E_JOINTS)
+    # a loaded machine may take longer than the feed's staleness limit to deliver the first broken message
+    assert wait_for(lambda: env.unwrapped.backend.joints.error, timeout=10.0)
     settled(stand_in, quiet=0.1)
     sent = len(on(stand_in, UR5E_ARM))
     _, _, _, truncated, info = env.step(np.ones(6, dtype=np.float32))

@@ -236,3 +236,22 @@ def test_a_feed_is_stale_only_if_no_message_was_on_its_way():
     time.sleep(0.15)
     with pytest.raises(StaleFeed, match=r"/joint_states is stale: newest message 0\.\d+ s old \(limit 0\.10 s\)"):
         feed.fresh()
+
+
+def test_a_broken_message_landing_in_the_grace_is_the_reason_given():
+    """Past the limit, the message that arrives within the grace may be a malformed one: the feed reports it
+    as malformed (what is wrong), not as stale (what it looked like a moment earlier)."""
+    import threading
+    import time
+
+    from envfactory.backends.base import MalformedFeed
+    from envfactory.backends.rosbridge.feeds import RECEIVE_GRACE_S, Feed
+
+    feed = Feed("/joint_states", 0.1, threading.Lock())
+    feed.update((1.0,))
+    time.sleep(0.15)
+    broken = threading.Timer(RECEIVE_GRACE_S / 3, feed.fail, ("malformed message on /joint_states: position",))
+    broken.start()
+    with pytest.raises(MalformedFeed, match="malformed message on /joint_states: position"):
+        feed.fresh()
+    broken.join()

@@ -65,11 +65,14 @@ class Feed:
             # The receiving thread may only now get to run: a long computation of the caller's own (a motion
             # proof that holds the interpreter) kept it from taking messages already waiting on the socket, and
             # a feed is not stale for that. It is stale if nothing newer comes within a short grace.
+            # What arrives in the grace may be a broken message: that, not the silence, is then the reason.
             deadline = time.monotonic() + RECEIVE_GRACE_S
-            while time.monotonic() < deadline and not self.newer_than(received):
+            while time.monotonic() < deadline and not self.newer_than(received) and not self.error:
                 time.sleep(RECEIVE_GRACE_S / 10)
             with self._lock:
-                values, received = self.values, self.received
+                values, received, error = self.values, self.received, self.error
+            if error:
+                raise MalformedFeed(error)
             age = time.monotonic() - received
             if age > self.limit:
                 raise StaleFeed(f"{self.topic} is stale: newest message {beyond(age, self.limit)}")
