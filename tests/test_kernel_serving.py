@@ -1,13 +1,17 @@
-"""The kernels' two forms (geometry/kernels/serving.py): the interpreted twins a cold process serves must answer
-exactly as the compiled kernels do, and warmup.py must compile every argument type an env calls them with, or
-a warm process would still compile in the foreground."""
+"""The kernels' three forms (geometry/kernels/serving.py): the interpreted twins a cold process serves and the
+module built ahead of time (native.py) must answer exactly as numba's compiled kernels do, and warmup.py must
+list every argument type an env calls them with, or a warm process would still compile in the foreground (or
+find no native entry point of that type)."""
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
+import shutil
 import subprocess
 import sys
+import sysconfig
 import time
 
 import gymnasium as gym
@@ -17,7 +21,8 @@ import pytest
 from conftest import action_modes
 
 import envfactory
-from envfactory.geometry.kernels import serving, warmup
+from envfactory.geometry.kernels import native, serving, warmup
+from envfactory.geometry.kernels.damped_least_squares import damped_step
 from envfactory.geometry.kernels.serving import kernels
 
 # one ID a family: the Goal twins call the same kernels with the same arrays
@@ -36,11 +41,29 @@ def _same(a, b) -> bool:
     return a == b or (a != a and b != b)
 
 
+@pytest.fixture(scope="session")
+def native_kernels():
+    """The ahead-of-time module of these sources: built here unless a process (the suite's own background
+    warm-up, whose lock this waits for) has built it; on a machine without a C compiler there is none to test."""
+    folder = serving.cache_folder()
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / serving.LOCK_FILE, "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        found = native.load()
+        if found is None:
+            compiler = (sysconfig.get_config_var("CC") or "cc").split()[0]
+            if shutil.which(compiler) is None:
+                pytest.skip(f"no C compiler ({compiler}) to build the kernels ahead of time")
+            native.build()
+            found = native.load()
+    return found
+
+
 @pytest.fixture
-def both_forms(monkeypatch):
-    """Serves every entry point as: run the interpreted twin and the compiled kernel on copies of the same
-    arguments, and record where their answers (return values and every array written in place) differ, and the
-    argument types of each call."""
+def all_forms(monkeypatch, native_kernels):
+    """Serves every entry point as: run the interpreted twin, the native module's function and the compiled
+    kernel on copies of the same arguments, and record where the first two's answers (return values and every
+    array written in place) differ from the compiled one's, and the argument types of each call."""
     compiled, twins = serving.compiled_kernels(), serving.interpreted_kernels()
     seen: dict[str, set] = {name: set() for name in compiled}
     differences: list[str] = []
@@ -48,13 +71,16 @@ def both_forms(monkeypatch):
     def judged(name):
         def call(*args):
             seen[name].add(tuple(numba.typeof(a) for a in args))
-            by_twin, by_kernel = _copies(args), _copies(args)
-            answer, expected = twins[name](*by_twin), compiled[name](*by_kernel)
-            if not _same(answer, expected):
-                differences.append(f"{name} returned {answer!r}, compiled {expected!r}")
-            for index, (left, right) in enumerate(zip(by_twin, by_kernel)):
-                if not _same(left, right):
-                    differences.append(f"{name} argument {index}: {left!r} against {right!r}")
+            by_kernel = _copies(args)
+            expected = compiled[name](*by_kernel)
+            for form, functions in (("interpreted", twins), ("native", native_kernels)):
+                by_form = _copies(args)
+                answer = functions[name](*by_form)
+                if not _same(answer, expected):
+                    differences.append(f"{name} {form} returned {answer!r}, compiled {expected!r}")
+                for index, (left, right) in enumerate(zip(by_form, by_kernel)):
+                    if not _same(left, right):
+                        differences.append(f"{name} {form} argument {index}: {left!r} against {right!r}")
             for target, source in zip(args, by_kernel):
                 if isinstance(target, np.ndarray):
                     target[...] = source
@@ -68,8 +94,8 @@ def both_forms(monkeypatch):
 
 
 @pytest.mark.parametrize("env_id", SIM_IDS)
-def test_the_interpreted_kernels_answer_as_the_compiled_ones_at_the_types_warmup_compiles(env_id, both_forms):
-    seen, differences = both_forms
+def test_the_interpreted_and_native_kernels_answer_as_the_compiled_ones_at_the_types_warmup_lists(env_id, all_forms):
+    seen, differences = all_forms
     for ee_action_type in action_modes(env_id):
         env = gym.make(env_id, ee_action_type=ee_action_type)
         env.reset(seed=3)
@@ -90,13 +116,14 @@ def test_the_interpreted_kernels_answer_as_the_compiled_ones_at_the_types_warmup
 
 def test_a_bad_kernel_mode_is_refused_by_name(monkeypatch):
     monkeypatch.setenv("ENVFACTORY_KERNELS", "fast")
-    with pytest.raises(ValueError, match="ENVFACTORY_KERNELS='fast'.*auto, compiled, interpreted"):
+    with pytest.raises(ValueError, match="ENVFACTORY_KERNELS='fast'.*auto, native, compiled, interpreted"):
         serving.KernelServer()
 
 
 def test_a_cold_process_serves_the_twins_until_the_cache_is_marked_ready(monkeypatch, tmp_path):
     started = []
     monkeypatch.setenv("ENVFACTORY_KERNELS", "auto")
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))  # no native module there
     monkeypatch.setattr(serving, "cache_folder", lambda: tmp_path)
     monkeypatch.setattr(serving, "start_warmup", lambda folder: started.append(folder) or folder / serving.LOG_FILE)
     monkeypatch.setattr(serving, "CHECK_EVERY_S", 0.0)
@@ -112,6 +139,7 @@ def test_a_cold_process_serves_the_twins_until_the_cache_is_marked_ready(monkeyp
 
 def test_a_failed_warmup_is_said_and_the_process_compiles_for_itself(monkeypatch, tmp_path, capsys):
     monkeypatch.setenv("ENVFACTORY_KERNELS", "auto")
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))  # no native module there
     monkeypatch.setattr(serving, "cache_folder", lambda: tmp_path)
     monkeypatch.setattr(serving, "start_warmup", lambda folder: folder / serving.LOG_FILE)
     monkeypatch.setattr(serving, "CHECK_EVERY_S", 0.0)
@@ -123,6 +151,53 @@ def test_a_failed_warmup_is_said_and_the_process_compiles_for_itself(monkeypatch
     server.damped_step(rows, np.array([1.0, 1.0]), 0.1)
     assert server.form == "compiled"
     assert "the kernels' warm-up failed" in capsys.readouterr().err
+
+
+def test_a_cold_process_switches_to_the_native_module_once_it_is_in_place(monkeypatch, tmp_path, native_kernels):
+    built = native.module_path()
+    monkeypatch.setenv("ENVFACTORY_KERNELS", "auto")
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(serving, "cache_folder", lambda: tmp_path)
+    monkeypatch.setattr(serving, "start_warmup", lambda folder: folder / serving.LOG_FILE)
+    monkeypatch.setattr(serving, "CHECK_EVERY_S", 0.0)
+    server = serving.KernelServer()
+    rows = np.array([[1.0, 0.0, 0.5], [0.0, 2.0, 0.0]])
+    step = server.damped_step(rows, np.array([1.0, 1.0]), 0.1)
+    assert server.form == "interpreted"
+    native.module_path().parent.mkdir(parents=True)
+    shutil.copy2(built, native.module_path())  # what warmup.py's build puts there
+    assert np.array_equal(server.damped_step(rows, np.array([1.0, 1.0]), 0.1), step)
+    assert server.form == "native"
+    assert server.damped_step is not serving.compiled_kernels()["damped_step"]
+
+
+def test_without_a_native_build_the_warmup_fills_numbas_cache_and_says_why(monkeypatch, tmp_path, capsys):
+    def no_compiler():
+        raise RuntimeError("no C compiler found")
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(serving, "cache_folder", lambda: tmp_path)
+    monkeypatch.setattr(native, "build", no_compiler)
+    # one small entry point keeps the compile short; the others take the same path
+    monkeypatch.setattr(serving, "compiled_kernels", lambda: {"damped_step": damped_step})
+    assert warmup.main() == 0
+    assert "no C compiler found" in native.failed()
+    assert serving.cache_is_ready(tmp_path)
+    assert "compiling the safety kernels into" in capsys.readouterr().out
+
+
+def test_a_process_served_the_native_module_never_imports_numba(native_kernels):
+    probe = (
+        "import sys, gymnasium as gym, envfactory\n"
+        "from envfactory.geometry.kernels.serving import kernels\n"
+        "env = gym.make('VX300SPushSim-v0'); env.reset(seed=0)\n"
+        "for _ in range(5): env.step(env.action_space.sample())\n"
+        "print(kernels.form, 'numba' in sys.modules, 'llvmlite' in sys.modules)\n"
+    )
+    environment = {key: value for key, value in os.environ.items() if key != "ENVFACTORY_KERNELS"}
+    done = subprocess.run([sys.executable, "-c", probe], env=environment, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split()[-3:] == ["native", "False", "False"]
 
 
 def test_a_mark_from_other_sources_is_not_taken_for_ready(tmp_path):
@@ -144,7 +219,8 @@ def test_from_a_cold_cache_the_first_episodes_run_at_once_and_a_later_process_co
     assert "compiling the safety kernels in the background" in first.stderr
     assert time.perf_counter() - started < 60
     deadline = time.monotonic() + 600
-    while not list(tmp_path.rglob(serving.READY_FILE)):
+    built = f"{native.MODULE}{sysconfig.get_config_var('EXT_SUFFIX')}"
+    while not list(tmp_path.rglob(serving.READY_FILE)) and not list(tmp_path.rglob(built)):
         assert time.monotonic() < deadline, [p.read_text() for p in tmp_path.rglob(serving.LOG_FILE)]
         time.sleep(2)
     probe = (
@@ -163,7 +239,8 @@ def test_from_a_cold_cache_the_first_episodes_run_at_once_and_a_later_process_co
     )
     second = subprocess.run([sys.executable, "-c", probe], env=environment, capture_output=True, text=True, timeout=300)
     assert second.returncode == 0, second.stderr
-    assert second.stdout.split()[-2:] == ["compiled", "0"]
+    has_compiler = shutil.which((sysconfig.get_config_var("CC") or "cc").split()[0]) is not None
+    assert second.stdout.split()[-2:] == ["native" if has_compiler else "compiled", "0"]
     assert "compiling the safety kernels" not in second.stderr
 
 

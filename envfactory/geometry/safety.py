@@ -19,7 +19,7 @@ import numpy as np
 
 from envfactory.geometry.collision import CollisionModel
 from envfactory.geometry.judged_motion import ACCEPTED, Anchor, Motion, Verdict, weak_pairs
-from envfactory.geometry.kernels.motion import DOUBT_AT_ENDS, PROVEN
+from envfactory.geometry.kernels.outcomes import DOUBT_AT_ENDS, PROVEN
 from envfactory.schema.models import SafetySettings
 
 # The margin a held touchable part keeps from the fingers (a drawer's handle they pull): none, however deep the

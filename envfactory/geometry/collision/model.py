@@ -23,7 +23,7 @@ from envfactory.geometry.collision.meshes import hull, read_mesh, with_meshes_st
 from envfactory.geometry.collision.shapes import BOX_ROUNDING, Shape, box_of, capsule_of
 from envfactory.geometry.collision.structure import Structure
 from envfactory.geometry.gripper_sweep import GripperSweep
-from envfactory.geometry.kernels.joints import JointTable
+from envfactory.geometry.kernels.joint_table import JointTable
 from envfactory.geometry.kernels.serving import kernels
 from envfactory.geometry.kinematics import Kinematics
 from envfactory.geometry.obstacles import Obstacle

@@ -2,5 +2,5 @@
 (joints.py), per-pose capsule bounds (pose.py), a finger's sweep over a gripper range (finger_sweep.py), the
 proof of a whole motion (motion.py) with its bisection of the pairs in doubt (bisection.py), the same proof
 against the objects' bounding spheres (spheres.py), and the IK's damped least squares (damped_least_squares.py).
-Callers reach them through serving.py's `kernels`, which serves them interpreted while warmup.py compiles them
-on a cold cache."""
+Callers reach them through serving.py's `kernels`: built ahead of time (native.py) where a C compiler allows,
+numba's just-in-time form elsewhere, and interpreted while warmup.py builds them."""

@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from envfactory.geometry.kernels.joints import NO_BOUND, joint_frames
+from envfactory.geometry.kernels.joint_table import NO_BOUND
+from envfactory.geometry.kernels.joints import joint_frames
 from envfactory.geometry.kernels.pose import PLACED_ROWS, capsule_ends, scene_bound, self_pair_bound
 
 

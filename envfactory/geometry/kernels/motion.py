@@ -8,6 +8,7 @@ import numpy as np
 from numba import njit
 
 from envfactory.geometry.kernels.bisection import capsule_motion_unproven, motion_pose
+from envfactory.geometry.kernels.outcomes import DOUBT_AT_ENDS, DOUBT_BETWEEN, PROVEN
 from envfactory.geometry.kernels.pose import (
     capsule_bounds,
 )
@@ -29,11 +30,6 @@ def travel_and_reserve(lever, way, gripper_change, travel, reserve):
         reserve[row] = lever[row, arm] * (gripper_change / 2) if has_gripper else 0.0
         moves = moves or reserve[row] != 0.0
     return moves
-
-
-# motion_proof's outcomes: the capsules prove the whole motion; a pair is in doubt at its start or end (below its
-# margin there: coal must measure it); the ends hold but the compiled pass leaves pairs unproven between them
-PROVEN, DOUBT_AT_ENDS, DOUBT_BETWEEN = 0, 1, 2
 
 
 @njit(cache=True)

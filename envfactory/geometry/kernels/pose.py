@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from envfactory.geometry.kernels.joints import NO_BOUND, placed_point
+from envfactory.geometry.kernels.joint_table import NO_BOUND
+from envfactory.geometry.kernels.joints import placed_point
 
 
 @njit(cache=True, inline="always")

@@ -1,16 +1,18 @@
-"""Which form of the compiled kernels answers a call: numba's machine code once its cache holds them, and until
-then the same Python source run by the interpreter.
+"""Which form of the kernels answers a call: the module compiled ahead of time (native.py) where warmup.py could
+build it, else numba's just-in-time machine code once its cache holds them, and until either is there the same
+Python source run by the interpreter.
 
-Compiling the kernels takes a minute or more on a cold cache (numba's type inference of the inlined proof), and
-a newcomer's first command would sit silent for all of it. So a process that finds the cache cold starts one
-background warm-up (warmup.py, deduplicated across processes by a file lock), and meanwhile calls the kernels'
-own Python functions, with the kernel-to-kernel calls inside them rebound to each other rather than to numba's
-dispatchers. Same source, same float64 arithmetic: the verdicts are the compiled ones (tests/test_kernel_serving.py
-holds them equal), at about a hundredth of the speed. Once warmup.py marks the cache ready, the next call
-switches the process to the compiled kernels for good.
+Compiling the kernels takes a minute or more (numba's type inference of the inlined proof), and a newcomer's first
+command would sit silent for all of it. So a process that finds neither form ready starts one background warm-up
+(warmup.py, deduplicated across processes by a file lock), and meanwhile calls the kernels' own Python functions,
+with the kernel-to-kernel calls inside them rebound to each other rather than to numba's dispatchers. Same source,
+same float64 arithmetic: the verdicts are the compiled ones (tests/test_kernel_serving.py holds them equal), at
+about a hundredth of the speed. Once warmup.py is done, the next call switches the process to the compiled form
+for good. A process served the native module never imports numba.
 
-ENVFACTORY_KERNELS chooses otherwise: `compiled` compiles in the calling process if it must (the old way, and
-what warmup.py itself runs), `interpreted` never compiles.
+ENVFACTORY_KERNELS chooses otherwise: `native` builds the ahead-of-time module in the calling process if it must,
+`compiled` compiles numba's form in the calling process if it must (what warmup.py runs where it cannot build the
+module), `interpreted` never compiles.
 """
 
 from __future__ import annotations
@@ -24,8 +26,7 @@ import time
 import types
 from pathlib import Path
 
-import numba
-from numba.core.dispatcher import Dispatcher
+from envfactory.geometry.kernels import native
 
 KERNEL_MODULES = ("joints", "pose", "finger_sweep", "motion", "bisection", "spheres", "damped_least_squares")
 # the kernels called from outside the package; the rest are called only by these
@@ -41,7 +42,7 @@ ENTRY_POINTS = {
     "damped_step": "damped_least_squares",
     "damped_pseudo_inverse": "damped_least_squares",
 }
-MODES = ("auto", "compiled", "interpreted")
+MODES = ("auto", "native", "compiled", "interpreted")
 READY_FILE = "envfactory-kernels.ready"
 FAILED_FILE = "envfactory-kernels.failed"
 LOCK_FILE = "envfactory-kernels.lock"
@@ -53,7 +54,8 @@ def kernel_modules() -> list[types.ModuleType]:
     return [importlib.import_module(f"{__package__}.{name}") for name in KERNEL_MODULES]
 
 
-def compiled_kernels() -> dict[str, Dispatcher]:
+def compiled_kernels() -> dict:
+    """numba's dispatchers of the entry points (importing numba)."""
     return {
         name: getattr(importlib.import_module(f"{__package__}.{module}"), name) for name, module in ENTRY_POINTS.items()
     }
@@ -63,6 +65,8 @@ def interpreted_kernels() -> dict[str, types.FunctionType]:
     """The kernels' Python functions, each module's copied into a namespace of its own in which every dispatcher
     (its own and those imported from sibling modules) is replaced by its Python twin, so no call inside them
     reaches numba's compiler."""
+    from numba.core.dispatcher import Dispatcher
+
     modules = kernel_modules()
     namespaces = {module.__name__: dict(vars(module)) for module in modules}
     twins: dict[int, types.FunctionType] = {}
@@ -88,6 +92,8 @@ def cache_folder() -> Path:
 
 def source_stamp() -> dict[str, object]:
     """What the cache was built from: numba invalidates a kernel's entries when its file's time or size changes."""
+    import numba
+
     stamp: dict[str, object] = {"numba": numba.__version__, "python": sys.version.split()[0]}
     for module in kernel_modules():
         info = os.stat(module.__file__)
@@ -128,6 +134,13 @@ def start_warmup(folder: Path) -> Path:
     return log
 
 
+def jit_disabled() -> bool:
+    """numba's NUMBA_DISABLE_JIT, read without importing numba unless it is imported already."""
+    if "numba" in sys.modules:
+        return bool(sys.modules["numba"].config.DISABLE_JIT)
+    return os.environ.get("NUMBA_DISABLE_JIT", "0").strip() not in ("", "0")
+
+
 class KernelServer:
     """`kernels.motion_proof(...)` and the other entry points, served in the form the mode and the cache allow.
     Attributes are set on first use; in the interim form each call checks the cache at most once a second."""
@@ -146,8 +159,15 @@ class KernelServer:
         return self.__dict__[name]
 
     def _choose(self) -> None:
-        if numba.config.DISABLE_JIT:  # numba's own switch: its "kernels" are the Python functions already
+        if jit_disabled():  # numba's own switch: its "kernels" are the Python functions already
             self._serve(compiled_kernels(), "interpreted")
+            return
+        if self.mode == "native":
+            self._serve(native.load() or self._built_here(), "native")
+            return
+        found = native.load() if self.mode == "auto" else None
+        if found:
+            self._serve(found, "native")
             return
         if self.mode == "compiled" or (self.mode == "auto" and cache_is_ready()):
             self._serve(compiled_kernels(), "compiled")
@@ -166,6 +186,12 @@ class KernelServer:
         )
         self._serve({name: self._interim(name, twin, folder) for name, twin in twins.items()}, "interpreted")
 
+    @staticmethod
+    def _built_here() -> dict:
+        print("envfactory: building the safety kernels ahead of time in this process", file=sys.stderr, flush=True)
+        native.build()
+        return native.load()
+
     def _serve(self, functions: dict, form: str) -> None:
         self.__dict__.update(functions)
         self.form = form
@@ -175,6 +201,10 @@ class KernelServer:
             now = time.monotonic()
             if now >= self._next_check:
                 self._next_check = now + CHECK_EVERY_S
+                found = native.load()
+                if found:
+                    self._serve(found, "native")
+                    return self.__dict__[name](*args)
                 if cache_is_ready(folder):
                     self._serve(compiled_kernels(), "compiled")
                     return self.__dict__[name](*args)

@@ -1,6 +1,7 @@
-"""Fills numba's cache with every kernel entry point at the argument types the envs call it with, then marks the
-cache ready for serving.py. Started by serving.py in the background on a cold cache; one at a time per cache
-folder (a second warm-up finds the lock taken and leaves). Run it by hand to warm a cache ahead of time:
+"""Builds the kernels ahead of time (native.py) at the argument types the envs call them with; where that cannot
+be done (no C compiler), fills numba's cache with every entry point at those types and marks the cache ready for
+serving.py. Started by serving.py in the background when neither form is there; one at a time per cache folder (a
+second warm-up finds the lock taken and leaves). Run it by hand to prepare an install ahead of time:
 
     python -m envfactory.geometry.kernels.warmup
 """
@@ -15,7 +16,7 @@ import traceback
 
 from numba.types import boolean, float64, int64
 
-from envfactory.geometry.kernels import serving
+from envfactory.geometry.kernels import native, serving
 
 # C-contiguous arrays of 1 to 4 dimensions; tests/test_kernel_serving.py checks that every Sim ID, in joint and EE
 # mode, calls the entry points with exactly these types (a new type would compile in the calling process)
@@ -50,9 +51,20 @@ def main() -> int:
         except BlockingIOError:
             print("another warm-up holds the lock: leaving it to finish", flush=True)
             return 0
-        if serving.cache_is_ready(folder):
+        if native.load() is not None or serving.cache_is_ready(folder):
             return 0
         started = time.perf_counter()
+        if not native.failed():
+            print(f"building the safety kernels ahead of time into {native.module_path()}", flush=True)
+            try:
+                native.build()
+                print(f"ready after {time.perf_counter() - started:.1f} s", flush=True)
+                return 0
+            except Exception:
+                # most often no C compiler: numba's own form serves instead, compiled into its cache below
+                failure = traceback.format_exc()
+                native.mark_failed(failure)
+                print(failure, flush=True)
         print(f"compiling the safety kernels into {folder}", flush=True)
         try:
             for name, dispatcher in serving.compiled_kernels().items():

@@ -1,0 +1,119 @@
+"""The kernels compiled ahead of time into one extension module, which a process imports without numba.
+
+numba's just-in-time form costs every process its compiler: importing numba and llvmlite, then on the first call
+its typing registries and the cached machine code, about 120 MB and a second of the first make. The same
+functions compiled ahead of time by numba.pycc (at the argument types warmup.py lists) are plain machine code in a
+1 MB module that needs only numpy. warmup.py builds it once per install; building needs a C compiler, and where
+there is none warmup.py fills numba's cache instead (serving.py then serves the just-in-time form).
+
+numba.pycc is pending deprecation in numba (since 0.57; present in the versions this project installs). A numba
+without it fails the build like a missing compiler does, and the just-in-time form serves.
+
+The module is kept per stamp of what it was built from: the kernels' source, Python, numpy and numba. A changed
+kernel builds anew instead of loading stale code.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.machinery
+import importlib.metadata
+import importlib.util
+import os
+import sys
+import sysconfig
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+MODULE = "envfactory_kernels_native"
+KERNELS = Path(__file__).parent
+# every file whose code the module holds: the kernels, and the constants they read as globals
+SOURCES = (
+    "joints",
+    "pose",
+    "finger_sweep",
+    "motion",
+    "bisection",
+    "spheres",
+    "damped_least_squares",
+    "joint_table",
+    "outcomes",
+)
+FAILED_FILE = "native-build.failed"
+
+
+def stamp() -> str:
+    """What the module is built from, as a short hash."""
+    digest = hashlib.sha256()
+    for name in SOURCES:
+        digest.update((KERNELS / f"{name}.py").read_bytes())
+    versions = (sys.version.split()[0], np.__version__, importlib.metadata.version("numba"))
+    digest.update(repr(versions).encode())
+    return digest.hexdigest()[:16]
+
+
+def folder() -> Path:
+    """Where the module is kept: under NUMBA_CACHE_DIR when set (as numba's own cache, so one variable moves
+    both), else beside the kernels when that is writable, else the user's cache."""
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return Path(os.environ["NUMBA_CACHE_DIR"]) / "envfactory-native"
+    beside = KERNELS / "__pycache__"
+    if os.access(beside if beside.exists() else KERNELS, os.W_OK):
+        return beside / "native"
+    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "envfactory" / "native"
+
+
+def module_path() -> Path:
+    return folder() / stamp() / f"{MODULE}{sysconfig.get_config_var('EXT_SUFFIX')}"
+
+
+def load() -> dict | None:
+    """The entry points of the module built from these very sources, or None if there is none."""
+    path = module_path()
+    if not path.exists():
+        return None
+    loader = importlib.machinery.ExtensionFileLoader(MODULE, str(path))
+    spec = importlib.util.spec_from_file_location(MODULE, path, loader=loader)
+    module = importlib.util.module_from_spec(spec)
+    loader.exec_module(module)
+    from envfactory.geometry.kernels.serving import ENTRY_POINTS
+
+    return {name: getattr(module, name) for name in ENTRY_POINTS}
+
+
+def build() -> Path:
+    """Compiles every entry point at its warmup.py types into the module, and puts it in place whole (a process
+    that looks meanwhile finds either nothing or the finished module). Raises what numba.pycc raises, such as a
+    missing C compiler."""
+    from numba.pycc import CC
+
+    from envfactory.geometry.kernels.serving import compiled_kernels
+    from envfactory.geometry.kernels.warmup import SIGNATURES
+
+    target = module_path()
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=target.parent) as scratch:
+        compiler = CC(MODULE)
+        compiler.output_dir = scratch
+        for name, dispatcher in compiled_kernels().items():
+            for signature in SIGNATURES[name]:
+                compiler.export(name, signature)(dispatcher.py_func)
+        compiler.compile()
+        os.replace(Path(scratch) / target.name, target)
+    return target
+
+
+def failed() -> str:
+    """Why the last build from these very sources failed, or "" if none did."""
+    try:
+        marked, reason = (folder() / FAILED_FILE).read_text().split("\n", 1)
+    except (OSError, ValueError):
+        return ""
+    return reason if marked == stamp() else ""
+
+
+def mark_failed(reason: str) -> None:
+    folder().mkdir(parents=True, exist_ok=True)
+    (folder() / FAILED_FILE).write_text(f"{stamp()}\n{reason}")
