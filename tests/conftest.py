@@ -3,6 +3,8 @@ import tempfile
 
 # Tests never read or write the user's own config (spec folders recorded by `envfactory register`).
 os.environ["ENVFACTORY_CONFIG_DIR"] = tempfile.mkdtemp(prefix="envfactory-test-config-")
+# ... nor the user's store of compositions: the run starts with none, so both storing and reading are exercised.
+os.environ["ENVFACTORY_CACHE_DIR"] = tempfile.mkdtemp(prefix="envfactory-test-cache-")
 
 import gymnasium as gym
 import pytest

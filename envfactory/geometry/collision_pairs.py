@@ -53,6 +53,7 @@ from envfactory.geometry.collision_pair_rows import malformed_rows, misreported_
 from envfactory.geometry.safety import SafetyCheck
 from envfactory.schema.errors import suggest
 from envfactory.schema.models import ComposedSpec
+from envfactory.schema.sources import Loader
 
 DEFAULT_SAMPLES = 5000
 NEVER_NEAR = 0.05  # m beyond the margin: a pair that never came this close is listed as never near
@@ -368,7 +369,7 @@ def read_pairs(path: Path, collision: CollisionModel, margin: float) -> PairRule
     caller knows (compiler.robot_checks)."""
     try:
         text = path.read_text()
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=Loader)
     except (OSError, yaml.YAMLError) as exc:
         raise StalePairs(f"{path}: cannot read the collision pair list ({exc})") from exc
     robot = collision.kinematics.robot.name
@@ -385,7 +386,7 @@ def read_pairs(path: Path, collision: CollisionModel, margin: float) -> PairRule
             f"{path}: the collision pair list is stale for robot {robot!r}: it was generated for "
             f"another robot model or settings; {what}"
         )
-    malformed = malformed_rows(text)
+    malformed = malformed_rows(text, data)
     if malformed:
         raise StalePairs(f"{path}:{malformed[0][0]}: {malformed[0][1]}")
     unknown = _unknown_entries(text, data, collision)

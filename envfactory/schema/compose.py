@@ -18,6 +18,7 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 from pydantic import ValidationError
 
+from envfactory.schema import composed_store
 from envfactory.schema.errors import Problem, SpecError, suggest
 from envfactory.schema.folders import builtin_root, folder_of
 from envfactory.schema.models import ComposedSpec
@@ -184,6 +185,17 @@ def _hydra_compose(family: FamilyFile, overrides: tuple[str, ...]) -> DictConfig
 
 @functools.lru_cache(maxsize=64)
 def _compose_cached(family: FamilyFile, overrides: tuple[str, ...]) -> Composed:
+    """In this process, then on disk (composed_store.py), then by composing."""
+    entry = composed_store.key(family.path, family.search_roots, overrides)
+    stored = composed_store.load(entry)
+    if isinstance(stored, Composed):
+        return stored
+    composed = _compose(family, overrides)
+    composed_store.save(entry, composed)
+    return composed
+
+
+def _compose(family: FamilyFile, overrides: tuple[str, ...]) -> Composed:
     sources = SourceMap()
     node = parse_yaml(family.path)
     problems = _defaults_sources(family, node, sources)

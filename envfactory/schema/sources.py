@@ -15,9 +15,9 @@ import yaml
 from envfactory.schema.errors import Problem, SpecError
 
 try:  # the C loader is an order of magnitude faster where present
-    from yaml import CSafeLoader as _Loader
+    from yaml import CSafeLoader as Loader
 except ImportError:  # pragma: no cover
-    from yaml import SafeLoader as _Loader
+    from yaml import SafeLoader as Loader
 
 
 @dataclass
@@ -179,12 +179,12 @@ def _parsed(path: Path, parse):
 
 
 def parse_yaml(path: Path) -> yaml.Node | None:
-    return _parsed(path, lambda text: yaml.compose(text, Loader=_Loader))
+    return _parsed(path, lambda text: yaml.compose(text, Loader=Loader))
 
 
 def load_plain(path: Path) -> dict:
     """The file's mapping, for the registry's quick scan (no composition)."""
-    data = _parsed(path, lambda text: yaml.load(text, Loader=_Loader))
+    data = _parsed(path, lambda text: yaml.load(text, Loader=Loader))
     if not isinstance(data, dict):
         raise SpecError([Problem("", "a spec file must hold a mapping", file=str(path), line=1)])
     return data

@@ -27,6 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
+from envfactory.user_cache import cache_dir
+
 MODULE = "envfactory_kernels_native"
 KERNELS = Path(__file__).parent
 # every file whose code the module holds: the kernels, and the constants they read as globals
@@ -62,7 +64,7 @@ def folder() -> Path:
     beside = KERNELS / "__pycache__"
     if os.access(beside if beside.exists() else KERNELS, os.W_OK):
         return beside / "native"
-    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "envfactory" / "native"
+    return cache_dir() / "native"
 
 
 def module_path() -> Path:

@@ -1,0 +1,80 @@
+"""Compositions already made, kept on disk between processes.
+
+Hydra's composition of a family (its YAML parsed by Hydra's pure-Python loader, the defaults merged) is about
+half of a first gym.make in a fresh process, and it gives the same answer every time for the same files. So a
+successful composition is stored under a key of everything it was made from: the family, the overrides, the
+content of every YAML file its search roots offer, the code that composes, and Hydra's and OmegaConf's
+versions. Any change to any of them is a different key, and the next process composes again.
+
+Only compositions that succeeded are stored: an error is always found, and reported, by composing.
+ENVFACTORY_CACHE_DIR moves the store (the tests give it a folder of their own); ENVFACTORY_CACHE_DIR=off
+switches it off.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.metadata
+import os
+import pickle
+import tempfile
+from pathlib import Path
+
+from envfactory.user_cache import CACHE_DIR_VARIABLE, cache_dir
+
+# the folders of a search root that Hydra's defaults lists reach into
+GROUPS = ("robots", "tasks", "specs")
+# the code whose output is stored
+COMPOSING_CODE = ("compose.py", "sources.py", "composed_store.py")
+
+
+def folder() -> Path | None:
+    if os.environ.get(CACHE_DIR_VARIABLE) == "off":
+        return None
+    return cache_dir() / "composed"
+
+
+def key(family_path: Path, search_roots: tuple[Path, ...], overrides: tuple[str, ...]) -> str:
+    digest = hashlib.sha256()
+    digest.update(repr((str(family_path.resolve()), [str(r.resolve()) for r in search_roots], overrides)).encode())
+    files = {family_path.resolve()}
+    for root in (family_path.parent, *search_roots):
+        for group in GROUPS:
+            if (root / group).is_dir():
+                files |= {path.resolve() for path in (root / group).rglob("*.yaml")}
+        files |= {path.resolve() for path in root.glob("*.yaml")}
+    for path in sorted(files):
+        digest.update(str(path).encode())
+        digest.update(path.read_bytes())
+    here = Path(__file__).parent
+    for name in COMPOSING_CODE:
+        digest.update((here / name).read_bytes())
+    digest.update(repr([importlib.metadata.version(name) for name in ("hydra-core", "omegaconf")]).encode())
+    return digest.hexdigest()[:32]
+
+
+def load(entry: str):
+    """The stored composition, or None; an unreadable entry counts as none (it is written again)."""
+    where = folder()
+    if where is None:
+        return None
+    try:
+        with open(where / f"{entry}.pickle", "rb") as stored:
+            return pickle.load(stored)
+    except (OSError, pickle.UnpicklingError, EOFError, AttributeError, ImportError):
+        return None
+
+
+def save(entry: str, composed) -> None:
+    """Stores it whole (written aside, then renamed into place); a store that cannot be written is skipped, as
+    the composition is still correct without it."""
+    where = folder()
+    if where is None:
+        return
+    try:
+        where.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=where, delete=False, suffix=".part") as part:
+            pickle.dump(composed, part, protocol=pickle.HIGHEST_PROTOCOL)
+        os.replace(part.name, where / f"{entry}.pickle")
+    except OSError:
+        pass
