@@ -162,6 +162,21 @@ def test_the_expert_slides_over_20_seeds(env_id):
         env.close()
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("env_id", ["UR5eSlideGoalSim-v0", "PandaSlideGoalSim-v0"])
+def test_in_ee_mode_two_legs_reach_more_goals_than_one_strike(env_id):
+    """EE mode holds the striking face as it is: a long strike leaves off the line, and the expert's leave_short
+    (stop short, strike again from there) is what its demonstrations in EE mode are collected with."""
+    rates = {}
+    for leave_short in (0.0, 0.15):
+        env = gym.make(env_id, ee_action_type=True, overrides=[f"task.expert.params.leave_short={leave_short}"])
+        try:
+            rates[leave_short] = success_rate(run_episodes(env, make_policy("scripted", env), episodes=30, seed=0))
+        finally:
+            env.close()
+    assert rates[0.15] >= rates[0.0] + 0.15 and rates[0.15] >= 0.55, rates
+
+
 @pytest.mark.parametrize(
     "override, message",
     [

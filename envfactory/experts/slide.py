@@ -35,6 +35,11 @@ class SlideParams(PushParams):
     speedup: float = Field(default=PEAK_OVER_MEAN_SPEED, gt=0, le=5.0)
     max_strike: float = Field(default=0.12, gt=0, le=0.5)  # the longest strike, m of EE travel in one step
     min_strike: float = Field(default=0.005, gt=0, le=0.5)  # the shortest, m
+    # EE mode only: a puck farther than 1.5 times this from the goal is struck to stop this short of it, then
+    # struck again from there, m (0: one strike). EE mode holds the striking face as it is, not square to the
+    # line, and such a strike leaves up to ~10 deg off it: over a shorter last leg that misses by less. In joint
+    # mode the face turns square and one strike is the more accurate.
+    leave_short: float = Field(default=0.0, ge=0, le=1.0)
 
 
 class SlideExpert(PushExpert):
@@ -59,7 +64,9 @@ class SlideExpert(PushExpert):
         ee = state.ee_position
         if ee[2] > push_z + STRIKE_HEIGHT_TOLERANCE:
             return self.motion.toward(np.append(ee[:2], push_z), rotation, max_step=p.step)
-        length = self.strike_length(remaining)
+        split = self.motion.layout.ee and remaining > 1.5 * p.leave_short
+        leg = remaining - p.leave_short if split else remaining
+        length = self.strike_length(leg)
         gap = -float((ee[:2] - state.objects[p.object].position[:2]) @ direction) - self._reach(direction) - p.face
         if gap > 0.4 * length + CLOSE_GAP:
             closer = gap - CLOSE_GAP
