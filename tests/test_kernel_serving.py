@@ -54,7 +54,7 @@ def native_kernels():
             compiler = (sysconfig.get_config_var("CC") or "cc").split()[0]
             if shutil.which(compiler) is None:
                 pytest.skip(f"no C compiler ({compiler}) to build the kernels ahead of time")
-            native.build()
+            warmup.build_native()
             found = native.load()
     return found
 
@@ -177,7 +177,7 @@ def test_without_a_native_build_the_warmup_fills_numbas_cache_and_says_why(monke
 
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(serving, "cache_folder", lambda: tmp_path)
-    monkeypatch.setattr(native, "build", no_compiler)
+    monkeypatch.setattr(warmup, "build_native", no_compiler)
     # one small entry point keeps the compile short; the others take the same path
     monkeypatch.setattr(serving, "compiled_kernels", lambda: {"damped_step": damped_step})
     assert warmup.main() == 0
@@ -198,6 +198,18 @@ def test_a_process_served_the_native_module_never_imports_numba(native_kernels):
     done = subprocess.run([sys.executable, "-c", probe], env=environment, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split()[-3:] == ["native", "False", "False"]
+
+
+def test_native_mode_serves_the_module_and_says_why_when_it_cannot_be_built(monkeypatch, tmp_path, native_kernels):
+    monkeypatch.setenv("ENVFACTORY_KERNELS", "native")
+    server = serving.KernelServer()
+    server.damped_step(np.eye(2), np.ones(2), 0.1)
+    assert server.form == "native"
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))  # where no module is
+    monkeypatch.setattr(serving.subprocess, "run", lambda *args, **kwargs: None)  # a build that leaves nothing
+    native.mark_failed("Traceback ...\nCompileError: command 'gcc' failed: No such file or directory")
+    with pytest.raises(RuntimeError, match="ENVFACTORY_KERNELS=native: .*command 'gcc' failed"):
+        serving.KernelServer().damped_step(np.eye(2), np.ones(2), 0.1)
 
 
 def test_a_mark_from_other_sources_is_not_taken_for_ready(tmp_path):

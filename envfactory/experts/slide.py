@@ -1,5 +1,6 @@
 """Slide: get behind the puck on the puck→goal line, then strike it once hard enough to slide the rest of the
-way; wait while it slides, and strike again if it stops short within reach.
+way (in EE mode a far puck in two legs: leave_short); wait while it slides, and strike again if it stops short
+within reach.
 
 On a surface of friction coefficient mu a puck struck to speed v slides v^2 / (2 mu g). The arm moves a step
 along the quintic timing law (geometry/timing_law.py), whose peak speed is 15/8 of its mean: a puck the

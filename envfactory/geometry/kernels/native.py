@@ -3,8 +3,9 @@
 numba's just-in-time form costs every process its compiler: importing numba and llvmlite, then on the first call
 its typing registries and the cached machine code, about 120 MB and a second of the first make. The same
 functions compiled ahead of time by numba.pycc (at the argument types warmup.py lists) are plain machine code in a
-1 MB module that needs only numpy. warmup.py builds it once per install; building needs a C compiler, and where
-there is none warmup.py fills numba's cache instead (serving.py then serves the just-in-time form).
+1 MB module that needs only numpy. warmup.py builds it once per install (build_native); building needs a C
+compiler, and where there is none warmup.py fills numba's cache instead (serving.py then serves the just-in-time
+form).
 
 numba.pycc is pending deprecation in numba (since 0.57; present in the versions this project installs). A numba
 without it fails the build like a missing compiler does, and the just-in-time form serves.
@@ -22,7 +23,6 @@ import importlib.util
 import os
 import sys
 import sysconfig
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -80,31 +80,7 @@ def load() -> dict | None:
     spec = importlib.util.spec_from_file_location(MODULE, path, loader=loader)
     module = importlib.util.module_from_spec(spec)
     loader.exec_module(module)
-    from envfactory.geometry.kernels.serving import ENTRY_POINTS
-
-    return {name: getattr(module, name) for name in ENTRY_POINTS}
-
-
-def build() -> Path:
-    """Compiles every entry point at its warmup.py types into the module, and puts it in place whole (a process
-    that looks meanwhile finds either nothing or the finished module). Raises what numba.pycc raises, such as a
-    missing C compiler."""
-    from numba.pycc import CC
-
-    from envfactory.geometry.kernels.serving import compiled_kernels
-    from envfactory.geometry.kernels.warmup import SIGNATURES
-
-    target = module_path()
-    target.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=target.parent) as scratch:
-        compiler = CC(MODULE)
-        compiler.output_dir = scratch
-        for name, dispatcher in compiled_kernels().items():
-            for signature in SIGNATURES[name]:
-                compiler.export(name, signature)(dispatcher.py_func)
-        compiler.compile()
-        os.replace(Path(scratch) / target.name, target)
-    return target
+    return {name: function for name, function in vars(module).items() if not name.startswith("_")}
 
 
 def failed() -> str:

@@ -188,9 +188,19 @@ class KernelServer:
 
     @staticmethod
     def _built_here() -> dict:
-        print("envfactory: building the safety kernels ahead of time in this process", file=sys.stderr, flush=True)
-        native.build()
-        return native.load()
+        """The native module, built now by warmup.py (waiting for one already running) if it is not there."""
+        print("envfactory: building the safety kernels ahead of time (a minute or two, once)", file=sys.stderr)
+        subprocess.run(
+            [sys.executable, "-m", f"{__package__}.warmup", "--native"],
+            env={**os.environ, "ENVFACTORY_KERNELS": "compiled"},
+            stdin=subprocess.DEVNULL,
+            check=False,
+        )
+        found = native.load()
+        if found is None:
+            reason = (native.failed().strip().splitlines() or ["see the warm-up's output above"])[-1]
+            raise RuntimeError(f"ENVFACTORY_KERNELS=native: the kernels could not be built ahead of time: {reason}")
+        return found
 
     def _serve(self, functions: dict, form: str) -> None:
         self.__dict__.update(functions)

@@ -3,16 +3,19 @@ be done (no C compiler), fills numba's cache with every entry point at those typ
 serving.py. Started by serving.py in the background when neither form is there; one at a time per cache folder (a
 second warm-up finds the lock taken and leaves). Run it by hand to prepare an install ahead of time:
 
-    python -m envfactory.geometry.kernels.warmup
+    python -m envfactory.geometry.kernels.warmup [--native]
 """
 
 from __future__ import annotations
 
 import fcntl
 import json
+import os
 import sys
+import tempfile
 import time
 import traceback
+from pathlib import Path
 
 from numba.types import boolean, float64, int64
 
@@ -42,22 +45,43 @@ SIGNATURES = {
 }
 
 
-def main() -> int:
+def build_native() -> Path:
+    """Compiles every entry point at its SIGNATURES into native.py's module, and puts it in place whole (a process
+    that looks meanwhile finds either nothing or the finished module). Raises what numba.pycc raises, such as a
+    missing C compiler, or an ImportError from a numba without pycc."""
+    from numba.pycc import CC
+
+    target = native.module_path()
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=target.parent) as scratch:
+        compiler = CC(native.MODULE)
+        compiler.output_dir = scratch
+        for name, dispatcher in serving.compiled_kernels().items():
+            for signature in SIGNATURES[name]:
+                compiler.export(name, signature)(dispatcher.py_func)
+        compiler.compile()
+        os.replace(Path(scratch) / target.name, target)
+    return target
+
+
+def main(native_only: bool = False) -> int:
+    """With `native_only` (ENVFACTORY_KERNELS=native): wait for a warm-up already running, then build the native
+    module even where numba's cache is ready, and never fall back to that cache."""
     folder = serving.cache_folder()
     folder.mkdir(parents=True, exist_ok=True)
     with open(folder / serving.LOCK_FILE, "w") as lock:
         try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.flock(lock, fcntl.LOCK_EX if native_only else fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             print("another warm-up holds the lock: leaving it to finish", flush=True)
             return 0
-        if native.load() is not None or serving.cache_is_ready(folder):
+        if native.load() is not None or (serving.cache_is_ready(folder) and not native_only):
             return 0
         started = time.perf_counter()
-        if not native.failed():
+        if native_only or not native.failed():
             print(f"building the safety kernels ahead of time into {native.module_path()}", flush=True)
             try:
-                native.build()
+                build_native()
                 print(f"ready after {time.perf_counter() - started:.1f} s", flush=True)
                 return 0
             except Exception:
@@ -65,6 +89,8 @@ def main() -> int:
                 failure = traceback.format_exc()
                 native.mark_failed(failure)
                 print(failure, flush=True)
+                if native_only:
+                    return 1
         print(f"compiling the safety kernels into {folder}", flush=True)
         try:
             for name, dispatcher in serving.compiled_kernels().items():
@@ -83,4 +109,4 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(main(native_only="--native" in sys.argv[1:]))
