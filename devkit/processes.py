@@ -1,13 +1,20 @@
-"""What the benchmarks share about the processes they measure: a worker's result handed back on its stdout, and
-a process's resident memory."""
+"""What the benchmarks share about the processes they measure: the environment they run in, a worker's result
+handed back on its stdout, and a process's resident memory."""
 
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 from pathlib import Path
 
 RESULT = "RESULT "  # the line of a worker's stdout that holds its result, as JSON
+
+
+def user_environment() -> dict[str, str]:
+    """This process's environment as a user's processes have it: Python writes its bytecode (a shell that sets
+    PYTHONDONTWRITEBYTECODE would have every measured import compile its source again)."""
+    return {name: value for name, value in os.environ.items() if name != "PYTHONDONTWRITEBYTECODE"}
 
 
 def emit(result: dict) -> None:
@@ -17,7 +24,7 @@ def emit(result: dict) -> None:
 
 def run_worker(command: list[str], what: str) -> dict:
     """Run a worker process and return the result it emitted; its stderr's end, naming `what`, if it did not."""
-    done = subprocess.run(command, capture_output=True, text=True)
+    done = subprocess.run(command, capture_output=True, text=True, env=user_environment())
     for line in done.stdout.splitlines():
         if line.startswith(RESULT):
             return json.loads(line[len(RESULT) :])

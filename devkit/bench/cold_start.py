@@ -18,6 +18,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from devkit.processes import user_environment
 from devkit.report import REPO, Report, add_markdown_option
 
 # without importing envfactory here: serving.READY_FILE, and native.MODULE's file
@@ -36,7 +37,12 @@ def _timed_run(venv: Path, clone: Path, episodes: int) -> tuple[float, float, st
     command = [str(venv / "bin" / "envfactory"), "run", "UR5eReacherSim-v0", "--episodes", str(episodes)]
     started = time.perf_counter()
     process = subprocess.Popen(
-        [*command, "--policy", "scripted"], cwd=clone, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        [*command, "--policy", "scripted"],
+        cwd=clone,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=user_environment(),
     )
     first_row = None
     for line in process.stdout:
@@ -62,7 +68,7 @@ def main() -> None:
         started = time.perf_counter()
         subprocess.run(["python3", "-m", "venv", str(venv)], check=True)
         pip = [str(venv / "bin" / "pip"), "install", "-q", "-e", "."]
-        done = subprocess.run(pip, cwd=clone, capture_output=True, text=True)
+        done = subprocess.run(pip, cwd=clone, capture_output=True, text=True, env=user_environment())
         if done.returncode != 0:
             raise SystemExit(f"pip install failed:\n{done.stderr}")
         installed = time.perf_counter() - started

@@ -1,6 +1,10 @@
 """What gym.make costs: the import, the first make of an ID in a process and the second, each ID in a fresh
 process, `--runs` times.
 
+The processes run as a user's do after the first: Python writes its bytecode (PYTHONDONTWRITEBYTECODE is dropped,
+where a shell sets it, or every import would compile its source again) and one untimed make per ID first leaves
+what a later process reads: the bytecode, the composition on disk and the built kernels.
+
     python -m devkit.bench.make_times [--runs 3] [--ids ID ...] [--markdown [PATH]]
 """
 
@@ -10,6 +14,7 @@ import argparse
 import subprocess
 import sys
 
+from devkit.processes import user_environment
 from devkit.report import Report, add_markdown_option
 
 WORKER = """
@@ -40,11 +45,12 @@ def main() -> None:
         ["ID", "import s", "first make s", "second make s", "second ÷ first"],
         title=f"each ID in {args.runs} fresh process(es), one row each",
     )
+    environment = user_environment()
     for env_id in args.ids:
+        worker = [sys.executable, "-c", WORKER.format(env_id=env_id)]
+        subprocess.run(worker, capture_output=True, text=True, check=True, env=environment)  # untimed: the first
         for _ in range(args.runs):
-            done = subprocess.run(
-                [sys.executable, "-c", WORKER.format(env_id=env_id)], capture_output=True, text=True, check=True
-            )
+            done = subprocess.run(worker, capture_output=True, text=True, check=True, env=environment)
             imported, first, second = (float(v) for v in done.stdout.split()[-3:])
             table.add(env_id, f"{imported:.2f}", f"{first:.2f}", f"{second:.3f}", f"{second / first:.0%}")
     report.finish()
