@@ -56,6 +56,18 @@ def test_a_new_file_in_a_searched_group_changes_the_key(family):
     assert composed_store.key(family.path, family.search_roots, ("task.goal.tolerance=0.03",)) != before
 
 
+def test_a_relative_family_path_is_keyed_by_the_working_folder(family, monkeypatch, tmp_path):
+    """A composition records its files by the paths given: one made from a relative path must not serve a
+    process in another folder (a Ray worker), where those paths name other files or none."""
+    monkeypatch.chdir(tmp_path)
+    relative = FamilyFile(family.path.relative_to(tmp_path), family.search_roots)
+    here = composed_store.key(relative.path, relative.search_roots, ())
+    assert here != composed_store.key(family.path, family.search_roots, ())
+    (tmp_path / "elsewhere").mkdir()
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    assert composed_store.key(relative.path, relative.search_roots, ()) != here
+
+
 def test_a_failed_composition_is_not_stored_and_is_reported_each_time(family):
     family.path.write_text(family.path.read_text().replace("/tasks@task: reach", "/tasks@task: nosuchtask"))
     for _ in range(2):

@@ -36,7 +36,11 @@ def folder() -> Path | None:
 
 def key(family_path: Path, search_roots: tuple[Path, ...], overrides: tuple[str, ...]) -> str:
     digest = hashlib.sha256()
-    digest.update(repr((str(family_path.resolve()), [str(r.resolve()) for r in search_roots], overrides)).encode())
+    # the paths as given: a composition records the files it read by them, and a relative one means the working
+    # folder's file (another process, elsewhere, must compose for itself)
+    relative = not all(path.is_absolute() for path in (family_path, *search_roots))
+    given = (str(family_path), [str(root) for root in search_roots], overrides, os.getcwd() if relative else "")
+    digest.update(repr(given).encode())
     files = {family_path.resolve()}
     for root in (family_path.parent, *search_roots):
         for group in GROUPS:
@@ -45,7 +49,10 @@ def key(family_path: Path, search_roots: tuple[Path, ...], overrides: tuple[str,
         files |= {path.resolve() for path in root.glob("*.yaml")}
     for path in sorted(files):
         digest.update(str(path).encode())
-        digest.update(path.read_bytes())
+        try:
+            digest.update(path.read_bytes())
+        except OSError:  # a file that is not there: composing will say so
+            digest.update(b"\0missing")
     here = Path(__file__).parent
     for name in COMPOSING_CODE:
         digest.update((here / name).read_bytes())
