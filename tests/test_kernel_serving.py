@@ -41,61 +41,66 @@ def _same(a, b) -> bool:
     return a == b or (a != a and b != b)
 
 
+def _have_compiler() -> bool:
+    return shutil.which((sysconfig.get_config_var("CC") or "cc").split()[0]) is not None
+
+
 @pytest.fixture(scope="session")
 def native_kernels():
     """The ahead-of-time module of these sources: built here unless a process (the suite's own background
-    warm-up, whose lock this waits for) has built it; on a machine without a C compiler there is none to test."""
+    warm-up, whose lock this waits for) has built it; None on a machine without a C compiler."""
     folder = serving.cache_folder()
     folder.mkdir(parents=True, exist_ok=True)
     with open(folder / serving.LOCK_FILE, "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
-        found = native.load()
-        if found is None:
-            compiler = (sysconfig.get_config_var("CC") or "cc").split()[0]
-            if shutil.which(compiler) is None:
-                pytest.skip(f"no C compiler ({compiler}) to build the kernels ahead of time")
+        if native.load() is None and _have_compiler():
             warmup.build_native()
-            found = native.load()
-    return found
+        return native.load()
 
 
 @pytest.fixture
-def all_forms(monkeypatch, native_kernels):
-    """Serves every entry point as: run the interpreted twin, the native module's function and the compiled
-    kernel on copies of the same arguments, and record where the first two's answers (return values and every
-    array written in place) differ from the compiled one's, and the argument types of each call."""
-    compiled, twins = serving.compiled_kernels(), serving.interpreted_kernels()
-    seen: dict[str, set] = {name: set() for name in compiled}
+def built_native(native_kernels):
+    if native_kernels is None:
+        pytest.skip("no C compiler on this machine: no native module to serve")
+    return native_kernels
+
+
+@pytest.fixture
+def served_form(monkeypatch, native_kernels):
+    """Serves every entry point as: run the interpreted twin (CPython running the kernels' own source: the
+    oracle) and the compiled form this machine serves (the native module; numba's just-in-time kernels where
+    no C compiler built one) on copies of the same arguments, and record where the compiled answer (return
+    values and every array written in place) differs, and the argument types of each call."""
+    form, compiled = ("native", native_kernels) if native_kernels else ("compiled", serving.compiled_kernels())
+    twins = serving.interpreted_kernels()
+    seen: dict[str, set] = {name: set() for name in twins}
     differences: list[str] = []
 
     def judged(name):
         def call(*args):
             seen[name].add(tuple(numba.typeof(a) for a in args))
-            by_kernel = _copies(args)
-            expected = compiled[name](*by_kernel)
-            for form, functions in (("interpreted", twins), ("native", native_kernels)):
-                by_form = _copies(args)
-                answer = functions[name](*by_form)
-                if not _same(answer, expected):
-                    differences.append(f"{name} {form} returned {answer!r}, compiled {expected!r}")
-                for index, (left, right) in enumerate(zip(by_form, by_kernel)):
-                    if not _same(left, right):
-                        differences.append(f"{name} {form} argument {index}: {left!r} against {right!r}")
+            by_twin, by_kernel = _copies(args), _copies(args)
+            expected, answer = twins[name](*by_twin), compiled[name](*by_kernel)
+            if not _same(answer, expected):
+                differences.append(f"{name} {form} returned {answer!r}, interpreted {expected!r}")
+            for index, (left, right) in enumerate(zip(by_kernel, by_twin)):
+                if not _same(left, right):
+                    differences.append(f"{name} {form} argument {index}: {left!r} against {right!r}")
             for target, source in zip(args, by_kernel):
                 if isinstance(target, np.ndarray):
                     target[...] = source
-            return expected
+            return answer
 
         return call
 
-    for name in compiled:
+    for name in twins:
         monkeypatch.setitem(kernels.__dict__, name, judged(name))
     return seen, differences
 
 
 @pytest.mark.parametrize("env_id", SIM_IDS)
-def test_the_interpreted_and_native_kernels_answer_as_the_compiled_ones_at_the_types_warmup_lists(env_id, all_forms):
-    seen, differences = all_forms
+def test_the_served_kernels_answer_as_their_interpreted_source_at_the_types_warmup_lists(env_id, served_form):
+    seen, differences = served_form
     for ee_action_type in action_modes(env_id):
         env = gym.make(env_id, ee_action_type=ee_action_type)
         env.reset(seed=3)
@@ -153,7 +158,7 @@ def test_a_failed_warmup_is_said_and_the_process_compiles_for_itself(monkeypatch
     assert "the kernels' warm-up failed" in capsys.readouterr().err
 
 
-def test_a_cold_process_switches_to_the_native_module_once_it_is_in_place(monkeypatch, tmp_path, native_kernels):
+def test_a_cold_process_switches_to_the_native_module_once_it_is_in_place(monkeypatch, tmp_path, built_native):
     built = native.module_path()
     monkeypatch.setenv("ENVFACTORY_KERNELS", "auto")
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
@@ -186,7 +191,7 @@ def test_without_a_native_build_the_warmup_fills_numbas_cache_and_says_why(monke
     assert "compiling the safety kernels into" in capsys.readouterr().out
 
 
-def test_a_process_served_the_native_module_never_imports_numba(native_kernels):
+def test_a_process_served_the_native_module_never_imports_numba(built_native):
     probe = (
         "import sys, gymnasium as gym, envfactory\n"
         "from envfactory.geometry.kernels.serving import kernels\n"
@@ -200,7 +205,7 @@ def test_a_process_served_the_native_module_never_imports_numba(native_kernels):
     assert done.stdout.split()[-3:] == ["native", "False", "False"]
 
 
-def test_native_mode_serves_the_module_and_says_why_when_it_cannot_be_built(monkeypatch, tmp_path, native_kernels):
+def test_native_mode_serves_the_module_and_says_why_when_it_cannot_be_built(monkeypatch, tmp_path, built_native):
     monkeypatch.setenv("ENVFACTORY_KERNELS", "native")
     server = serving.KernelServer()
     server.damped_step(np.eye(2), np.ones(2), 0.1)
@@ -251,8 +256,7 @@ def test_from_a_cold_cache_the_first_episodes_run_at_once_and_a_later_process_co
     )
     second = subprocess.run([sys.executable, "-c", probe], env=environment, capture_output=True, text=True, timeout=300)
     assert second.returncode == 0, second.stderr
-    has_compiler = shutil.which((sysconfig.get_config_var("CC") or "cc").split()[0]) is not None
-    assert second.stdout.split()[-2:] == ["native" if has_compiler else "compiled", "0"]
+    assert second.stdout.split()[-2:] == ["native" if _have_compiler() else "compiled", "0"]
     assert "compiling the safety kernels" not in second.stderr
 
 
