@@ -21,7 +21,7 @@ LAYERS: list[tuple[str, ...]] = [
         "envfactory.step_state",
         "envfactory.compiler.normalization",
         "envfactory.registration.user_config",
-        "envfactory.user_cache",
+        "envfactory.user_folders",
     ),  # leaves
     ("envfactory.schema",),  # pydantic models, loading, Hydra composition, located problems
     (

@@ -1,38 +1,22 @@
 """The user's config file: the spec folders `envfactory register` recorded, so every
 later process (and gym.make after `import envfactory`) registers their IDs too.
 
-The folder is ENVFACTORY_CONFIG_DIR if set, else the platform's config dir:
-$XDG_CONFIG_HOME/envfactory (default ~/.config/envfactory) on Linux,
-~/Library/Application Support/envfactory on macOS, %APPDATA%\\envfactory on Windows.
+The folder is user_folders.config_dir(): ENVFACTORY_CONFIG_DIR if set, else the platform's config folder.
 """
 
 from __future__ import annotations
 
-import os
-import sys
 from pathlib import Path
 
 import yaml
 
-CONFIG_DIR_VARIABLE = "ENVFACTORY_CONFIG_DIR"
+from envfactory.user_folders import config_dir
+
 FILE_NAME = "config.yaml"
 
 
 class ConfigError(ValueError):
     """The config file exists but cannot be used."""
-
-
-def config_dir() -> Path:
-    override = os.environ.get(CONFIG_DIR_VARIABLE)
-    if override:
-        return Path(override).expanduser()
-    if sys.platform == "win32":
-        base = Path(os.environ.get("APPDATA") or Path.home() / "AppData" / "Roaming")
-    elif sys.platform == "darwin":
-        base = Path.home() / "Library" / "Application Support"
-    else:
-        base = Path(os.environ.get("XDG_CONFIG_HOME") or Path.home() / ".config")
-    return base / "envfactory"
 
 
 def config_file() -> Path:

@@ -20,7 +20,7 @@ import pickle
 import tempfile
 from pathlib import Path
 
-from envfactory.user_cache import CACHE_DIR_VARIABLE, cache_dir
+from envfactory.user_folders import CACHE_DIR_VARIABLE, cache_dir
 
 # the folders of a search root that Hydra's defaults lists reach into
 GROUPS = ("robots", "tasks", "specs")

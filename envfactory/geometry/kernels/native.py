@@ -27,22 +27,14 @@ from pathlib import Path
 
 import numpy as np
 
-from envfactory.user_cache import cache_dir
+from envfactory.user_folders import cache_dir
 
 MODULE = "envfactory_kernels_native"
 KERNELS = Path(__file__).parent
-# every file whose code the module holds: the kernels, and the constants they read as globals
-SOURCES = (
-    "joints",
-    "pose",
-    "finger_sweep",
-    "motion",
-    "bisection",
-    "spheres",
-    "damped_least_squares",
-    "joint_table",
-    "outcomes",
-)
+# the modules of numba kernels (serving.py serves them); every file whose code the module holds is one of them or
+# a module of the constants they read as globals
+KERNEL_MODULES = ("joints", "pose", "finger_sweep", "motion", "bisection", "spheres", "damped_least_squares")
+SOURCES = (*KERNEL_MODULES, "joint_table", "outcomes")
 FAILED_FILE = "native-build.failed"
 
 

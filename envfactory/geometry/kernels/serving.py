@@ -28,7 +28,6 @@ from pathlib import Path
 
 from envfactory.geometry.kernels import native
 
-KERNEL_MODULES = ("joints", "pose", "finger_sweep", "motion", "bisection", "spheres", "damped_least_squares")
 # the kernels called from outside the package; the rest are called only by these
 ENTRY_POINTS = {
     "joint_frames": "joints",
@@ -51,7 +50,7 @@ CHECK_EVERY_S = 1.0
 
 
 def kernel_modules() -> list[types.ModuleType]:
-    return [importlib.import_module(f"{__package__}.{name}") for name in KERNEL_MODULES]
+    return [importlib.import_module(f"{__package__}.{name}") for name in native.KERNEL_MODULES]
 
 
 def compiled_kernels() -> dict:

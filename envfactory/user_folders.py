@@ -1,0 +1,44 @@
+"""The user's own folders for envfactory: its config (the spec folders `envfactory register` recorded) and its cache
+(what it can always make again: compositions; the native kernels where the package's own folder is read-only).
+
+Each is its variable's folder if set, else the platform's: on Linux $XDG_CONFIG_HOME or $XDG_CACHE_HOME
+(defaults ~/.config, ~/.cache), on macOS ~/Library/Application Support or ~/Library/Caches, on Windows
+%APPDATA% or %LOCALAPPDATA%; an `envfactory` folder in it.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+CONFIG_DIR_VARIABLE = "ENVFACTORY_CONFIG_DIR"
+CACHE_DIR_VARIABLE = "ENVFACTORY_CACHE_DIR"
+# the platform's folder of each kind: (Windows variable, its default under home, macOS folder under home,
+# XDG variable, its default under home)
+PLATFORM_FOLDERS = {
+    "config": ("APPDATA", "AppData/Roaming", "Library/Application Support", "XDG_CONFIG_HOME", ".config"),
+    "cache": ("LOCALAPPDATA", "AppData/Local", "Library/Caches", "XDG_CACHE_HOME", ".cache"),
+}
+
+
+def _user_folder(variable: str, kind: str) -> Path:
+    override = os.environ.get(variable)
+    if override:
+        return Path(override).expanduser()
+    windows, windows_default, mac, xdg, xdg_default = PLATFORM_FOLDERS[kind]
+    if sys.platform == "win32":
+        base = Path(os.environ.get(windows) or Path.home() / windows_default)
+    elif sys.platform == "darwin":
+        base = Path.home() / mac
+    else:
+        base = Path(os.environ.get(xdg) or Path.home() / xdg_default)
+    return base / "envfactory"
+
+
+def config_dir() -> Path:
+    return _user_folder(CONFIG_DIR_VARIABLE, "config")
+
+
+def cache_dir() -> Path:
+    return _user_folder(CACHE_DIR_VARIABLE, "cache")
