@@ -74,12 +74,13 @@ def panda_twin(env_id: str) -> str | None:
 class PhysicsClock:
     """Times every pybullet.stepSimulation call (and MuJoCo's rollout and mj_step calls). Both packages look
     the function up on the module at call time (envfactory in its advance loop, panda-gym through its
-    BulletClient), so one patch measures both alike."""
+    BulletClient), so one patch measures both alike. `clock`: wall time by default; step_parts.py reads CPU time."""
 
-    def __init__(self):
+    def __init__(self, clock=time.perf_counter):
         import pybullet
 
         self.seconds, self.calls = 0.0, 0
+        self._clock = clock
         pybullet.stepSimulation = self._timed(pybullet.stepSimulation, lambda kwargs: 1)
         try:
             import mujoco
@@ -93,7 +94,7 @@ class PhysicsClock:
 
     def _timed(self, original, substeps):
         """`original`, adding its time and its substeps (from its keyword arguments) to the clock."""
-        clock = time.perf_counter
+        clock = self._clock
 
         def timed(*args, **kwargs):
             start = clock()
