@@ -5,6 +5,8 @@ that looks valid and training on it."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from envfactory.backends.base import EpisodeAbort
@@ -44,9 +46,10 @@ class SimulationLimits:
 
     def _joints(self, velocities: np.ndarray) -> str:
         speeds = np.abs(np.asarray(velocities, float))
-        over = np.flatnonzero(~(speeds <= self.speed_limit))  # NaN counts as over
-        if not over.size:
+        within = speeds <= self.speed_limit  # NaN counts as over
+        if within.all():
             return ""
+        over = np.flatnonzero(~within)
         index = int(over[np.argmax(speeds[over] / self.speed_limit[over])])
         return (
             f"joint {self.names[index]} reads {speeds[index]:.3g} {self.units[index]}, over {SPEED_FACTOR:g} times its "
@@ -54,10 +57,14 @@ class SimulationLimits:
         )
 
     def _objects(self, state: EnvState) -> str:
+        # in plain floats: this runs at every step, and numpy's calls on three numbers cost more than the arithmetic
         for name, body in state.objects.items():
-            world, speed = self.frame.to_world(body.position), float(np.linalg.norm(body.linear_velocity))
-            # past the floor's edge it falls for ever; its observation box ends there too (geometry/point_boxes.py)
-            if not (np.all(np.abs(world[:2]) <= FLOOR_HALF_EXTENT) and abs(world[2]) <= SCENE_HALF_HEIGHT):
+            world = self.frame.to_world(body.position)
+            x, y, z = world.tolist()
+            speed = math.hypot(*body.linear_velocity.tolist())
+            # past the floor's edge it falls for ever; its observation box ends there too (geometry/point_boxes.py);
+            # a NaN fails every comparison, so it counts as out
+            if not (abs(x) <= FLOOR_HALF_EXTENT and abs(y) <= FLOOR_HALF_EXTENT and abs(z) <= SCENE_HALF_HEIGHT):
                 return (
                     f"object {name} is at {np.round(world, 2).tolist()} m (world frame), out of the scene: off the "
                     f"floor, which ends {FLOOR_HALF_EXTENT:g} m either side of the origin"
