@@ -3,7 +3,8 @@
 
 Each is its variable's folder if set, else the platform's: on Linux $XDG_CONFIG_HOME or $XDG_CACHE_HOME
 (defaults ~/.config, ~/.cache), on macOS ~/Library/Application Support or ~/Library/Caches, on Windows
-%APPDATA% or %LOCALAPPDATA%; an `envfactory` folder in it.
+%APPDATA% or %LOCALAPPDATA%; an `envfactory` folder in it. ENVFACTORY_CACHE_DIR=off keeps no cache: every user
+of it asks `cache_dir()` and gets None.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from pathlib import Path
 
 CONFIG_DIR_VARIABLE = "ENVFACTORY_CONFIG_DIR"
 CACHE_DIR_VARIABLE = "ENVFACTORY_CACHE_DIR"
+CACHE_OFF = "off"
 # the platform's folder of each kind: (Windows variable, its default under home, macOS folder under home,
 # XDG variable, its default under home)
 PLATFORM_FOLDERS = {
@@ -40,5 +42,8 @@ def config_dir() -> Path:
     return _user_folder(CONFIG_DIR_VARIABLE, "config")
 
 
-def cache_dir() -> Path:
+def cache_dir() -> Path | None:
+    """The cache folder, or None when switched off (never a folder named "off")."""
+    if os.environ.get(CACHE_DIR_VARIABLE) == CACHE_OFF:
+        return None
     return _user_folder(CACHE_DIR_VARIABLE, "cache")

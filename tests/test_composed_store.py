@@ -81,3 +81,17 @@ def test_the_store_switched_off_stores_nothing(family, monkeypatch):
     monkeypatch.setenv("ENVFACTORY_CACHE_DIR", "off")
     load_env_spec(family)
     assert not list(family.path.parent.parent.rglob("*.pickle"))
+
+
+def test_the_cache_switched_off_is_no_folder_named_off_for_the_native_kernels(monkeypatch, tmp_path):
+    """`off` switches the whole cache off, not just the store: a read-only install keeps its native kernels in the
+    system's temporary folder, never in a folder named "off" under the working folder."""
+    from envfactory.geometry.kernels import native
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("ENVFACTORY_CACHE_DIR", "off")
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    monkeypatch.setattr(native.os, "access", lambda path, mode: False)  # the package's own folder is read-only
+    where = native.folder()
+    assert where.is_absolute() and "off" not in where.parts, where
+    assert composed_store.folder() is None

@@ -20,7 +20,7 @@ import pickle
 import tempfile
 from pathlib import Path
 
-from envfactory.user_folders import CACHE_DIR_VARIABLE, cache_dir
+from envfactory.user_folders import cache_dir
 
 # the folders of a search root that Hydra's defaults lists reach into
 GROUPS = ("robots", "tasks", "specs")
@@ -29,9 +29,8 @@ COMPOSING_CODE = ("compose.py", "sources.py", "composed_store.py")
 
 
 def folder() -> Path | None:
-    if os.environ.get(CACHE_DIR_VARIABLE) == "off":
-        return None
-    return cache_dir() / "composed"
+    cache = cache_dir()
+    return None if cache is None else cache / "composed"
 
 
 def key(family_path: Path, search_roots: tuple[Path, ...], overrides: tuple[str, ...]) -> str:

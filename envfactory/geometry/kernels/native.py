@@ -23,6 +23,7 @@ import importlib.util
 import os
 import sys
 import sysconfig
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -50,13 +51,15 @@ def stamp() -> str:
 
 def folder() -> Path:
     """Where the module is kept: under NUMBA_CACHE_DIR when set (as numba's own cache, so one variable moves
-    both), else beside the kernels when that is writable, else the user's cache."""
+    both), else beside the kernels when that is writable, else the user's cache, else (the cache switched off)
+    the system's temporary folder."""
     if os.environ.get("NUMBA_CACHE_DIR"):
         return Path(os.environ["NUMBA_CACHE_DIR"]) / "envfactory-native"
     beside = KERNELS / "__pycache__"
     if os.access(beside if beside.exists() else KERNELS, os.W_OK):
         return beside / "native"
-    return cache_dir() / "native"
+    cache = cache_dir()
+    return (Path(tempfile.gettempdir()) / "envfactory" if cache is None else cache) / "native"
 
 
 def module_path() -> Path:
