@@ -151,10 +151,25 @@ def test_the_expert_strikes_the_puck_to_the_goal():
         env.close()
 
 
+@pytest.mark.parametrize("engine", ["pybullet", "mujoco"])
+def test_the_ur5e_strikes_the_puck_to_the_goal_on_both_engines(engine):
+    """The strike itself, arm on puck, on each engine: the UR5e's fingers must meet the puck's side. Struck from
+    the Push family's height they met only its top rim: on MuJoCo the puck moved 5-9 cm and stopped, no seed
+    reached the goal, and PyBullet's reached it in 2 of these 4 (nothing else caught it: its kicked puck slides on
+    both engines)."""
+    env = gym.make("UR5eSlideSim-v0", engine=engine)
+    try:
+        results = run_episodes(env, make_policy("scripted", env), episodes=4, seed=0)
+        assert success_rate(results) >= 0.75, [(r.seed, r.length, r.success) for r in results]
+    finally:
+        env.close()
+
+
 @pytest.mark.slow
+@pytest.mark.parametrize("engine", ["pybullet", "mujoco"])
 @pytest.mark.parametrize("env_id", SLIDE_IDS)
-def test_the_expert_slides_over_20_seeds(env_id):
-    env = gym.make(env_id)
+def test_the_expert_slides_over_20_seeds(env_id, engine):
+    env = gym.make(env_id, engine=engine)
     try:
         results = run_episodes(env, make_policy("scripted", env), episodes=20, seed=0)
         assert success_rate(results) >= 0.7, [(r.seed, r.length) for r in results if not r.success]
