@@ -7,13 +7,16 @@ from __future__ import annotations
 import time
 
 import gymnasium as gym
+import mujoco
 import numpy as np
+import pybullet as p
 import pytest
 
 import envfactory  # noqa: F401  (registers the IDs)
 from devkit.oracles.cross_engine import MujocoJudge
 from envfactory.backends.base import BackendError
 from envfactory.backends.mujoco.backend import MujocoBackend
+from envfactory.experts import make_policy
 from envfactory.registration import registry
 
 SIM_IDS = sorted(env_id for env_id, record in registry.records().items() if record.backend == "sim")
@@ -254,5 +257,71 @@ def test_a_kinematic_cycle_leaves_the_frames_mj_forward_would():
                 np.testing.assert_allclose(getattr(data, name), getattr(full, name), rtol=0, atol=1e-12, err_msg=name)
             checked += 1
         assert checked >= 10, checked  # random actions out of contact: most cycles are kinematic
+    finally:
+        env.close()
+
+
+ROBOT_IDS = ["UR5ePushSim-v0", "VX300SPushSim-v0", "RX200PushSim-v0", "NED2PushSim-v0", "PandaPushSim-v0"]
+
+
+@pytest.mark.parametrize("env_id", ROBOT_IDS)
+def test_every_servo_pushes_the_specs_effort_and_no_more(env_id):
+    """Each servo, commanded far past where its joint is, pushes exactly the spec's effort (the force PyBullet's
+    motors get). MuJoCo's URDF import had made each URDF effort the joint's force limit as well: the Ned2's jaws
+    pushed 1 N of their 2 N, the Panda's fingers 20 of 70, the UR5e's wrists 28 N m of 150."""
+    env = gym.make(env_id, engine="mujoco")
+    try:
+        env.reset(seed=0)
+        robot, backend = env.unwrapped.blueprint.spec.robot, env.unwrapped.backend
+        model, data = backend.model, backend.data
+        efforts = dict(zip((j.name for j in robot.arm_joints), robot.arm_efforts))
+        efforts[robot.gripper.joint] = robot.gripper.force
+        for joint, effort in efforts.items():
+            actuator = model.actuator(f"servo:{joint}").id
+            dof = model.jnt_dofadr[model.actuator_trnid[actuator][0]]
+            for far in (-10.0, 10.0):
+                data.ctrl[actuator] = data.qpos[model.jnt_qposadr[model.actuator_trnid[actuator][0]]] + far
+                mujoco.mj_forward(model, data)
+                assert data.qfrc_actuator[dof] == pytest.approx(np.sign(far) * effort, rel=1e-6), (joint, far)
+    finally:
+        env.close()
+
+
+def _pad_squeeze(env) -> float:
+    """The summed normal force, N, of the jaws' contacts on the cube, by the engine's own contact report."""
+    backend = env.unwrapped.backend
+    pads = env.unwrapped.blueprint.spec.robot.gripper.pads.links
+    if env.unwrapped.blueprint.backend == "pybullet":
+        links = {
+            p.getJointInfo(backend.body, j, physicsClientId=backend.client)[12].decode(): j
+            for j in range(p.getNumJoints(backend.body, physicsClientId=backend.client))
+        }
+        contacts = p.getContactPoints(backend.body, backend.objects["cube"], physicsClientId=backend.client)
+        return sum(c[9] for c in contacts if c[3] in {links[name] for name in pads})
+    model, data, force, total = backend.model, backend.data, np.zeros(6), 0.0
+    cube = model.body("object:cube").id
+    pad_bodies = {model.body(f"robot/{name}").id for name in pads}
+    for index in range(data.ncon):
+        bodies = {model.geom_bodyid[data.contact[index].geom1], model.geom_bodyid[data.contact[index].geom2]}
+        if cube in bodies and bodies & pad_bodies:
+            mujoco.mj_contactForce(model, data, index, force)
+            total += force[0]
+    return total
+
+
+@pytest.mark.parametrize("engine", ["pybullet", "mujoco"])
+def test_a_held_cube_is_squeezed_with_the_grippers_force_on_both_engines(engine):
+    """Statics: two jaws coupled one-to-one and driven by one motor squeeze a held cube with the motor's force in
+    all, whichever jaw it pushes. The Ned2's cube, lifted by its Flip expert, on each engine: 2 N. MuJoCo's had
+    1 N (the URDF's effort capped the servo), and its cube slipped out during the turn in every seed."""
+    env = gym.make("NED2FlipSim-v0", engine=engine)
+    try:
+        policy = make_policy("scripted", env)
+        observation, _ = env.reset(seed=0)
+        for _ in range(32):  # grasped at about step 24, lifted by 32
+            observation, *_ = env.step(policy(observation))
+        assert env.unwrapped.state.objects["cube"].position[2] > 0.04, "the expert has not lifted the cube"
+        force = env.unwrapped.blueprint.spec.robot.gripper.force
+        assert _pad_squeeze(env) == pytest.approx(force, rel=0.05)
     finally:
         env.close()

@@ -1,5 +1,6 @@
 """The scripted experts (or random actions) on both engines: success over seeds 0..N-1 (the episode runner: an
-episode counts when the goal is reached at some step) and env.step throughput, per Push and PnP Sim ID.
+episode counts when the goal is reached at some step) and env.step throughput, per Sim ID. Where an expert
+succeeds on one engine and not on the other, the two engines disagree on a contact the task rests on.
 
     python -m devkit.bench.engines [--episodes 10] [--engines pybullet mujoco] [--ids ID ...] [-k name=value ...]
         [-o OVERRIDE ...] [--policy scripted|random] [--markdown [PATH]]
@@ -43,9 +44,7 @@ def main() -> None:
         "--ids",
         nargs="*",
         default=sorted(
-            env_id
-            for env_id, record in registry.records().items()
-            if record.backend == "sim" and not record.goal_env and ("Push" in env_id or "PnP" in env_id)
+            env_id for env_id, record in registry.records().items() if record.backend == "sim" and not record.goal_env
         ),
     )
     parser.add_argument("-k", "--kwarg", action="append", default=[], help="name=value for every env")

@@ -255,12 +255,17 @@ def _add_fixture(world: mujoco.MjSpec, fixture, surfaces: dict) -> None:
 
 
 def _servo(world: mujoco.MjSpec, joint: str, effort: float) -> None:
-    """A position servo on a joint: full effort at SERVO_STIFFNESS_ERROR, critically damped."""
+    """A position servo on a joint: full effort at SERVO_STIFFNESS_ERROR, critically damped. The spec's effort is
+    its only limit, as in PyBullet: MuJoCo's URDF import makes the URDF's effort the joint's actuator force range,
+    which capped servos below the spec's effort without a word (one gripper's jaws at half their force, so a held
+    cube slipped out during a turn it survives in PyBullet; another's fingers at under a third; wrists at a fifth)."""
     actuator = world.add_actuator(name=f"servo:{joint}", target=ROBOT_PREFIX + joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
     actuator.set_to_position(kp=effort / SERVO_STIFFNESS_ERROR, dampratio=1.0)
     actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
     actuator.forcerange = [-effort, effort]
-    world.joint(ROBOT_PREFIX + joint).armature = effort * ARMATURE_PER_EFFORT
+    driven = world.joint(ROBOT_PREFIX + joint)
+    driven.armature = effort * ARMATURE_PER_EFFORT
+    driven.actfrclimited = mujoco.mjtLimited.mjLIMITED_FALSE
 
 
 def _handles(model: mujoco.MjModel, spec: ComposedSpec) -> Handles:
