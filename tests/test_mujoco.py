@@ -16,6 +16,7 @@ import envfactory  # noqa: F401  (registers the IDs)
 from devkit.oracles.cross_engine import MujocoJudge
 from envfactory.backends.base import BackendError
 from envfactory.backends.mujoco.backend import MujocoBackend
+from envfactory.backends.mujoco.model import ROBOT_PREFIX
 from envfactory.experts import make_policy
 from envfactory.registration import registry
 
@@ -300,7 +301,7 @@ def _pad_squeeze(env) -> float:
         return sum(c[9] for c in contacts if c[3] in {links[name] for name in pads})
     model, data, force, total = backend.model, backend.data, np.zeros(6), 0.0
     cube = model.body("object:cube").id
-    pad_bodies = {model.body(f"robot/{name}").id for name in pads}
+    pad_bodies = {model.body(ROBOT_PREFIX + name).id for name in pads}
     for index in range(data.ncon):
         bodies = {model.geom_bodyid[data.contact[index].geom1], model.geom_bodyid[data.contact[index].geom2]}
         if cube in bodies and bodies & pad_bodies:
