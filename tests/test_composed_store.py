@@ -7,6 +7,7 @@ import shutil
 
 import pytest
 
+from envfactory.geometry.kernels import native
 from envfactory.schema import compose, composed_store
 from envfactory.schema.compose import FamilyFile, load_env_spec
 from envfactory.schema.errors import SpecError
@@ -86,8 +87,6 @@ def test_the_store_switched_off_stores_nothing(family, monkeypatch):
 def test_the_cache_switched_off_is_no_folder_named_off_for_the_native_kernels(monkeypatch, tmp_path):
     """`off` switches the whole cache off, not just the store: a read-only install keeps its native kernels in the
     system's temporary folder, never in a folder named "off" under the working folder."""
-    from envfactory.geometry.kernels import native
-
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("ENVFACTORY_CACHE_DIR", "off")
     monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)

@@ -279,9 +279,10 @@ def test_every_servo_pushes_the_specs_effort_and_no_more(env_id):
         efforts[robot.gripper.joint] = robot.gripper.force
         for joint, effort in efforts.items():
             actuator = model.actuator(f"servo:{joint}").id
-            dof = model.jnt_dofadr[model.actuator_trnid[actuator][0]]
+            driven = model.actuator_trnid[actuator][0]
+            dof, address = model.jnt_dofadr[driven], model.jnt_qposadr[driven]
             for far in (-10.0, 10.0):
-                data.ctrl[actuator] = data.qpos[model.jnt_qposadr[model.actuator_trnid[actuator][0]]] + far
+                data.ctrl[actuator] = data.qpos[address] + far
                 mujoco.mj_forward(model, data)
                 assert data.qfrc_actuator[dof] == pytest.approx(np.sign(far) * effort, rel=1e-6), (joint, far)
     finally:
