@@ -2,14 +2,16 @@
 envs with and without demonstrations.
 
     nice -n 15 python -m devkit.bench.learning [--suite reach|push] [--ids ID ...] [--seeds 0 1 2] [--steps N]
-        [--every N] [--variants plain demos] [--demo-episodes 100] [--algo sac] [--out FOLDER] [--docs FOLDER]
+        [--every N] [--variants plain demos] [--demo-episodes 100] [--demo-noise 0] [--algo sac] [--out FOLDER]
+        [--docs FOLDER]
         [-p name=value ...] [-k name=value ...] [--report-only]
 
 Each (ID, variant, seed) is one `envfactory train` run with the per-family
 hyperparameters of specs/train/<algo>.yaml (env kwargs included), evaluated
 every `--every` steps on 50 fixed-goal deterministic episodes. The `demos`
 variant first collects `--demo-episodes` scripted-expert episodes with the
-run's env kwargs (`envfactory collect`, into --out/datasets) and trains with
+run's env kwargs (`envfactory collect`, into --out/datasets; `--demo-noise`: its
+--action-noise) and trains with
 `--demos`; `plain` trains without. Writes each run folder (model, record,
 curves), plus `learning.md` (the success table), `learning.json` and
 `learning.png` (every curve) in --out. With --docs, also the documentation
@@ -41,7 +43,7 @@ import yaml
 from devkit.bench.run_commands import train_commands
 from devkit.report import RUN_HEADINGS, machine, revision
 from envfactory.learn.curve import Evaluation, plot, read_csv
-from envfactory.learn.demonstrations import collect, default_dataset_id
+from envfactory.learn.demonstrations import ACTION_NOISE_KEY, collect, default_dataset_id
 from envfactory.learn.hyperparams import load
 from envfactory.learn.loop import EVAL_SEED
 from envfactory.learn.runs import RunFolderError, RunRecord
@@ -90,17 +92,20 @@ def demonstrations(env_id: str, args) -> str:
     root = (args.out / "datasets").resolve()
     folder = root / default_dataset_id(env_id)
     if not (folder / "data" / "metadata.json").is_file():
-        result = collect(env_id, args.demo_episodes, env_kwargs=env_kwargs(env_id, args), data_path=root)
+        kwargs = env_kwargs(env_id, args)
+        result = collect(env_id, args.demo_episodes, env_kwargs=kwargs, data_path=root, action_noise=args.demo_noise)
         print(
             f"{env_id}: {result.episodes} expert episodes, {result.steps} steps, {result.successes} reach the goal",
             flush=True,
         )
-    episodes = json.loads((folder / "data" / "metadata.json").read_text())["total_episodes"]
-    if episodes != args.demo_episodes:
-        raise SystemExit(
-            f"{folder} holds {episodes} episodes, not --demo-episodes {args.demo_episodes}: delete it "
-            f"to collect again, or pass --demo-episodes {episodes}"
-        )
+    metadata = json.loads((folder / "data" / "metadata.json").read_text())
+    episodes, noise = metadata["total_episodes"], metadata.get(ACTION_NOISE_KEY, 0.0)
+    for name, held, asked in (("episodes", episodes, args.demo_episodes), ("noise", noise, args.demo_noise)):
+        if held != asked:
+            raise SystemExit(
+                f"{folder} holds {name} {held}, not --demo-{name} {asked}: delete it to collect again, or pass "
+                f"--demo-{name} {held}"
+            )
     return str(folder)
 
 
@@ -296,6 +301,7 @@ def main() -> None:
     parser.add_argument("--every", type=int)
     parser.add_argument("--variants", nargs="+", choices=["plain", "demos"])
     parser.add_argument("--demo-episodes", type=int, default=100)
+    parser.add_argument("--demo-noise", type=float, default=0.0, help="collect's --action-noise")
     parser.add_argument("--algo", default="sac")
     parser.add_argument("--out", type=Path)
     parser.add_argument("--docs", type=Path, help="Write DOCS/benchmarks/learning.md and DOCS/img/learning/*.png")

@@ -245,6 +245,14 @@ def collect(
     author_email: Optional[str] = typer.Option(
         None, "--author-email", help="Recorded in the dataset's metadata (left out if not given)"
     ),
+    action_noise: float = typer.Option(
+        0.0,
+        "--action-noise",
+        min=0.0,
+        max=1.0,
+        help="Gaussian noise added to each expert action, std as a fraction of the action's half-range; the "
+        "noisy action is recorded (the expert then shows how it recovers: noise injection, DART)",
+    ),
     workers: Optional[int] = workers_option(),
     address: Optional[str] = address_option(),
 ):
@@ -276,6 +284,7 @@ def collect(
                 author=author,
                 author_email=author_email,
                 recorder=recorder,
+                action_noise=action_noise,
             )
     except FileExistsError as exc:
         fail(str(exc))

@@ -155,8 +155,10 @@ def recorder(workers: int, progress: bool = True) -> Callable:
     """A recorder for demonstrations.collect (`record`'s signature) that spreads the episodes over the cluster;
     call it inside `connected`."""
 
-    def record_on_cluster(env_id: str, seeds: range, env_kwargs: dict | None = None, on_episode=None) -> Recording:
-        work = Collection(env_id, dict(env_kwargs or {}), ShippedFolders.for_ids([env_id]))
+    def record_on_cluster(
+        env_id: str, seeds: range, env_kwargs: dict | None = None, on_episode=None, action_noise: float = 0.0
+    ) -> Recording:
+        work = Collection(env_id, dict(env_kwargs or {}), ShippedFolders.for_ids([env_id]), action_noise)
         recording = run_episodes_on_ray([work], seeds, workers, progress)[0]
         for result in recording.results if on_episode is not None else ():
             on_episode(result)

@@ -161,8 +161,10 @@ class SeedEvaluation(EpisodeWork):
 class Collection(EpisodeWork):
     """The scripted expert's episodes, recorded whole for a Minari dataset: a Recording."""
 
+    action_noise: float = 0.0  # demonstrations.ActionNoise's std
+
     def run(self, seeds: range, on_episode: Callable | None) -> Recording:
-        return record(self.env_id, seeds, self.env_kwargs, on_episode)
+        return record(self.env_id, seeds, self.env_kwargs, on_episode, self.action_noise)
 
     def merge(self, parts: list[Recording]) -> Recording:
         return Recording.merged(parts)

@@ -16,6 +16,7 @@ from typing import Iterator
 import numpy as np
 
 from envfactory.learn import extra
+from envfactory.learn.demonstrations import ACTION_NOISE_KEY
 
 
 class DemonstrationError(ValueError):
@@ -41,6 +42,7 @@ class Demonstrations:
     observation_space: object
     action_space: object
     episodes: list[Episode]
+    action_noise: float = 0.0  # the noise on the expert's recorded actions (`envfactory collect --action-noise`)
 
     @property
     def transitions(self) -> int:
@@ -68,6 +70,7 @@ class Demonstrations:
             "episodes": len(self.episodes),
             "transitions": self.transitions,
             "terminated": sum(bool(e.terminations[-1]) for e in self.episodes if len(e.actions)),
+            "action_noise": self.action_noise,
         }
 
 
@@ -126,8 +129,9 @@ def open_demonstrations(reference: str) -> Demonstrations:
         kwargs,
         dataset.observation_space,
         dataset.action_space,
-        [e for e in episodes if len(e.actions)],
-    )  # a goal met at reset teaches nothing
+        [e for e in episodes if len(e.actions)],  # a goal met at reset teaches nothing
+        float(dataset.storage.metadata.get(ACTION_NOISE_KEY, 0.0)),  # datasets written before the key: none
+    )
     if not demonstrations.episodes:
         raise DemonstrationError(f"--demos {reference}: the dataset holds no transitions")
     return demonstrations

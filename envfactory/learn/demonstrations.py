@@ -5,6 +5,13 @@ the time limit otherwise), so the dataset's terminations and truncations are
 the env's own. The expert acts in the env's action space (normalised when the
 env is), so the recorded actions are what a learner would output.
 
+With `action_noise` each action the expert gives is perturbed before the env
+executes it, and the perturbed action is the one recorded (the transition is
+what happened). The expert then acts from states off its own path and steers
+back, so a learner cloning the dataset sees how to recover from its own small
+errors (noise injection, as in DART: Laskey et al., 2017); the noise has zero
+mean, so cloning still regresses on the expert's action.
+
 Episodes are recorded by a small wrapper and handed to
 `minari.create_dataset_from_buffers`: Minari's own DataCollector needs jax
 (`minari[create]`) only to append steps, which this avoids.
@@ -35,6 +42,9 @@ from envfactory.schema.folders import folder_of
 from envfactory.version import __version__
 
 SPEC_FOLDER_KEY = "envfactory_spec_folder"  # dataset metadata: the user spec folder that declares its env ID
+ACTION_NOISE_KEY = "envfactory_action_noise"  # dataset metadata: ActionNoise's std the episodes were recorded with
+# the noise of an episode is drawn from (episode seed, this): its own stream, not the env's
+NOISE_STREAM = 0x5EED_A0
 
 
 @dataclass
@@ -84,6 +94,31 @@ class EpisodeRecorder(gym.Wrapper):
         return observation, reward, terminated, truncated, info
 
 
+class ActionNoise(gym.Wrapper):
+    """Adds Gaussian noise to every action, of standard deviation `std` times each dimension's half-range, and
+    clips the sum into the action space. Each episode's noise follows from its reset seed alone, so any split of
+    the seeds across processes draws the same noise."""
+
+    def __init__(self, env, std: float):
+        super().__init__(env)
+        space = env.action_space
+        if not (isinstance(space, gym.spaces.Box) and np.all(np.isfinite(space.low) & np.isfinite(space.high))):
+            raise ValueError(f"action noise needs a bounded Box action space, not {space}")
+        self.std = float(std)
+        self._scale = self.std * (space.high - space.low) / 2
+        self._rng = np.random.default_rng(NOISE_STREAM)
+
+    def reset(self, *, seed=None, options=None):
+        if seed is not None:
+            self._rng = np.random.default_rng([seed, NOISE_STREAM])
+        return self.env.reset(seed=seed, options=options)
+
+    def step(self, action):
+        space = self.env.action_space
+        noisy = np.asarray(action) + self._rng.normal(0.0, 1.0, space.shape) * self._scale
+        return self.env.step(np.clip(noisy, space.low, space.high).astype(space.dtype))
+
+
 def _stacked(items: list):
     """A list of Dict observations as a dict of lists, as Minari's buffers hold them."""
     if isinstance(items[0], dict):
@@ -107,6 +142,7 @@ class Recording:
     expert: str
     episodes: list[dict]
     results: list[EpisodeResult]
+    action_noise: float = 0.0  # ActionNoise's std, 0: the expert's own actions
 
     @staticmethod
     def merged(parts: list["Recording"]) -> "Recording":
@@ -120,13 +156,19 @@ class Recording:
             parts[0].expert,
             [e for e, _ in pairs],
             [replace(r, index=index) for index, (_, r) in enumerate(pairs)],
+            parts[0].action_noise,
         )
 
 
-def record(env_id: str, seeds: range, env_kwargs: dict | None = None, on_episode=None) -> Recording:
-    """The expert's episodes on `seeds` (a range of step 1), each whole, on a fresh env. An episode depends
-    on its seed alone, so any split of the seeds across processes records the same episodes."""
-    env = EpisodeRecorder(gym.make(env_id, **(env_kwargs or {})))
+def record(
+    env_id: str, seeds: range, env_kwargs: dict | None = None, on_episode=None, action_noise: float = 0.0
+) -> Recording:
+    """The expert's episodes on `seeds` (a range of step 1), each whole, on a fresh env, with `action_noise`
+    (ActionNoise's std) on its actions. An episode depends on its seed alone, so any split of the seeds across
+    processes records the same episodes."""
+    recorder = EpisodeRecorder(gym.make(env_id, **(env_kwargs or {})))
+    # the noise goes outside the recorder: the recorded action is the one the env executed
+    env = ActionNoise(recorder, action_noise) if action_noise else recorder
     try:
         expert = make_policy("scripted", env)
         results = []
@@ -134,7 +176,8 @@ def record(env_id: str, seeds: range, env_kwargs: dict | None = None, on_episode
             results.append(result)
             if on_episode is not None:
                 on_episode(result)
-        return Recording(env.env.spec, env.unwrapped.blueprint.spec.task.expert.policy, env.episodes, results)
+        policy = env.unwrapped.blueprint.spec.task.expert.policy
+        return Recording(recorder.env.spec, policy, recorder.episodes, results, float(action_noise))
     finally:
         env.close()
 
@@ -151,8 +194,10 @@ def collect(
     recorder=record,
     author: str | None = None,
     author_email: str | None = None,
+    action_noise: float = 0.0,
 ) -> Collected:
-    """Record `episodes` expert episodes (seeds seed, seed + 1, ...) and write them as a Minari dataset.
+    """Record `episodes` expert episodes (seeds seed, seed + 1, ...) and write them as a Minari dataset,
+    with `action_noise` on the expert's actions (ActionNoise's std; 0: none).
     `recorder` runs the episodes (`record`'s signature); envfactory.cluster passes one that spreads them
     over Ray workers, and the dataset is the same."""
     extra.require(extra.COLLECT_MODULES, "envfactory collect")
@@ -169,7 +214,15 @@ def collect(
         if not overwrite:
             raise FileExistsError(f"dataset {dataset_id} already exists ({folder}); pass --overwrite to replace it")
         shutil.rmtree(folder)
-    recording = recorder(env_id, range(seed, seed + episodes), env_kwargs, on_episode)
+    if not 0 <= action_noise <= 1:
+        raise ValueError(f"action noise {action_noise}: must be within 0..1 (a fraction of each action's half-range)")
+    recording = recorder(env_id, range(seed, seed + episodes), env_kwargs, on_episode, action_noise)
+    noise = (
+        f", with Gaussian noise of std {action_noise:g} times each action's half-range added to every action "
+        f"(the recorded actions are the noisy ones the env executed)"
+        if action_noise
+        else ""
+    )
     successes = sum(int(result.success) for result in recording.results)
     buffers = [
         EpisodeBuffer(
@@ -198,15 +251,17 @@ def collect(
                 author=author,
                 author_email=author_email,
                 code_permalink=f"envfactory {__version__}, envfactory/learn/demonstrations.py (collect)",
-                algorithm_name=f"envfactory scripted expert ({recording.expert})",
+                algorithm_name=f"envfactory scripted expert ({recording.expert})"
+                + (f", action noise {action_noise:g}" if action_noise else ""),
                 description=f"{len(buffers)} episodes of the scripted expert on {env_id} with kwargs "
-                f"{env_kwargs or {}}, seeds {seed}..{seed + len(buffers) - 1}, each run until the env "
+                f"{env_kwargs or {}}{noise}, seeds {seed}..{seed + len(buffers) - 1}, each run until the env "
                 f"ends it (terminated or truncated); {successes} reach the goal, "
                 f"{sum(e['successes'][-1] for e in recording.episodes)} end successful "
                 f"(infos['is_success'] per step). Recover the env with "
                 f"envfactory.learn.demonstrations.load_env(dataset).",
                 data_format="hdf5",
             )
+        dataset.storage.update_metadata({ACTION_NOISE_KEY: float(action_noise)})
         spec_folder = _user_spec_folder(env_id)
         if spec_folder is not None:
             dataset.storage.update_metadata({SPEC_FOLDER_KEY: spec_folder})
