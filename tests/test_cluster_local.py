@@ -122,9 +122,11 @@ def test_evaluation_ranges_merged_in_any_order_equal_one_run():
 
 
 @needs_minari
-def test_collection_ranges_merged_in_any_order_equal_one_run():
-    work = Collection("UR5eReacherGoalSim-v0")
+@pytest.mark.parametrize("action_noise", [0.0, 0.2])
+def test_collection_ranges_merged_in_any_order_equal_one_run(action_noise):
+    work = Collection("UR5eReacherGoalSim-v0", action_noise=action_noise)
     whole = run_here(work, range(0, 4))
+    assert whole.action_noise == action_noise
     merged = work.merge([work(range(2, 4)), work(range(0, 2))])
     assert merged.results == whole.results and merged.env_spec == whole.env_spec
     for ours, theirs in zip(merged.episodes, whole.episodes):

@@ -8,6 +8,7 @@ learns is measured by devkit/bench/learning.py, not here.
 import json
 import pickle
 
+import gymnasium as gym
 import numpy as np
 import pytest
 from typer.testing import CliRunner
@@ -288,3 +289,78 @@ def test_every_demonstration_action_goes_through_the_scaling_it_is_given(dataset
     expected = np.concatenate([0.5 * episode.actions for episode in demos.episodes])
     actions = np.concatenate([item[2] for item in transitions(demos, lambda a: 0.5 * a)])
     assert actions.shape == expected.shape and np.array_equal(actions, expected)
+
+
+class _Boxed(gym.Env):
+    """Records the actions it is given; its two action dimensions have different ranges."""
+
+    def __init__(self):
+        self.action_space = gym.spaces.Box(np.array([-2.0, 0.0], np.float32), np.array([2.0, 1.0], np.float32))
+        self.observation_space = gym.spaces.Box(-1.0, 1.0, (1,), np.float32)
+        self.received = []
+
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        return np.zeros(1, np.float32), {}
+
+    def step(self, action):
+        self.received.append(np.array(action))
+        return np.zeros(1, np.float32), 0.0, False, False, {}
+
+
+def test_action_noise_has_the_asked_spread_per_dimension_stays_in_the_space_and_follows_the_seed():
+    from envfactory.learn.demonstrations import ActionNoise
+
+    inner = _Boxed()
+    env = ActionNoise(inner, 0.1)
+    env.reset(seed=5)
+    for _ in range(4000):
+        env.step(np.array([0.0, 0.5], np.float32))  # mid-range: no clipping
+    added = np.array(inner.received) - [0.0, 0.5]
+    # std 0.1 of each half-range: 0.2 and 0.05; the sample std of 4000 draws is within 5% of it
+    assert np.allclose(added.std(axis=0), [0.2, 0.05], rtol=0.05)
+    assert np.allclose(added.mean(axis=0), 0.0, atol=[0.02, 0.005])
+
+    inner.received.clear()
+    env.reset(seed=5)
+    for _ in range(3):
+        env.step(np.array([0.0, 0.5], np.float32))
+    assert np.allclose(np.array(inner.received) - [0.0, 0.5], added[:3])  # the same seed, the same noise
+    env.reset(seed=6)
+    env.step(np.array([0.0, 0.5], np.float32))
+    assert not np.allclose(inner.received[-1] - [0.0, 0.5], added[0])
+
+    inner.received.clear()
+    for _ in range(200):
+        env.step(np.array([2.0, 1.0], np.float32))  # on the upper bound: half the draws would leave the space
+    received = np.array(inner.received)
+    assert np.all(received <= [2.0, 1.0]) and np.any(received == [2.0, 1.0], axis=0).all()
+
+    with pytest.raises(ValueError, match="bounded Box"):
+        unbounded = _Boxed()
+        unbounded.action_space = gym.spaces.Box(-np.inf, np.inf, (2,), np.float32)
+        ActionNoise(unbounded, 0.1)
+
+
+def test_collect_with_action_noise_records_the_executed_actions_and_names_the_noise(tmp_path):
+    """The noisy dataset holds other actions than the plain one from the same seeds, each an action the env was
+    given (its own action space), and says its noise: in Minari's metadata, to a run reading it, in the CLI."""
+    from envfactory.learn.demo_replay import open_demonstrations
+
+    command = ["collect", ENV_ID, "-n", "2", "--data-path", str(tmp_path)] + [
+        f"-k{k}={str(v).lower()}" for k, v in TRAIN_KWARGS.items()
+    ]
+    assert runner.invoke(app, [*command, "--dataset-id", "test/plain-v0"]).exit_code == 0
+    noisy_run = runner.invoke(app, [*command, "--dataset-id", "test/noisy-v0", "--action-noise", "0.2"])
+    assert noisy_run.exit_code == 0, noisy_run.output
+    plain, noisy = (open_demonstrations(str(tmp_path / "test" / n)) for n in ("plain-v0", "noisy-v0"))
+    assert plain.action_noise == 0.0 and noisy.action_noise == 0.2
+    assert noisy.summary()["action_noise"] == 0.2
+    first_plain, first_noisy = plain.episodes[0].actions[0], noisy.episodes[0].actions[0]
+    # the same state at reset (same seed), the expert's same first action, plus noise of std 0.2 per dimension
+    assert np.all(np.abs(first_noisy) <= 1.0) and 0 < np.abs(first_noisy - first_plain).max() < 1.0
+    stored = json.loads((tmp_path / "test" / "noisy-v0" / "data" / "metadata.json").read_text())
+    assert "action noise 0.2" in stored["algorithm_name"] and "std 0.2" in stored["description"]
+
+    refused = runner.invoke(app, [*command, "--dataset-id", "test/loud-v0", "--action-noise", "1.5"])
+    assert refused.exit_code != 0 and "--action-noise" in refused.output and "Traceback" not in refused.output
