@@ -7,12 +7,14 @@ learns is measured by devkit/bench/learning.py, not here.
 
 import json
 import pickle
+import shlex
 
 import gymnasium as gym
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from devkit.bench.run_commands import train_commands
 from envfactory.cli.app import app
 from envfactory.learn import extra
 from envfactory.learn.hyperparams import HyperparameterError, load
@@ -364,3 +366,14 @@ def test_collect_with_action_noise_records_the_executed_actions_and_names_the_no
 
     refused = runner.invoke(app, [*command, "--dataset-id", "test/loud-v0", "--action-noise", "1.5"])
     assert refused.exit_code != 0 and "--action-noise" in refused.output and "Traceback" not in refused.output
+
+    # the learning page's command for a run on the noisy dataset makes the same dataset again
+    record = {"env_id": ENV_ID, "env_kwargs": TRAIN_KWARGS, "demos": noisy.summary(), "command": "envfactory train"}
+    again = shlex.split(train_commands(record)[0].split("#")[0])
+    assert again[:2] == ["envfactory", "collect"] and "--action-noise" in again
+    made = runner.invoke(app, [*again[1:], "--data-path", str(tmp_path), "--dataset-id", "test/again-v0"])
+    assert made.exit_code == 0, made.output
+    remade = open_demonstrations(str(tmp_path / "test" / "again-v0"))
+    assert remade.action_noise == 0.2 and len(remade.episodes) == len(noisy.episodes)
+    for ours, theirs in zip(remade.episodes, noisy.episodes):
+        assert np.array_equal(ours.actions, theirs.actions)

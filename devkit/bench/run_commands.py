@@ -15,5 +15,6 @@ def train_commands(record: dict) -> list[str]:
     if not demos:
         return [train]
     kwargs = " ".join(f"-k {name}={json.dumps(value)}" for name, value in record["env_kwargs"].items())
-    collect = f"envfactory collect {record['env_id']} {kwargs} -n {demos.get('episodes')}   # DATASET"
+    noise = f" --action-noise {demos['action_noise']:g}" if demos.get("action_noise") else ""
+    collect = f"envfactory collect {record['env_id']} {kwargs} -n {demos.get('episodes')}{noise}   # DATASET"
     return [collect, train]
