@@ -254,7 +254,8 @@ def docs_page(results: dict, steps: list[int], args, command: str) -> str:
         f"episodes on the same goals each time (seeds {EVAL_SEED}…{EVAL_SEED + episodes - 1}). "
         "With demonstrations, the scripted expert's episodes (as many as the table's demonstrations column "
         "says, collected with the run's env kwargs by `envfactory collect`) seed the replay "
-        "buffer and the Q-filtered behaviour-cloning term (the `demos` block). Wall-clock time is the run's own, "
+        "buffer and the behaviour-cloning term (the `demos` block of each ID below: Q-filtered unless its "
+        "q_filter is false). Wall-clock time is the run's own, "
         "evaluations included, on a machine shared with other work: compare it within this page only.",
         "",
         f"The goal: at least {GOAL:.0%} success within {args.steps:,} env steps, seed 0.",
