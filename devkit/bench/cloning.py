@@ -29,13 +29,17 @@ def flat(observation, keys: list[str]) -> np.ndarray:
 
 
 def training_rows(demonstrations, keys: list[str]) -> tuple[torch.Tensor, torch.Tensor]:
-    """Every (observation, action) pair of the dataset."""
-    inputs, actions = [], []
-    for episode in demonstrations.episodes:
-        count = len(episode.actions)
-        inputs += [flat({k: episode.observations[k][t] for k in keys}, keys) for t in range(count)]
-        actions.append(episode.actions)
-    return torch.tensor(np.array(inputs)), torch.tensor(np.concatenate(actions))
+    """Every (observation, action) pair of the dataset: each episode's n + 1 observations less its last."""
+    inputs = [
+        np.concatenate(
+            [np.asarray(e.observations[k][: len(e.actions)], np.float32).reshape(len(e.actions), -1) for k in keys],
+            axis=1,
+        )
+        for e in demonstrations.episodes
+    ]
+    return torch.from_numpy(np.concatenate(inputs)), torch.from_numpy(
+        np.concatenate([e.actions for e in demonstrations.episodes])
+    )
 
 
 def clone(inputs, actions, net_arch: list[int], epochs: int, seed: int) -> tuple[torch.nn.Module, float]:

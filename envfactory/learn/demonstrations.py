@@ -217,6 +217,7 @@ def collect(
     if not 0 <= action_noise <= 1:
         raise ValueError(f"action noise {action_noise}: must be within 0..1 (a fraction of each action's half-range)")
     recording = recorder(env_id, range(seed, seed + episodes), env_kwargs, on_episode, action_noise)
+    action_noise = recording.action_noise  # what the recorder applied, which the dataset then says
     noise = (
         f", with Gaussian noise of std {action_noise:g} times each action's half-range added to every action "
         f"(the recorded actions are the noisy ones the env executed)"
