@@ -66,7 +66,8 @@ def _params_table(params, context: Context, heading: str) -> str:
     rows = []
     for param in params:
         names, help_text = param.get_help_record(context)
-        rows.append((md.code(names), md.prose(help_text)))
+        # a help escapes a bracket for Rich, which prints it (\[ray] for [ray]); the page shows the bracket
+        rows.append((md.code(names), md.prose(help_text.replace("\\[", "["))))
     return md.grid([heading, "Help (default, range)"], rows)
 
 

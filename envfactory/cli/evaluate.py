@@ -41,8 +41,8 @@ from envfactory.learn.runs import fresh_folder
 
 WORKERS_HELP = (
     "Run as Ray tasks on this many workers (a local Ray instance of that many CPUs, or at most that "
-    "many tasks at once on --address); the results equal a run in one process. Needs the [ray] extra"
-)
+    "many tasks at once on --address); the results equal a run in one process. Needs the \\[ray] extra"
+)  # the backslash keeps Rich, which prints the help, from reading [ray] as a markup tag and dropping it
 ADDRESS_HELP = "Run on the Ray cluster already running at this address (e.g. ray://head:10001, or auto)"
 
 
