@@ -13,9 +13,8 @@ import envfactory  # noqa: F401  (registers the IDs)
 from envfactory.schema.errors import SpecError
 
 
-def _tool_axis_tilt(env) -> float:
-    """Degrees between the tool's approach axis (the EE frame's x, per top_down_rpy [0, pi/2, 0]) and straight
-    down, from PyBullet's link state of the EE frame's link."""
+def _ee_link_rotation(env) -> np.ndarray:
+    """The EE frame's rotation as PyBullet poses its link (independent of our kinematics)."""
     backend = env.unwrapped.backend
     names = {
         p.getJointInfo(backend.body, j, physicsClientId=backend.client)[12].decode(): j
@@ -23,7 +22,13 @@ def _tool_axis_tilt(env) -> float:
     }
     link = names[env.unwrapped.blueprint.spec.robot.ee_frame]
     quaternion = p.getLinkState(backend.body, link, physicsClientId=backend.client)[5]
-    x_axis = np.array(p.getMatrixFromQuaternion(quaternion)).reshape(3, 3)[:, 0]
+    return np.array(p.getMatrixFromQuaternion(quaternion)).reshape(3, 3)
+
+
+def _tool_axis_tilt(env) -> float:
+    """Degrees between the tool's approach axis (the EE frame's x, per top_down_rpy [0, pi/2, 0]) and straight
+    down, from PyBullet's link state of the EE frame's link."""
+    x_axis = _ee_link_rotation(env)[:, 0]
     return float(np.degrees(np.arccos(np.clip(-x_axis[2], -1.0, 1.0))))
 
 
@@ -56,3 +61,56 @@ def test_ee_mode_turns_the_gripper_down_and_keeps_it_down(env_id):
 def test_top_down_without_its_orientation_is_refused():
     with pytest.raises(SpecError, match="ee_mode_orientation"):
         gym.make("UR5eReacherSim-v0", overrides=["robot.ee_mode_orientation=top_down", "robot.top_down_rpy=null"])
+
+
+@pytest.mark.parametrize("env_id", ["UR5eSlideSim-v0", "VX300SPushSim-v0"])
+def test_the_yaw_row_turns_the_tool_about_the_vertical_by_its_step(env_id):
+    """ee_yaw_action adds a Δyaw row; each action turns the EE about the vertical by delta_coeff times it, the
+    EE staying where it is and the tool keeping its tilt. UR5e holds its orientation, the VX300S turns down
+    first (top_down)."""
+    env = gym.make(env_id, ee_action_type=True, ee_yaw_action=True)
+    unwrapped = env.unwrapped
+    try:
+        layout = unwrapped.blueprint.action
+        assert [row.label for row in layout.rows][:4] == ["Δx", "Δy", "Δz", "Δyaw"]
+        assert env.action_space.shape == (layout.size,) and layout.rows[3].high == pytest.approx(np.pi)
+        env.reset(seed=0)
+        # over the task's object, where the VX300S can point its tool down
+        ahead = next(iter(unwrapped.state.objects.values())).position + [0.0, 0.0, 0.12]
+
+        def act(position, yaw_row):
+            action = unwrapped.actions.hold_action(unwrapped.state)
+            action[:3] = (position - unwrapped.state.ee_position) / layout.delta_coeff
+            action[3] = yaw_row
+            action = np.clip(action, env.action_space.low, env.action_space.high).astype(np.float32)
+            info = env.step(action)[4]
+            assert not info["action_rejected"], info["rejection_reason"]
+
+        for _ in range(15):  # gets there (the VX300S turning down on the way)
+            act(ahead, 0.0)
+        for yaw_row in (2.0, 2.0, -1.0, -3.0):
+            before, position = _ee_link_rotation(env), unwrapped.state.ee_position.copy()
+            act(position, yaw_row)
+            relative = _ee_link_rotation(env) @ before.T
+            turn = np.degrees(np.arctan2(relative[1, 0], relative[0, 0]))
+            assert turn == pytest.approx(np.degrees(yaw_row * layout.delta_coeff), abs=0.3), (yaw_row, turn)
+            # about the vertical: the turn keeps the vertical where it was
+            assert np.degrees(np.arccos(np.clip(relative[2, 2], -1, 1))) < 0.3
+            assert np.linalg.norm(unwrapped.state.ee_position - position) < 0.002
+    finally:
+        env.close()
+
+
+def test_a_yaw_row_without_delta_actions_is_refused():
+    with pytest.raises(SpecError, match=r"env\.action\.yaw.*delta"):
+        gym.make("UR5ePushSim-v0", ee_action_type=True, ee_yaw_action=True, delta_action=False)
+
+
+def test_joint_mode_has_no_yaw_row():
+    """The wrist turns through the joint rows: the flag leaves joint mode's layout as it was."""
+    plain, flagged = gym.make("UR5ePushSim-v0"), gym.make("UR5ePushSim-v0", ee_yaw_action=True)
+    try:
+        assert plain.unwrapped.blueprint.action.rows == flagged.unwrapped.blueprint.action.rows
+        assert not flagged.unwrapped.blueprint.action.yaw
+    finally:
+        plain.close(), flagged.close()

@@ -15,6 +15,9 @@ MEANINGS: dict[str, str] = {
     "reward_type": "`Dense` (weighted shaping terms) or `Sparse` (0 at the goal, else -1, with termination at "
     "the goal). Any letter case is accepted.",
     "ee_action_type": "Act in end-effector space (Cartesian position, solved by IK) instead of joint space.",
+    "ee_yaw_action": "EE mode only, with delta actions: a fourth row, Δyaw, turns the tool about the vertical by "
+    "`delta_coeff` times it (at most a half turn times `delta_coeff` a step), so a policy can square the gripper "
+    "to a line, as Slide's strike needs. Joint mode turns the wrist through its own rows and has no such row.",
     "delta_action": "Actions are changes from the current pose (scaled by `delta_coeff`) instead of absolute targets.",
     "delta_coeff": "Scale of a delta action: the action box times this is the largest step.",
     "normalize_actions": "The policy acts in [-1, 1] on every row; each row is mapped onto its declared bounds.",

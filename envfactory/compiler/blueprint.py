@@ -112,6 +112,7 @@ class ActionLayout:
     rows: tuple[ActionRow, ...]
     gripper_in_action: bool
     normalize: bool = False  # the policy acts in [-1, 1], mapped onto the rows by `scale`
+    yaw: bool = False  # EE mode's row after x, y, z turns the tool about the vertical (env.action.yaw)
 
     @property
     def size(self) -> int:

@@ -60,6 +60,9 @@ def _action_layout(spec: ComposedSpec) -> ActionLayout:
                 rows.append(ActionRow(f"Δ{axis}", -reach, reach, f"EE {axis} ({robot.task_frame} frame)", "m"))
             else:
                 rows.append(ActionRow(f"absolute {axis}", lo, hi, f"EE {axis} ({robot.task_frame} frame)", "m"))
+        if settings.yaw and settings.delta:
+            # a half turn either way is the row's reach, as the xyz rows' is the EE box's: times delta_coeff the step
+            rows.append(ActionRow("Δyaw", -np.pi, np.pi, f"EE yaw (about the {robot.task_frame} frame's z)", "rad"))
     else:
         for joint in robot.arm_joints:
             # a delta row bounds the step (declared per joint, around zero); an absolute row the target
@@ -69,7 +72,13 @@ def _action_layout(spec: ComposedSpec) -> ActionLayout:
         gripper, entry = robot.gripper, robot.joint_states[robot.gripper_state_index]
         rows.append(ActionRow(gripper.label, gripper.low, gripper.high, entry.name, entry.unit))
     return ActionLayout(
-        settings.ee, settings.delta, settings.delta_coeff, tuple(rows), spec.task.gripper.in_action, settings.normalize
+        settings.ee,
+        settings.delta,
+        settings.delta_coeff,
+        tuple(rows),
+        spec.task.gripper.in_action,
+        settings.normalize,
+        yaw=settings.ee and settings.yaw and settings.delta,
     )
 
 
@@ -458,6 +467,12 @@ def compile_blueprint(loaded: LoadedSpec, env_id: str, backend: str, goal_env: b
     terminations = _terminations(spec, layout, found)
     _check_info_keys(spec, rewards, terminations, found)
     achieved_from = _achieved_from(spec, found)
+    if spec.env.action.ee and spec.env.action.yaw and not spec.env.action.delta:
+        found.add(
+            "env.action.yaw",
+            "the yaw row (ee_yaw_action) turns the tool by a step from where it is, so it needs delta actions "
+            "(env.action.delta, the delta_action kwarg)",
+        )
     if spec.env.action.ee and spec.task.goal.orientation:
         # EE mode moves the EE with the gripper held pointing down: no action turns what it holds
         found.add(

@@ -98,19 +98,24 @@ class ActionAdapter:
         out_of_bounds |= bool((bounded != target).any())
         return Command(bounded, gripper, out_of_bounds, recorded=recorded)
 
-    def _oriented_ik(self, state: EnvState, position: np.ndarray):
+    def _oriented_ik(self, state: EnvState, position: np.ndarray, yaw: float):
         """IK for the position with the tool as EE mode keeps it: as it is, or turned toward pointing down by at
         most TURN_PER_STEP (halved while no solution is found), so that from a pose far from it (the home of an
-        arm that points its gripper forward) it turns over a few steps, each solve staying near the pose."""
+        arm that points its gripper forward) it turns over a few steps, each solve staying near the pose. `yaw`
+        (the Δyaw row's turn, else 0) then turns that orientation about the vertical."""
         current = state.ee_rotation
+        turned = pin.rpy.rpyToMatrix(0.0, 0.0, yaw) if yaw else None
         if self.top_down is None:
+            rotation = current if turned is None else turned @ current
             return self.kinematics.solve_ik(
-                state.q_arm, position, target_rotation=current, gripper=state.gripper, max_iterations=40
+                state.q_arm, position, target_rotation=rotation, gripper=state.gripper, max_iterations=40
             )
         turn = pin.log3(nearest_top_down(self.top_down, current, self.closing_axis) @ current.T)
         angle = float(np.linalg.norm(turn))
         for share in (1.0, 0.5, 0.25):
             rotation = pin.exp3(turn * min(1.0, share * TURN_PER_STEP / max(angle, 1e-12))) @ current
+            if turned is not None:
+                rotation = turned @ rotation
             solution = self.kinematics.solve_ik(
                 state.q_arm, position, target_rotation=rotation, gripper=state.gripper, max_iterations=40
             )
@@ -121,10 +126,11 @@ class ActionAdapter:
     def _ee_target(
         self, arm: np.ndarray, state: EnvState, gripper: float | None, out_of_bounds: bool, recorded: np.ndarray
     ) -> Command:
-        target = state.ee_position + self.layout.delta_coeff * arm if self.layout.delta else arm
+        yaw = self.layout.delta_coeff * float(arm[3]) if self.layout.yaw else 0.0
+        target = state.ee_position + self.layout.delta_coeff * arm[:3] if self.layout.delta else arm[:3]
         bounded = _clamp(target, self.workspace_min, self.workspace_max)
         out_of_bounds |= bool((bounded != target).any())
-        solution = self._oriented_ik(state, bounded)
+        solution = self._oriented_ik(state, bounded, yaw)
         step = np.max(np.abs(solution.q_arm - state.q_arm))
         if solution.success and step > self.max_joint_delta and self.top_down is not None:
             # a turn that costs more joint motion than a step allows goes the allowed part of the way

@@ -23,6 +23,12 @@ def shrink_into(vector: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.nda
     return vector / ratio if ratio > 1.0 else vector
 
 
+def vertical_turn(relative: np.ndarray) -> float:
+    """The angle, rad, by which a rotation turns the horizontal x axis about the vertical: the whole of a turn
+    between two top-down orientations."""
+    return float(np.arctan2(relative[1, 0], relative[0, 0]))
+
+
 class ArmMotion:
     def __init__(self, env):
         self.env = env
@@ -82,6 +88,11 @@ class ArmMotion:
         low, high = layout.low[:arm_size], layout.high[:arm_size]
         if layout.ee:
             wanted = offset / layout.delta_coeff if layout.delta else waypoint
+            if layout.yaw:
+                # the turn's part about the vertical, as far as the Δyaw row reaches; the rest is the adapter's
+                turn = 0.0 if rotation is None else vertical_turn(rotation @ state.ee_rotation.T)
+                yaw_row = float(np.clip(turn / layout.delta_coeff, low[3], high[3]))
+                low, high = low[:3], high[:3]
         else:
             solution = env.kinematics.solve_ik(
                 state.q_arm, waypoint, target_rotation=rotation, gripper=state.gripper, rotation_weight=1.0
@@ -93,6 +104,8 @@ class ArmMotion:
             wanted = step / layout.delta_coeff if layout.delta else state.q_arm + step
         if layout.delta:
             wanted = shrink_into(wanted, low, high)
+        if layout.yaw:
+            wanted = np.append(wanted, yaw_row)
         if layout.gripper_in_action:
             value = state.gripper if gripper is None else gripper
             wanted = np.append(wanted, value)

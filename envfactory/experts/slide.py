@@ -39,7 +39,7 @@ class SlideParams(PushParams):
     # EE mode only: a puck farther than 1.5 times this from the goal is struck to stop this short of it, then
     # struck again from there, m (0: one strike). EE mode holds the striking face as it is, not square to the
     # line, and such a strike leaves up to ~10 deg off it: over a shorter last leg that misses by less. In joint
-    # mode the face turns square and one strike is the more accurate.
+    # mode, and in EE mode with a yaw row, the face turns square and one strike is the more accurate.
     leave_short: float = Field(default=0.0, ge=0, le=1.0)
 
 
@@ -65,7 +65,8 @@ class SlideExpert(PushExpert):
         ee = state.ee_position
         if ee[2] > push_z + STRIKE_HEIGHT_TOLERANCE:
             return self.motion.toward(np.append(ee[:2], push_z), rotation, max_step=p.step)
-        split = self.motion.layout.ee and remaining > 1.5 * p.leave_short
+        # EE mode without a yaw row cannot square the face to the line: two legs miss by less
+        split = self.motion.layout.ee and not self.motion.layout.yaw and remaining > 1.5 * p.leave_short
         leg = remaining - p.leave_short if split else remaining
         length = self.strike_length(leg)
         gap = -float((ee[:2] - state.objects[p.object].position[:2]) @ direction) - self._reach(direction) - p.face

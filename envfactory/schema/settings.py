@@ -22,6 +22,9 @@ class ActionSettings(Model):
     # The action box times delta_coeff is the step: above 1 the step outgrows the box.
     delta_coeff: Positive = Field(default=0.05, le=1.0)
     normalize: bool = False  # normalize_actions: the policy acts in [-1, 1] (envfactory.compiler.normalization)
+    # ee_yaw_action: EE mode's action gains a Δyaw row, a turn of the tool about the vertical, so a policy can
+    # square a gripper's face to a line (Slide's strike). Joint mode turns the wrist through its own rows.
+    yaw: bool = False
 
 
 class ObservationSettings(Model):
