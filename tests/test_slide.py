@@ -227,7 +227,7 @@ def test_a_puck_past_the_floors_edge_ends_the_episode_before_its_observation_lea
 def test_a_yaw_row_lets_the_ee_mode_expert_square_its_face(engine):
     """With ee_yaw_action the expert turns the striking face square to the puck→goal line, as joint mode does,
     and strikes once: it reaches more goals than EE mode holding the face (seeds 0-29: 83% / 97% on PyBullet /
-    MuJoCo, against 73% / 67% with two legs)."""
+    MuJoCo; holding it, with two legs, 73% / 67% over seeds 0-59)."""
     rates = {}
     for yaw in (False, True):
         env = gym.make("UR5eSlideGoalSim-v0", engine=engine, ee_action_type=True, ee_yaw_action=yaw)

@@ -48,6 +48,7 @@ STANDS_WITHIN = 0.002  # m: a fixture's bottom this near the table top stands on
 def _action_layout(spec: ComposedSpec) -> ActionLayout:
     robot, settings = spec.robot, spec.env.action
     kind = "delta" if settings.delta else "(absolute)"
+    yaw = settings.ee and settings.yaw and settings.delta  # absolute + yaw is refused by compile_blueprint
     rows: list[ActionRow] = []
     if settings.ee:
         low, high = robot.ee_bounds
@@ -60,7 +61,7 @@ def _action_layout(spec: ComposedSpec) -> ActionLayout:
                 rows.append(ActionRow(f"Δ{axis}", -reach, reach, f"EE {axis} ({robot.task_frame} frame)", "m"))
             else:
                 rows.append(ActionRow(f"absolute {axis}", lo, hi, f"EE {axis} ({robot.task_frame} frame)", "m"))
-        if settings.yaw and settings.delta:
+        if yaw:
             # a half turn either way is the row's reach, as the xyz rows' is the EE box's: times delta_coeff the step
             rows.append(ActionRow("Δyaw", -np.pi, np.pi, f"EE yaw (about the {robot.task_frame} frame's z)", "rad"))
     else:
@@ -78,7 +79,7 @@ def _action_layout(spec: ComposedSpec) -> ActionLayout:
         tuple(rows),
         spec.task.gripper.in_action,
         settings.normalize,
-        yaw=settings.ee and settings.yaw and settings.delta,
+        yaw=yaw,
     )
 
 
