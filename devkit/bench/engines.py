@@ -15,8 +15,8 @@ import argparse
 import time
 
 import gymnasium as gym
-import yaml
 
+from devkit.kwarg_option import add_kwarg_option, kwargs_from
 from devkit.report import Report, add_markdown_option
 from envfactory.envs.episodes import run_episodes
 from envfactory.experts import make_policy
@@ -47,7 +47,7 @@ def main() -> None:
             env_id for env_id, record in registry.records().items() if record.backend == "sim" and not record.goal_env
         ),
     )
-    parser.add_argument("-k", "--kwarg", action="append", default=[], help="name=value for every env")
+    add_kwarg_option(parser, help="name=value for every env")
     parser.add_argument("-o", "--override", action="append", default=[], help="a spec override for every env")
     parser.add_argument(
         "--policy",
@@ -58,7 +58,7 @@ def main() -> None:
     add_markdown_option(parser)
     args = parser.parse_args()
     report = Report.start(parser, args, __doc__)
-    kwargs = {name: yaml.safe_load(value) for name, _, value in (pair.partition("=") for pair in args.kwarg)}
+    kwargs = kwargs_from(args.kwarg)
     settings = ", ".join([*(f"{k}={v!r}" for k, v in kwargs.items()), *args.override]) or "no kwargs"
     table = report.table(
         ["ID"] + [f"{engine} {what}" for engine in args.engines for what in ("success", "steps/s")],

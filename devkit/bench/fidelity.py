@@ -18,9 +18,9 @@ import argparse
 from collections import Counter
 
 import numpy as np
-import yaml
 
 import envfactory  # noqa: E402
+from devkit.kwarg_option import add_kwarg_option, kwargs_from
 from devkit.oracles.fidelity_probe import Gaps, PairedSteps, expert_success, paired_episode, trajectory_gaps
 from devkit.report import Report, add_markdown_option
 
@@ -52,11 +52,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--episodes", type=int, default=5)
     parser.add_argument("--ids", nargs="*")
-    parser.add_argument("-k", "--kwarg", action="append", default=[], help="name=value for every env made")
+    add_kwarg_option(parser, help="name=value for every env made")
     add_markdown_option(parser)
     args = parser.parse_args()
     report = Report.start(parser, args, __doc__)
-    kwargs = {name: yaml.safe_load(value) for name, _, value in (pair.partition("=") for pair in args.kwarg)}
+    kwargs = kwargs_from(args.kwarg)
     ids = args.ids or sorted(i for i, r in envfactory.records().items() if r.backend == "sim" and "Goal" not in i)
     table = report.table(
         ["ID", "measure", "steps", "EE mm", "arm joint mrad", "object mm", "object °", "cycles played"],

@@ -38,9 +38,8 @@ import sys
 from datetime import datetime, timezone
 from pathlib import Path
 
-import yaml
-
 from devkit.bench.run_commands import train_commands
+from devkit.kwarg_option import add_kwarg_option, kwargs_from
 from devkit.report import RUN_HEADINGS, machine, revision
 from envfactory.learn.curve import Evaluation, plot, read_csv
 from envfactory.learn.demonstrations import ACTION_NOISE_KEY, collect, default_dataset_id
@@ -74,17 +73,9 @@ def folder_of(env_id: str, variant: str, seed: int, args) -> Path:
     return args.out / name
 
 
-def cli_kwargs(args) -> dict:
-    kwargs = {}
-    for pair in args.kwarg:
-        name, _, value = pair.partition("=")
-        kwargs[name] = yaml.safe_load(value)
-    return kwargs
-
-
 def env_kwargs(env_id: str, args) -> dict:
     """The kwargs a run makes the env with: its hyperparameters' env_kwargs, then -k."""
-    return {**(load(args.algo, env_id, args.hyperparameter).values.get("env_kwargs") or {}), **cli_kwargs(args)}
+    return {**(load(args.algo, env_id, args.hyperparameter).values.get("env_kwargs") or {}), **kwargs_from(args.kwarg)}
 
 
 def demonstrations(env_id: str, args) -> str:
@@ -134,7 +125,7 @@ def run_one(env_id: str, variant: str, seed: int, args) -> list[Evaluation]:
         seed=seed,
         steps=args.steps,
         overrides=tuple(args.hyperparameter),
-        env_kwargs=cli_kwargs(args),
+        env_kwargs=kwargs_from(args.kwarg),
         eval_every=args.every,
         demos=demos,
         progress_bar=False,
@@ -307,7 +298,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path)
     parser.add_argument("--docs", type=Path, help="Write DOCS/benchmarks/learning.md and DOCS/img/learning/*.png")
     parser.add_argument("-p", "--hyperparameter", action="append", default=[])
-    parser.add_argument("-k", "--kwarg", action="append", default=[])
+    add_kwarg_option(parser)
     parser.add_argument(
         "--report-only",
         action="store_true",

@@ -25,6 +25,7 @@ import gymnasium as gym
 import numpy as np
 
 import envfactory  # noqa: F401  (registers the IDs)
+from devkit.kwarg_option import add_kwarg_option, kwargs_from
 from envfactory.envs.episodes import run_episodes
 from envfactory.experts import make_policy
 
@@ -119,27 +120,17 @@ def expert_lengths(env, episodes: int) -> dict:
     }
 
 
-def _kwargs(pairs):
-    import yaml
-
-    out = {}
-    for pair in pairs:
-        name, _, value = pair.partition("=")
-        out[name] = yaml.safe_load(value)  # as the CLI's -k reads it: numbers and booleans typed
-    return out
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--ids", nargs="+", default=IDS)
     parser.add_argument("--goals", type=int, default=1000)
     parser.add_argument("--steps", type=int, default=2000)
     parser.add_argument("--episodes", type=int, default=50)
-    parser.add_argument("-k", "--kwarg", action="append", default=[])
+    add_kwarg_option(parser)
     args = parser.parse_args()
     rng = np.random.default_rng(0)
     for env_id in args.ids:
-        env = gym.make(env_id, **_kwargs(args.kwarg))
+        env = gym.make(env_id, **kwargs_from(args.kwarg))
         print(f"== {env_id} {args.kwarg or ''}")
         reach = goal_box_reach(env, args.goals, rng)
         print(

@@ -23,7 +23,8 @@ import sys
 import time
 from collections import Counter
 
-from devkit.bench.versus_panda_gym import PhysicsClock, parse_kwargs
+from devkit.bench.versus_panda_gym import PhysicsClock
+from devkit.kwarg_option import add_kwarg_option, kwargs_from
 from devkit.processes import emit, run_worker
 from devkit.report import Report, add_markdown_option
 
@@ -128,14 +129,14 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=1000)
     parser.add_argument("--ids", nargs="*", default=SIM_IDS)
     parser.add_argument("--engines", nargs="*", default=["pybullet", "mujoco"])
-    parser.add_argument("-k", "--kwarg", action="append", default=[], help="name=value for every env")
+    add_kwarg_option(parser, help="name=value for every env")
     add_markdown_option(parser)
     parser.add_argument("--worker", help=argparse.SUPPRESS)
     parser.add_argument("--seed", type=int, default=0, help=argparse.SUPPRESS)
     args = parser.parse_args()
 
     if args.worker:
-        emit(work(args.worker, args.steps, args.seed, parse_kwargs(args.kwarg)))
+        emit(work(args.worker, args.steps, args.seed, kwargs_from(args.kwarg)))
         return
 
     report = Report.start(parser, args, __doc__)

@@ -35,6 +35,7 @@ import statistics
 import sys
 import time
 
+from devkit.kwarg_option import add_kwarg_option, kwargs_from
 from devkit.processes import emit, run_worker
 from devkit.report import Report, add_markdown_option
 
@@ -345,16 +346,6 @@ def run_one(label: str, steps: int, policy: str, seed: int, kwargs: list[str], v
     return {**run_worker(command, f"{env_id} ({policy})"), "id": label}
 
 
-def parse_kwargs(pairs: list[str]) -> dict:
-    import yaml
-
-    out = {}
-    for pair in pairs:
-        name, _, value = pair.partition("=")
-        out[name] = yaml.safe_load(value)
-    return out
-
-
 COLUMNS = [
     ("steps/s", "steps_per_s", "{:,.0f}"),
     ("÷ panda-gym", "ratio", "{:.2f}×"),
@@ -435,7 +426,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=1000)
     parser.add_argument("--policy", choices=["random", "scripted", "both"], default="random")
     parser.add_argument("--ids", nargs="*", help="envfactory IDs (default: every Sim ID); their panda-gym twins join")
-    parser.add_argument("-k", "--kwarg", action="append", default=[], help="name=value for every envfactory env")
+    add_kwarg_option(parser, help="name=value for every envfactory env")
     parser.add_argument("--engines", nargs="*", help="run each envfactory ID on each of these engines (a row each)")
     add_markdown_option(parser)
     parser.add_argument("--json", help="write every round's raw figures here")
@@ -455,7 +446,7 @@ def main() -> None:
         if args.vector_worker:
             result = work_vector(args.worker, args.steps, args.vector_worker, args.seed)
         else:
-            result = work(args.worker, args.steps, args.policy, args.seed, parse_kwargs(args.kwarg))
+            result = work(args.worker, args.steps, args.policy, args.seed, kwargs_from(args.kwarg))
         emit(result)
         return
 
