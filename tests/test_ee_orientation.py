@@ -114,3 +114,33 @@ def test_joint_mode_has_no_yaw_row():
         assert not flagged.unwrapped.blueprint.action.yaw
     finally:
         plain.close(), flagged.close()
+
+
+def test_a_turn_the_arm_cannot_make_in_a_step_is_flagged_not_dropped_silently():
+    """With a step's joint change capped at 0.1 rad, a yaw row at π (0.157 rad of turn at delta_coeff 0.05)
+    costs the UR5e's wrist more than a step allows: EE mode then solves for the position alone. The turn is
+    not made (PyBullet's link pose) and the step says so in `action_out_of_bounds`; a turn within the cap is
+    made and not flagged."""
+    env = gym.make(
+        "UR5eSlideSim-v0", ee_action_type=True, ee_yaw_action=True, overrides=["env.safety.max_joint_delta=0.1"]
+    )
+    unwrapped = env.unwrapped
+    try:
+        env.reset(seed=0)
+        layout = unwrapped.blueprint.action
+        for yaw_row, made in ((1.0, True), (np.pi, False)):
+            before = _ee_link_rotation(env)
+            action = unwrapped.actions.hold_action(unwrapped.state)
+            action[3] = yaw_row
+            info = env.step(action.astype(np.float32))[4]
+            assert not info["action_rejected"], info["rejection_reason"]
+            relative = _ee_link_rotation(env) @ before.T
+            turn = float(np.arctan2(relative[1, 0], relative[0, 0]))
+            if made:
+                assert turn == pytest.approx(yaw_row * layout.delta_coeff, abs=0.005)
+                assert info["action_out_of_bounds"] == 0.0
+            else:
+                assert abs(turn) < np.radians(1.0), np.degrees(turn)
+                assert info["action_out_of_bounds"] == 1.0
+    finally:
+        env.close()

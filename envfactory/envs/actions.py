@@ -143,6 +143,8 @@ class ActionAdapter:
         if not solution.success or step > self.max_joint_delta:
             # Holding the orientation can be out of reach near the workspace edge,
             # or cost a large wrist roll on a 6-DoF arm: then only the position counts.
+            # A turn the yaw row asked for is then not made, and that is flagged like a clamp.
+            out_of_bounds |= yaw != 0.0
             solution = self.kinematics.solve_ik(state.q_arm, bounded, gripper=state.gripper, max_iterations=60)
         if not solution.success:
             return Command(

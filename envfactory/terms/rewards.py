@@ -22,7 +22,7 @@ from envfactory.terms.stages import STAGE_KEYS
 # and the terms below read them. A goal env's compute_reward(achieved, desired, info)
 # needs the info the step returned; a missing key is an error, never a silent 0.
 STEP_FLAGS = {
-    "action_out_of_bounds": "1 if the action left the joint or workspace bounds",
+    "action_out_of_bounds": "1 if the action left the joint or workspace bounds, or its yaw turn was not made",
     "action_rejected": "1 if the safety check rejected the action",
     "goal_sampling_failed": "1 if no reachable goal was found at reset",
 }
