@@ -619,3 +619,33 @@ def test_a_run_of_a_user_id_remembers_its_spec_folder_for_resume_and_run(user_re
     unregister_folder(user_reach)
     replayed = runner.invoke(app, ["run", "MyUR5eReacherSim-v0", "-n", "1", "--policy", str(run / "model.zip")])
     assert replayed.exit_code == 0, replayed.output
+
+
+@needs_train
+def test_the_best_evaluation_keeps_its_model_and_statistics_across_a_resume(tmp_path, monkeypatch):
+    """A curve that swings keeps its best policy in best/: the evaluations' success rates are scripted here (the
+    rule under test is which model is kept, not how well it acts), 0.2, 0.6, 0.6 and, after a resume, 0.4 and
+    0.8. The earliest of equal evaluations stays; a later, better one replaces it; each kept model is the one the
+    run had at that evaluation (its own step count), with its statistics, and replays through --policy."""
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    import envfactory.learn.loop as loop
+
+    scripted = iter([0.2, 0.6, 0.6, 0.4, 0.8])
+    monkeypatch.setattr(loop, "evaluate", lambda env, policy, episodes: (next(scripted), -1.0, 1.0))
+    folder = tmp_path / "run"
+    first = _tiny_run(folder, "-p", "normalize=true", steps="360")
+    assert first.exit_code == 0, first.output
+    best = folder / "best"
+    assert json.loads((best / "model.json").read_text())["best"] == {"timesteps": 240, "success_rate": 0.6}
+    assert load_from_zip_file(best / "model.zip")[0]["num_timesteps"] == 240
+    assert (best / "vecnormalize.pkl").is_file()
+    assert json.loads((folder / "model.json").read_text())["best"] == {"timesteps": 240, "success_rate": 0.6}
+
+    again = runner.invoke(app, ["train", "--resume", str(folder), "--steps", "600", "--no-progress"])
+    assert again.exit_code == 0, again.output
+    assert json.loads((best / "model.json").read_text())["best"] == {"timesteps": 600, "success_rate": 0.8}
+    assert load_from_zip_file(best / "model.zip")[0]["num_timesteps"] == 600
+
+    replay = runner.invoke(app, ["evaluate", "VX300SReacherGoalSim-v0", "--policy", str(best / "model.zip"), "-n", "1"])
+    assert replay.exit_code == 0, replay.output

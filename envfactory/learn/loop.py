@@ -1,7 +1,9 @@
 """One part of a training run (its start, or a resume): learn, evaluate every `eval_every` steps, checkpoint.
 
 Each evaluation runs deterministic episodes on a separate env, on the same goals each time, appends a row to
-`curve.csv`, logs it to TensorBoard (when the hyperparameters set tensorboard_log) and saves the model. The
+`curve.csv`, logs it to TensorBoard (when the hyperparameters set tensorboard_log) and saves the model. An
+evaluation that beats every earlier one of the run also saves it to `best/` (model, statistics and a copy of the
+record naming that evaluation), so a curve that swings keeps its best policy: `--policy RUN/best/model.zip`. The
 replay buffer (`replay_buffer.pkl`, needed to resume) is saved when the part ends, is stopped (Ctrl-C, SIGTERM)
 or fails after an evaluation of its own. A new run that fails before its first evaluation leaves nothing
 behind: neither its folder nor its TensorBoard events. At the end the curve is drawn against env steps
@@ -25,6 +27,7 @@ from envfactory.learn.runs import RunRecord, release
 
 EVAL_SEED = 10_000  # evaluation episode i resets with EVAL_SEED + i: the same goals at every evaluation
 CSV_FILE, PNG_FILE, WALL_PNG_FILE, BUFFER_FILE = "curve.csv", "curve.png", "curve_wall.png", "replay_buffer.pkl"
+BEST_FOLDER = "best"
 
 
 def evaluate(env, policy, episodes: int) -> tuple[float, float, float]:
@@ -114,15 +117,27 @@ def learn(run: Part, progress_bar: bool, on_evaluation) -> TrainResult:
             record.data["replay_buffer_timesteps"] = model.num_timesteps
         record.progress(model.num_timesteps, elapsed())
 
+    def keep_best(row: Evaluation) -> None:
+        best = folder / BEST_FOLDER
+        best.mkdir(exist_ok=True)
+        save(model, run.normalizer, best)
+        record.data["best"] = {"timesteps": row.timesteps, "success_rate": row.success_rate}
+        record.save()
+        RunRecord(best, record.data).save()  # what the best model was trained on, as model.json says for the last
+
     def evaluation(timesteps: int) -> None:
         success, mean_return, length = evaluate(run.eval_env, ModelPolicy(model, run.normalizer), run.eval_episodes)
         row = Evaluation(timesteps, success, mean_return, length, run.eval_episodes, round(elapsed(), 1))
+        # the earliest of equal evaluations stays: the run's rows include those of the parts before a resume
+        improved = all(success > earlier.success_rate for earlier in run.writer.rows)
         run.writer.add(row)
         evaluated.append(row)
         for name, value in (("success_rate", success), ("mean_return", mean_return), ("mean_length", length)):
             model.logger.record(f"eval/{name}", value)
         model.logger.dump(timesteps)
         checkpoint(with_buffer=False)  # a run killed later keeps the model of its last evaluation
+        if improved:
+            keep_best(row)
         if on_evaluation is not None:
             on_evaluation(row)
 
