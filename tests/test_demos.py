@@ -377,3 +377,15 @@ def test_collect_with_action_noise_records_the_executed_actions_and_names_the_no
     assert remade.action_noise == 0.2 and len(remade.episodes) == len(noisy.episodes)
     for ours, theirs in zip(remade.episodes, noisy.episodes):
         assert np.array_equal(ours.actions, theirs.actions)
+
+
+def test_the_collect_command_of_a_run_with_overrides_reads_back_as_the_same_kwargs():
+    """The learning page prints how each run's dataset was made; an override list holds brackets and quotes,
+    which the shell would eat unless the pair is quoted."""
+    from envfactory.cli.common import parse_kwargs
+
+    env_kwargs = {"ee_action_type": True, "delta_coeff": 0.1, "overrides": ["workspace.min=[-0.3, -0.85, 0.827]"]}
+    record = {"env_id": ENV_ID, "env_kwargs": env_kwargs, "demos": {"episodes": 3}, "command": "envfactory train"}
+    words = shlex.split(train_commands(record)[0].split("#")[0])
+    pairs = [words[i + 1] for i, word in enumerate(words) if word == "-k"]
+    assert parse_kwargs(pairs) == env_kwargs

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import re
+import shlex
 
 
 def train_commands(record: dict) -> list[str]:
@@ -14,7 +15,10 @@ def train_commands(record: dict) -> list[str]:
     demos = record.get("demos")
     if not demos:
         return [train]
-    kwargs = " ".join(f"-k {name}={json.dumps(value)}" for name, value in record["env_kwargs"].items())
+    # quoted for the shell: a value may hold brackets and quotes (a list of overrides)
+    kwargs = " ".join(
+        f"-k {shlex.quote(f'{name}={json.dumps(value)}')}" for name, value in record["env_kwargs"].items()
+    )
     noise = f" --action-noise {demos['action_noise']:g}" if demos.get("action_noise") else ""
     collect = f"envfactory collect {record['env_id']} {kwargs} -n {demos.get('episodes')}{noise}   # DATASET"
     return [collect, train]
