@@ -22,8 +22,8 @@ from pathlib import Path
 
 from envfactory.envs.episodes import run_episodes
 from envfactory.learn.curve import CurveWriter, Evaluation, plot
-from envfactory.learn.models import ModelPolicy, save
-from envfactory.learn.runs import RunRecord, release
+from envfactory.learn.models import MODEL_FILE, NORMALIZER_FILE, ModelPolicy, save
+from envfactory.learn.runs import RECORD_FILE, RunRecord, release
 
 EVAL_SEED = 10_000  # evaluation episode i resets with EVAL_SEED + i: the same goals at every evaluation
 CSV_FILE, PNG_FILE, WALL_PNG_FILE, BUFFER_FILE = "curve.csv", "curve.png", "curve_wall.png", "replay_buffer.pkl"
@@ -117,13 +117,13 @@ def learn(run: Part, progress_bar: bool, on_evaluation) -> TrainResult:
             record.data["replay_buffer_timesteps"] = model.num_timesteps
         record.progress(model.num_timesteps, elapsed())
 
-    def keep_best(row: Evaluation) -> None:
+    def keep_best() -> None:
+        # the checkpoint just written is the best one: copied, not serialized again
         best = folder / BEST_FOLDER
         best.mkdir(exist_ok=True)
-        save(model, run.normalizer, best)
-        record.data["best"] = {"timesteps": row.timesteps, "success_rate": row.success_rate}
-        record.save()
-        RunRecord(best, record.data).save()  # what the best model was trained on, as model.json says for the last
+        for name in (MODEL_FILE, NORMALIZER_FILE, RECORD_FILE):
+            if (folder / name).is_file():
+                shutil.copy2(folder / name, best / name)
 
     def evaluation(timesteps: int) -> None:
         success, mean_return, length = evaluate(run.eval_env, ModelPolicy(model, run.normalizer), run.eval_episodes)
@@ -135,9 +135,11 @@ def learn(run: Part, progress_bar: bool, on_evaluation) -> TrainResult:
         for name, value in (("success_rate", success), ("mean_return", mean_return), ("mean_length", length)):
             model.logger.record(f"eval/{name}", value)
         model.logger.dump(timesteps)
+        if improved:
+            record.data["best"] = {"timesteps": row.timesteps, "success_rate": row.success_rate}
         checkpoint(with_buffer=False)  # a run killed later keeps the model of its last evaluation
         if improved:
-            keep_best(row)
+            keep_best()
         if on_evaluation is not None:
             on_evaluation(row)
 
