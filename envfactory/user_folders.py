@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import os
 import sys
+import tempfile
 from pathlib import Path
+from typing import Callable
 
 CONFIG_DIR_VARIABLE = "ENVFACTORY_CONFIG_DIR"
 CACHE_DIR_VARIABLE = "ENVFACTORY_CACHE_DIR"
@@ -47,3 +49,21 @@ def cache_dir() -> Path | None:
     if os.environ.get(CACHE_DIR_VARIABLE) == CACHE_OFF:
         return None
     return _user_folder(CACHE_DIR_VARIABLE, "cache")
+
+
+def store_in_cache(where: Path, name: str, write: Callable[[Path], None]) -> None:
+    """Keep a cache entry: `write(path)` fills a file beside it, which is then renamed into place, so a reader in
+    another process never meets half an entry. A folder that cannot be written is skipped: whatever a cache keeps
+    can always be made again."""
+    try:
+        where.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=where, delete=False, suffix=".part") as part:
+            pass
+        try:
+            write(Path(part.name))
+            os.replace(part.name, where / name)
+        finally:
+            if os.path.exists(part.name):
+                os.unlink(part.name)
+    except OSError:
+        pass

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from envfactory import factory
+from envfactory.geometry.collision import hull_store
 from envfactory.geometry.collision.meshes import hull, read_mesh, with_meshes_stood_in
 from envfactory.geometry.collision.shapes import shape_points
 from envfactory.geometry.robot_model import robot_chain
@@ -49,10 +50,10 @@ CUBE_FACES = [(0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5), (0, 5, 1), 
 CUBE_FACES += [(0, 2, 6), (0, 6, 4), (1, 5, 7), (1, 7, 3)]
 
 
-def _write_stl(path: Path, binary: bool) -> None:
+def _write_stl(path: Path, binary: bool, corners: np.ndarray = CUBE) -> None:
     if binary:
         records = b"".join(
-            struct.pack("<3f", 0, 0, 0) + b"".join(struct.pack("<3f", *CUBE[i]) for i in face) + b"\0\0"
+            struct.pack("<3f", 0, 0, 0) + b"".join(struct.pack("<3f", *corners[i]) for i in face) + b"\0\0"
             for face in CUBE_FACES
         )
         path.write_bytes(b"\0" * 80 + struct.pack("<I", len(CUBE_FACES)) + records)
@@ -60,7 +61,7 @@ def _write_stl(path: Path, binary: bool) -> None:
         lines = ["solid cube"]
         for face in CUBE_FACES:
             lines += ["facet normal 0 0 0", "outer loop"]
-            lines += [f"vertex {x:.6f} {y:.6f} {z:.6f}" for x, y, z in CUBE[list(face)]]
+            lines += [f"vertex {x:.6f} {y:.6f} {z:.6f}" for x, y, z in corners[list(face)]]
             lines += ["endloop", "endfacet"]
         path.write_text("\n".join(lines + ["endsolid cube"]) + "\n")
 
@@ -85,3 +86,71 @@ def test_a_mesh_format_not_read_here_leaves_the_urdf_to_pinocchio(tmp_path):
         "</link></robot>"
     )
     assert with_meshes_stood_in(urdf) == (urdf, {})
+
+
+def _distances_to_boxes(geometry, count: int = 200) -> np.ndarray:
+    """coal's distance from the shape to a box at random places around it (translation only)."""
+    rng = np.random.default_rng(0)
+    box, request = coal.Box(0.05, 0.08, 0.12), coal.DistanceRequest()
+    return np.array(
+        [
+            coal.distance(
+                geometry,
+                coal.Transform3s(),
+                box,
+                coal.Transform3s(np.eye(3), rng.uniform(-0.3, 0.3, 3)),
+                request,
+                coal.DistanceResult(),
+            )
+            for _ in range(count)
+        ]
+    )
+
+
+def test_a_stored_hull_measures_exactly_as_a_built_one(tmp_path, monkeypatch):
+    monkeypatch.setenv("ENVFACTORY_CACHE_DIR", str(tmp_path))
+    path, scale = max(_shipped_meshes(), key=lambda mesh: mesh[0].stat().st_size)
+    vertices, triangles = read_mesh(path)
+    built = hull(vertices * scale, triangles)
+    hull_store.mesh_hull(path, scale)  # builds and stores
+    assert len(list((tmp_path / "hulls").glob("*.coal"))) == 1
+    stored = hull_store.mesh_hull(path, scale)
+    assert stored.num_points == built.num_points and stored.num_polygons == built.num_polygons
+    assert np.array_equal(np.asarray(shape_points(stored)), np.asarray(shape_points(built)))
+    assert np.array_equal(_distances_to_boxes(stored), _distances_to_boxes(built))
+
+
+def test_an_unreadable_stored_hull_is_built_again(tmp_path, monkeypatch):
+    monkeypatch.setenv("ENVFACTORY_CACHE_DIR", str(tmp_path))
+    mesh = tmp_path / "cube.stl"
+    _write_stl(mesh, binary=True)
+    hull_store.mesh_hull(mesh, np.ones(3))
+    (entry,) = (tmp_path / "hulls").glob("*.coal")
+    entry.write_bytes(b"cut short")
+    again = hull_store.mesh_hull(mesh, np.ones(3))
+    assert np.array_equal(_sorted_points(again), _sorted_points(hull(*read_mesh(mesh))))
+    reread = coal.Convex()
+    reread.loadFromBinary(str(entry))  # stored again, whole
+    assert reread.num_points == 8
+
+
+def test_an_edited_mesh_or_another_scale_is_not_served_the_stored_hull(tmp_path, monkeypatch):
+    monkeypatch.setenv("ENVFACTORY_CACHE_DIR", str(tmp_path))
+    mesh = tmp_path / "cube.stl"
+    _write_stl(mesh, binary=True)
+    first = _sorted_points(hull_store.mesh_hull(mesh, np.ones(3)))
+    assert np.allclose(first.max(axis=0), [0.02, 0.03, 0.05])
+    assert np.allclose(
+        _sorted_points(hull_store.mesh_hull(mesh, np.array([2.0, 1.0, 1.0]))).max(axis=0), [0.04, 0.03, 0.05]
+    )
+    _write_stl(mesh, binary=True, corners=CUBE * 3)
+    assert np.allclose(_sorted_points(hull_store.mesh_hull(mesh, np.ones(3))).max(axis=0), [0.06, 0.09, 0.15])
+    assert len(list((tmp_path / "hulls").glob("*.coal"))) == 3
+
+
+def test_with_the_cache_off_nothing_is_stored(tmp_path, monkeypatch):
+    monkeypatch.setenv("ENVFACTORY_CACHE_DIR", "off")
+    mesh = tmp_path / "cube.stl"
+    _write_stl(mesh, binary=False)
+    assert _sorted_points(hull_store.mesh_hull(mesh, np.ones(3))).shape == (8, 3)
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["cube.stl"]

@@ -5,7 +5,7 @@ The processes run as a user's do after the first: Python writes its bytecode (PY
 where a shell sets it, or every import would compile its source again) and one untimed make per ID first leaves
 what a later process reads: the bytecode, the composition on disk and the built kernels.
 
-    python -m devkit.bench.make_times [--runs 3] [--ids ID ...] [--markdown [PATH]]
+    python -m devkit.bench.make_times [--runs 3] [--ids ID ...] [--engine pybullet|mujoco] [--markdown [PATH]]
 """
 
 from __future__ import annotations
@@ -22,9 +22,9 @@ import time
 start = time.perf_counter()
 import envfactory, gymnasium as gym
 imported = time.perf_counter()
-gym.make({env_id!r})
+gym.make({env_id!r}{kwargs})
 first = time.perf_counter()
-gym.make({env_id!r})
+gym.make({env_id!r}{kwargs})
 second = time.perf_counter()
 print(f"{{imported - start:.3f}} {{first - imported:.3f}} {{second - first:.3f}}")
 """
@@ -38,16 +38,21 @@ def main() -> None:
         nargs="*",
         default=["UR5eReacherSim-v0", "UR5ePnPSim-v0", "VX300SPnPSim-v0", "RX200PnPSim-v0", "NED2PnPSim-v0"],
     )
+    parser.add_argument(
+        "--engine", choices=["pybullet", "mujoco"], help="the simulator to make each ID on (default: the ID's own)"
+    )
     add_markdown_option(parser)
     args = parser.parse_args()
     report = Report.start(parser, args, __doc__)
+    engine = args.engine or "each ID's default"
     table = report.table(
         ["ID", "import s", "first make s", "second make s", "second ÷ first"],
-        title=f"each ID in {args.runs} fresh process(es), one row each",
+        title=f"each ID in {args.runs} fresh process(es), one row each; engine: {engine}",
     )
     environment = user_environment()
     for env_id in args.ids:
-        worker = [sys.executable, "-c", WORKER.format(env_id=env_id)]
+        kwargs = f", engine={args.engine!r}" if args.engine else ""
+        worker = [sys.executable, "-c", WORKER.format(env_id=env_id, kwargs=kwargs)]
         subprocess.run(worker, capture_output=True, text=True, check=True, env=environment)  # untimed: the first
         for _ in range(args.runs):
             done = subprocess.run(worker, capture_output=True, text=True, check=True, env=environment)

@@ -17,10 +17,9 @@ import hashlib
 import importlib.metadata
 import os
 import pickle
-import tempfile
 from pathlib import Path
 
-from envfactory.user_folders import cache_dir
+from envfactory.user_folders import cache_dir, store_in_cache
 
 # the folders of a search root that Hydra's defaults lists reach into
 GROUPS = ("robots", "tasks", "specs")
@@ -75,12 +74,7 @@ def save(entry: str, composed) -> None:
     """Stores it whole (written aside, then renamed into place); a store that cannot be written is skipped, as
     the composition is still correct without it."""
     where = folder()
-    if where is None:
-        return
-    try:
-        where.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=where, delete=False, suffix=".part") as part:
-            pickle.dump(composed, part, protocol=pickle.HIGHEST_PROTOCOL)
-        os.replace(part.name, where / f"{entry}.pickle")
-    except OSError:
-        pass
+    if where is not None:
+        store_in_cache(
+            where, f"{entry}.pickle", lambda path: path.write_bytes(pickle.dumps(composed, pickle.HIGHEST_PROTOCOL))
+        )

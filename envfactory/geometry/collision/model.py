@@ -19,7 +19,8 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-from envfactory.geometry.collision.meshes import hull, read_mesh, with_meshes_stood_in
+from envfactory.geometry.collision.hull_store import mesh_hull
+from envfactory.geometry.collision.meshes import with_meshes_stood_in
 from envfactory.geometry.collision.shapes import BOX_ROUNDING, Shape, box_of, capsule_of
 from envfactory.geometry.collision.structure import Structure
 from envfactory.geometry.gripper_sweep import GripperSweep
@@ -65,11 +66,14 @@ class CollisionModel:
         self.geometry = pin.buildGeomFromUrdf(model, str(urdf), pin.GeometryType.COLLISION)
         padding = padding or {}
         self.shapes: list[Shape] = []
+        hulls = {}  # a gripper's mirrored fingers name the same mesh twice: one hull serves both (coal only reads it)
         for geometry_object in self.geometry.geometryObjects:
             if geometry_object.name in stood_in:
                 mesh_file, scale = stood_in.pop(geometry_object.name)
-                vertices, triangles = read_mesh(mesh_file)
-                geometry_object.geometry = hull(vertices * scale, triangles)
+                key = (mesh_file, scale.tobytes())
+                if key not in hulls:
+                    hulls[key] = mesh_hull(mesh_file, scale)
+                geometry_object.geometry = hulls[key]
             elif isinstance(geometry_object.geometry, coal.BVHModelBase):
                 # coal measures meshes as the convex hull of their vertices, as PyBullet simulates them
                 geometry_object.geometry.buildConvexHull(True, "Qt")

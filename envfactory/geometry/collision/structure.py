@@ -52,6 +52,8 @@ class Structure:
         # per shape, the nearest joint at or above it that the gripper does not move
         self.gripper_mount = np.array([self._gripper_mount(shape.joint, drivers) for shape in shapes], dtype=np.int64)
         self._sweep: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._relative_levers: dict[tuple[int, int], np.ndarray] = {}
+        self._levers_above: dict[tuple[int, int], np.ndarray] = {}
         if kinematics.robot.gripper is not None:
             # a shape the gripper does not move has no gripper lever (the measured sweep leaves rounding noise)
             ends = [np.array([shape.capsule_start, shape.capsule_end]) for shape in shapes]
@@ -63,7 +65,13 @@ class Structure:
         return self._structural_exemption(a, b, self.drivers)
 
     def relative_lever(self, a: int, b: int) -> np.ndarray:
-        return self._relative_lever(a, b, self.drivers)
+        """The levers of shapes a and b against each other (kept: a model measures its pairs with every pair
+        first, then again with the pair list's)."""
+        lever = self._relative_levers.get((a, b))
+        if lever is None:
+            lever = self._relative_levers[(a, b)] = self._relative_lever(a, b, self.drivers)
+            lever.flags.writeable = False
+        return lever
 
     def finger_speeds(self, shapes, points: list[np.ndarray], radii: list[float]) -> np.ndarray:
         """The fastest any point of each shape moves per unit of gripper travel, times the safety factor: each
@@ -88,11 +96,37 @@ class Structure:
         if self._sweep is None:
             gripper = self.kinematics.robot.gripper
             values = np.linspace(gripper.low, gripper.high, GRIPPER_SAMPLES)
-            frames = self.mounted_placements(range(len(self.shapes)), values)
-            rotations = np.array([[placement.rotation for placement in sample] for sample in frames])
-            translations = np.array([[placement.translation for placement in sample] for sample in frames])
+            shape_joints = np.array([shape.joint for shape in self.shapes], dtype=np.int64)
+            # each joint's world frame at every sample, read once (shapes share joints), then the mounted placement
+            # M_mount⁻¹ · M_joint of every shape over the whole sweep at once: a Python call per shape and sample
+            # cost most of a first make
+            joints = np.union1d(shape_joints, self.gripper_mount)
+            column = {int(joint): k for k, joint in enumerate(joints)}
+            world_rotations, world_translations = self._joint_frames(values, joints)
+            shape_column = [column[int(joint)] for joint in shape_joints]
+            mount_column = [column[int(joint)] for joint in self.gripper_mount]
+            mount_rotations_t = np.swapaxes(world_rotations[:, mount_column], -1, -2)
+            rotations = mount_rotations_t @ world_rotations[:, shape_column]
+            offsets = world_translations[:, shape_column] - world_translations[:, mount_column]
+            translations = (mount_rotations_t @ offsets[..., None])[..., 0]
             self._sweep = values, rotations, translations
         return self._sweep
+
+    def _joint_frames(self, values: np.ndarray, joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """These joints' world rotations (sample, joint, 3, 3) and translations (sample, joint, 3) at each gripper
+        value, the arm at zero (the gripper alone moves the mounted placements)."""
+        kin, model = self.kinematics, self.kinematics.model
+        data = model.createData()
+        q_arm = np.zeros(len(kin.robot.arm_joints))
+        rotations = np.empty((len(values), len(joints), 3, 3))
+        translations = np.empty((len(values), len(joints), 3))
+        for sample, value in enumerate(values):
+            pin.forwardKinematics(model, data, kin.full_q(q_arm, value))
+            for k, joint in enumerate(joints.tolist()):
+                placement = data.oMi[joint]
+                rotations[sample, k] = placement.rotation
+                translations[sample, k] = placement.translation
+        return rotations, translations
 
     def _is_moved(self, joint: int, drivers, coordinate: int | None = None) -> bool:
         """Whether the joint or one above it is driven (by `coordinate`, if given)."""
@@ -130,6 +164,13 @@ class Structure:
         if len(path) == 1:
             return "adjacent"
         return ""
+
+    def _lever_above(self, shape: int, above: int) -> np.ndarray:
+        """Shape `shape`'s levers relative to joint `above`, kept: the pairs of one shape share most of them."""
+        lever = self._levers_above.get((shape, above))
+        if lever is None:
+            lever = self._levers_above[(shape, above)] = self._lever(self.shapes[shape], self.drivers, above)
+        return lever
 
     def _lever(self, shape: Shape, drivers, above: int = 0) -> np.ndarray:
         """How far any point of the shape can move per unit change of each coordinate, relative to
@@ -178,7 +219,7 @@ class Structure:
         for this, other in ((a, b), (b, a)):
             # turning a joint about an axis that `this` is round about cannot change the pair's distance
             below = self._round_about(this, other, common, drivers)
-            levers.append(self._lever(self.shapes[other], drivers, below if below is not None else common))
+            levers.append(self._lever_above(other, below if below is not None else common))
         lever = levers[0] + levers[1]
         if self.kinematics.robot.gripper is not None:
             lever[-1] = self.lever[a, -1] + self.lever[b, -1]
