@@ -1,5 +1,6 @@
 """The user's own folders for envfactory: its config (the spec folders `envfactory register` recorded) and its cache
-(what it can always make again: compositions; the native kernels where the package's own folder is read-only).
+(what it can always make again: compositions, the collision meshes' hulls; the native kernels where the package's
+own folder is read-only).
 
 Each is its variable's folder if set, else the platform's: on Linux $XDG_CONFIG_HOME or $XDG_CACHE_HOME
 (defaults ~/.config, ~/.cache), on macOS ~/Library/Application Support or ~/Library/Caches, on Windows
