@@ -1,5 +1,6 @@
 """Collision meshes read without assimp (geometry/collision/meshes.py), judged by assimp: coal's own mesh loader
-must find the same convex hull in every shipped collision mesh and in STL files of both encodings."""
+must find the same convex hull in every shipped collision mesh and in STL files of both encodings; and the store that
+keeps the hulls between processes (hull_store.py) serves exactly what it was given, or builds again."""
 
 from __future__ import annotations
 
@@ -11,8 +12,9 @@ import numpy as np
 import pytest
 
 from envfactory import factory
-from envfactory.geometry.collision import hull_store
+from envfactory.geometry.collision import hull_store, meshes
 from envfactory.geometry.collision.meshes import hull, read_mesh, with_meshes_stood_in
+from envfactory.geometry.collision.model import CollisionModel
 from envfactory.geometry.collision.shapes import shape_points
 from envfactory.geometry.robot_model import robot_chain
 
@@ -120,18 +122,38 @@ def test_a_stored_hull_measures_exactly_as_a_built_one(tmp_path, monkeypatch):
     assert np.array_equal(_distances_to_boxes(stored), _distances_to_boxes(built))
 
 
-def test_an_unreadable_stored_hull_is_built_again(tmp_path, monkeypatch):
+def _stored_cube(tmp_path, monkeypatch) -> tuple[Path, Path]:
+    """A cube mesh, its hull built and stored: (mesh, the store's entry)."""
     monkeypatch.setenv("ENVFACTORY_CACHE_DIR", str(tmp_path))
     mesh = tmp_path / "cube.stl"
     _write_stl(mesh, binary=True)
     hull_store.mesh_hull(mesh, np.ones(3))
     (entry,) = (tmp_path / "hulls").glob("*.coal")
-    entry.write_bytes(b"cut short")
+    return mesh, entry
+
+
+def test_a_stored_hull_cut_short_is_built_again(tmp_path, monkeypatch):
+    mesh, entry = _stored_cube(tmp_path, monkeypatch)
+    entry.write_bytes(entry.read_bytes()[:40])
     again = hull_store.mesh_hull(mesh, np.ones(3))
     assert np.array_equal(_sorted_points(again), _sorted_points(hull(*read_mesh(mesh))))
     reread = coal.Convex()
     reread.loadFromBinary(str(entry))  # stored again, whole
     assert reread.num_points == 8
+
+
+def test_a_damaged_stored_hull_is_never_measured_with(tmp_path, monkeypatch):
+    mesh, entry = _stored_cube(tmp_path, monkeypatch)
+    data = bytearray(entry.read_bytes())
+    # a corner's coordinate (a double, 0.05 in the file) grown to 0.5: coal itself reads the file without a word
+    where = data.rfind(np.float64(np.float32(0.05)).tobytes())
+    data[where : where + 8] = np.float64(0.5).tobytes()
+    entry.write_bytes(bytes(data))
+    damaged = coal.Convex()
+    damaged.loadFromBinary(str(entry))
+    assert _sorted_points(damaged).max() == pytest.approx(0.5)
+    served = hull_store.mesh_hull(mesh, np.ones(3))
+    assert np.allclose(_sorted_points(served).max(axis=0), [0.02, 0.03, 0.05])
 
 
 def test_an_edited_mesh_or_another_scale_is_not_served_the_stored_hull(tmp_path, monkeypatch):
@@ -154,3 +176,21 @@ def test_with_the_cache_off_nothing_is_stored(tmp_path, monkeypatch):
     _write_stl(mesh, binary=False)
     assert _sorted_points(hull_store.mesh_hull(mesh, np.ones(3))).shape == (8, 3)
     assert sorted(path.name for path in tmp_path.iterdir()) == ["cube.stl"]
+
+
+def test_a_later_collision_model_is_served_every_mesh_hull_from_the_store(tmp_path, monkeypatch):
+    monkeypatch.setenv("ENVFACTORY_CACHE_DIR", str(tmp_path))
+    blueprint = factory.blueprint("UR5ePushSim-v0")
+    kinematics = robot_chain(blueprint.spec, blueprint.asset_root)[1]
+    first = CollisionModel(kinematics.measuring_copy(), [])
+
+    def no_qhull(*args):
+        raise AssertionError("a hull was built although the store holds it")
+
+    monkeypatch.setattr(meshes, "hull", no_qhull)
+    later = CollisionModel(kinematics.measuring_copy(), [])
+    pairs = zip(first.geometry.geometryObjects, later.geometry.geometryObjects, strict=True)
+    meshed = [(a, b) for a, b in pairs if isinstance(a.geometry, coal.ConvexBase)]
+    assert len(meshed) >= 10
+    for a, b in meshed:
+        assert np.array_equal(_sorted_points(a.geometry), _sorted_points(b.geometry)), a.name
