@@ -120,9 +120,10 @@ class Structure:
         q_arm = np.zeros(len(kin.robot.arm_joints))
         rotations = np.empty((len(values), len(joints), 3, 3))
         translations = np.empty((len(values), len(joints), 3))
+        columns = list(enumerate(joints.tolist()))
         for sample, value in enumerate(values):
             pin.forwardKinematics(model, data, kin.full_q(q_arm, value))
-            for k, joint in enumerate(joints.tolist()):
+            for k, joint in columns:
                 placement = data.oMi[joint]
                 rotations[sample, k] = placement.rotation
                 translations[sample, k] = placement.translation
