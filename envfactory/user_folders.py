@@ -58,13 +58,12 @@ def store_in_cache(where: Path, name: str, write: Callable[[Path], None]) -> Non
     can always be made again."""
     try:
         where.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=where, delete=False, suffix=".part") as part:
-            pass
+        handle, part = tempfile.mkstemp(dir=where, suffix=".part")
+        os.close(handle)
         try:
-            write(Path(part.name))
-            os.replace(part.name, where / name)
+            write(Path(part))
+            os.replace(part, where / name)
         finally:
-            if os.path.exists(part.name):
-                os.unlink(part.name)
+            Path(part).unlink(missing_ok=True)  # gone once renamed; else the half-written file
     except OSError:
         pass

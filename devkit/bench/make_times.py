@@ -15,6 +15,7 @@ import argparse
 import subprocess
 import sys
 
+from devkit.bench import SIM_IDS
 from devkit.processes import user_environment
 from devkit.report import Report, add_markdown_option
 
@@ -37,11 +38,7 @@ def main() -> None:
     parser.add_argument(
         "--ids",
         nargs="*",
-        default=[
-            f"{robot}{task}Sim-v0"
-            for robot in ("UR5e", "VX300S", "RX200", "NED2")
-            for task in ("Reacher", "Push", "PnP")
-        ],
+        default=SIM_IDS,
     )
     parser.add_argument(
         "--engines",

@@ -23,14 +23,12 @@ import sys
 import time
 from collections import Counter
 
+from devkit.bench import SIM_IDS
 from devkit.bench.versus_panda_gym import PhysicsClock
 from devkit.kwarg_option import add_kwarg_option, kwargs_from
 from devkit.processes import emit, run_worker
 from devkit.report import Report, add_markdown_option
 
-SIM_IDS = [
-    f"{robot}{task}Sim-v0" for robot in ("UR5e", "VX300S", "RX200", "NED2") for task in ("Reacher", "Push", "PnP")
-]
 # (column, the env's attribute holding the object, the method timed): in the order a step runs them
 STAGES = [
     ("translate", "actions", "translate"),

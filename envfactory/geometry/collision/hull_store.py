@@ -11,6 +11,7 @@ damaged file is never measured with. ENVFACTORY_CACHE_DIR moves the store, =off 
 
 from __future__ import annotations
 
+import functools
 import hashlib
 from pathlib import Path
 
@@ -70,10 +71,16 @@ def _write(built: coal.ConvexBase, path: Path) -> None:
 
 
 def _key(mesh_file: Path, scale: np.ndarray) -> str:
-    digest = hashlib.sha256()
+    digest = hashlib.sha256(_code_digest())
     digest.update(Path(mesh_file).read_bytes())
     digest.update(np.asarray(scale, dtype=float).tobytes())
-    digest.update(Path(__file__).read_bytes())
-    digest.update(Path(meshes.__file__).read_bytes())
-    digest.update(coal.__version__.encode())
     return digest.hexdigest()[:32]
+
+
+@functools.cache
+def _code_digest() -> bytes:
+    """What every key shares: the code that reads and stores a hull, and coal's version (read once a process)."""
+    digest = hashlib.sha256(coal.__version__.encode())
+    for module in (__file__, meshes.__file__):
+        digest.update(Path(module).read_bytes())
+    return digest.digest()
