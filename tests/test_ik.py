@@ -7,6 +7,7 @@ configuration, so every target is reachable and none is computed by envfactory.
 from __future__ import annotations
 
 import numpy as np
+import pinocchio as pin
 import pybullet as p
 import pytest
 
@@ -95,3 +96,117 @@ def test_compiled_damped_least_squares_matches_lapack(rows, columns):
         assert np.allclose(
             damped_pseudo_inverse(jacobian, damping), jacobian.T @ np.linalg.inv(gram), rtol=1e-8, atol=1e-10
         )
+
+
+# ---------------------------------------------------------------- the compiled solve against Pinocchio's
+
+
+def _damped(rows, residual, damping):
+    return rows.T @ np.linalg.solve(rows @ rows.T + damping**2 * np.eye(rows.shape[0]), residual)
+
+
+def _pinocchio_ik(kin, q_start, target, rotation, gripper, weight=0.5, iterations=40, tolerance=5e-4, damping=1e-2):
+    """Kinematics.solve_ik's documented rules on Pinocchio's FK, Jacobian and log3 and LAPACK's solve (the oracle
+    of the compiled iteration, which shares none of them). Targets in the model's frame."""
+    model, data = kin.model, kin.model.createData()
+    lower, upper = kin.arm_lower, kin.arm_upper
+    q_arm = np.clip(np.array(q_start, float), lower, upper)
+    arm_v = [model.idx_vs[model.getJointId(j.name)] for j in kin.robot.arm_joints]
+    error, last_turn, closest, stalled = np.inf, np.inf, np.inf, 0
+    for _ in range(iterations):
+        q = kin.full_q(q_arm, gripper).copy()
+        pin.forwardKinematics(model, data, q)
+        placement = pin.updateFramePlacement(model, data, kin.ee_frame)
+        position_error = target - placement.translation
+        error = np.linalg.norm(position_error)
+        if error < closest - 1e-7:
+            closest, stalled = error, 0
+        else:
+            stalled += 1
+            if stalled >= 5:
+                break
+        jacobian = pin.computeFrameJacobian(model, data, q, kin.ee_frame, pin.LOCAL_WORLD_ALIGNED)[:, arm_v]
+        if rotation is None:
+            if error < tolerance:
+                return q_arm, error
+            step = _damped(jacobian[:3], position_error, damping)
+        else:
+            rotation_error = pin.log3(rotation @ placement.rotation.T)
+            turn = np.linalg.norm(rotation_error)
+            if error < tolerance and (turn * weight < 10 * tolerance or abs(last_turn - turn) < 1e-6):
+                return q_arm, error
+            last_turn = turn
+            if len(q_arm) < 6:
+                inverse = jacobian[:3].T @ np.linalg.inv(jacobian[:3] @ jacobian[:3].T + damping**2 * np.eye(3))
+                first = inverse @ position_error
+                null = np.eye(len(q_arm)) - inverse @ jacobian[:3]
+                second = _damped(jacobian[3:] @ null, weight * rotation_error - jacobian[3:] @ first, damping)
+                step = first + null @ second
+            else:
+                rows = np.vstack([jacobian[:3], weight * jacobian[3:]])
+                step = _damped(rows, np.concatenate([position_error, weight * rotation_error]), damping)
+        q_arm = np.clip(q_arm + np.clip(step, -0.3, 0.3), lower, upper)
+    return q_arm, error
+
+
+@pytest.mark.parametrize(
+    "env_id", ["UR5eReacherSim-v0", "VX300SReacherSim-v0", "RX200ReacherSim-v0", "NED2ReacherSim-v0"]
+)
+def test_the_compiled_solve_takes_pinocchios_steps(env_id):
+    """Held orientation and position alone, from random starts to targets near and far (some out of reach, some
+    with the tool to turn to an orientation the arm may not hold there): the compiled solve lands where the
+    Pinocchio iteration does, to rounding (measured: within 5e-12 rad on these four arms)."""
+    env = RobotEnv(envfactory.blueprint(env_id))
+    kin, home = env.kinematics, env.home
+    env.close()
+    data = kin.model.createData()
+    rng = np.random.default_rng(11)
+    outcomes = set()
+    for trial in range(120):
+        start = np.clip(home + rng.uniform(-0.6, 0.6, home.size), kin.arm_lower, kin.arm_upper)
+        reach = 0.1 if trial % 3 else 0.6  # a third of the targets far, some of them out of reach
+        goal_q = np.clip(start + rng.uniform(-reach, reach, start.size), kin.arm_lower, kin.arm_upper)
+        gripper = float(rng.uniform(0.0, 0.02))
+        pin.forwardKinematics(kin.model, data, kin.full_q(goal_q, gripper).copy())
+        placement = pin.updateFramePlacement(kin.model, data, kin.ee_frame)
+        target, rotation = placement.translation.copy(), placement.rotation.copy()
+        if trial % 4 == 0:
+            rotation = pin.exp3(rng.normal(size=3)) @ rotation
+        oriented = trial % 2 == 0
+        expected_q, expected_error = _pinocchio_ik(kin, start, target, rotation if oriented else None, gripper)
+        solution = kin.solve_ik(
+            start,
+            kin.to_task(target),
+            target_rotation=rotation if oriented else None,
+            gripper=gripper,
+            max_iterations=40,
+        )
+        assert np.allclose(solution.q_arm, expected_q, rtol=0, atol=1e-9), (trial, solution.q_arm, expected_q)
+        assert solution.position_error == pytest.approx(expected_error, rel=1e-6, abs=1e-12)
+        assert solution.success == (expected_error < 5e-4)
+        outcomes.add(solution.success)
+    assert outcomes == {True, False}  # both kinds of ending were compared
+
+
+def test_the_compiled_rotation_log_is_pinocchios():
+    """Random turns, turns of a few microradians, and turns within a few microradians of a half turn or on it
+    (where the axis comes from the symmetric part): the compiled logarithm against pin.log3."""
+    from envfactory.geometry.kernels.inverse_kinematics import rotation_log
+
+    rng = np.random.default_rng(5)
+    out = np.empty(3)
+    for trial in range(600):
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        angle = [rng.uniform(0, np.pi), rng.uniform(0, 1e-5), np.pi - rng.uniform(0, 1e-5), np.pi, np.pi - 1e-10][
+            trial % 5
+        ]
+        rotation = pin.exp3(axis * angle)
+        for log in (rotation_log, rotation_log.py_func):
+            log(np.ascontiguousarray(rotation), out)
+            expected = pin.log3(rotation)
+            if angle > np.pi - 1e-3:  # a half turn about an axis is the same turn about its opposite
+                assert np.allclose(out, expected, atol=1e-6) or np.allclose(out, -expected, atol=1e-6), (out, expected)
+                assert np.linalg.norm(out) == pytest.approx(np.linalg.norm(expected), abs=1e-9)
+            else:
+                assert np.allclose(out, expected, rtol=1e-9, atol=1e-12), (angle, out, expected)

@@ -22,7 +22,7 @@ from conftest import action_modes
 
 import envfactory
 from envfactory.geometry.kernels import native, serving, warmup
-from envfactory.geometry.kernels.damped_least_squares import damped_step
+from envfactory.geometry.kernels.joints import joint_frames
 from envfactory.geometry.kernels.serving import kernels
 
 # one ID a family: the Goal twins call the same kernels with the same arrays
@@ -39,6 +39,17 @@ def _same(a, b) -> bool:
     if isinstance(a, tuple):
         return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
     return a == b or (a != a and b != b)
+
+
+def _two_joint_frames(server) -> np.ndarray:
+    """A small entry point's answer in the server's form: the frames of a chain of two revolute joints."""
+    placement = np.zeros((3, 3, 4))
+    placement[:, :, :3] = np.eye(3)
+    placement[2, 0, 3] = 0.5
+    frames = np.zeros((3, 3, 4))
+    tree = (np.array([0, 0, 1]), placement, np.array([0, 1, 1]), np.tile([0.0, 0.0, 1.0], (3, 1)))
+    server.joint_frames(np.array([0.3, -0.2]), *tree, np.array([0, 0, 1]), np.ones(3), frames)
+    return frames
 
 
 def _have_compiler() -> bool:
@@ -133,13 +144,12 @@ def test_a_cold_process_serves_the_twins_until_the_cache_is_marked_ready(monkeyp
     monkeypatch.setattr(serving, "start_warmup", lambda folder: started.append(folder) or folder / serving.LOG_FILE)
     monkeypatch.setattr(serving, "CHECK_EVERY_S", 0.0)
     server = serving.KernelServer()
-    rows = np.array([[1.0, 0.0, 0.5], [0.0, 2.0, 0.0]])
-    step = server.damped_step(rows, np.array([1.0, 1.0]), 0.1)
+    step = _two_joint_frames(server)
     assert server.form == "interpreted" and started == [tmp_path]
     (tmp_path / serving.READY_FILE).write_text(json.dumps(serving.source_stamp()))
-    assert np.array_equal(server.damped_step(rows, np.array([1.0, 1.0]), 0.1), step)
+    assert np.array_equal(_two_joint_frames(server), step)
     assert server.form == "compiled"
-    assert server.damped_step is serving.compiled_kernels()["damped_step"]
+    assert server.joint_frames is serving.compiled_kernels()["joint_frames"]
 
 
 def test_a_failed_warmup_is_said_and_the_process_compiles_for_itself(monkeypatch, tmp_path, capsys):
@@ -149,11 +159,10 @@ def test_a_failed_warmup_is_said_and_the_process_compiles_for_itself(monkeypatch
     monkeypatch.setattr(serving, "start_warmup", lambda folder: folder / serving.LOG_FILE)
     monkeypatch.setattr(serving, "CHECK_EVERY_S", 0.0)
     server = serving.KernelServer()
-    rows = np.array([[1.0, 0.0, 0.5], [0.0, 2.0, 0.0]])
-    server.damped_step(rows, np.array([1.0, 1.0]), 0.1)
+    _two_joint_frames(server)
     assert server.form == "interpreted"
     (tmp_path / serving.FAILED_FILE).write_text(json.dumps(serving.source_stamp()) + "\nTraceback: ...")
-    server.damped_step(rows, np.array([1.0, 1.0]), 0.1)
+    _two_joint_frames(server)
     assert server.form == "compiled"
     assert "the kernels' warm-up failed" in capsys.readouterr().err
 
@@ -166,14 +175,13 @@ def test_a_cold_process_switches_to_the_native_module_once_it_is_in_place(monkey
     monkeypatch.setattr(serving, "start_warmup", lambda folder: folder / serving.LOG_FILE)
     monkeypatch.setattr(serving, "CHECK_EVERY_S", 0.0)
     server = serving.KernelServer()
-    rows = np.array([[1.0, 0.0, 0.5], [0.0, 2.0, 0.0]])
-    step = server.damped_step(rows, np.array([1.0, 1.0]), 0.1)
+    step = _two_joint_frames(server)
     assert server.form == "interpreted"
     native.module_path().parent.mkdir(parents=True)
     shutil.copy2(built, native.module_path())  # what warmup.py's build puts there
-    assert np.array_equal(server.damped_step(rows, np.array([1.0, 1.0]), 0.1), step)
+    assert np.array_equal(_two_joint_frames(server), step)
     assert server.form == "native"
-    assert server.damped_step is not serving.compiled_kernels()["damped_step"]
+    assert server.joint_frames is not serving.compiled_kernels()["joint_frames"]
 
 
 def test_without_a_native_build_the_warmup_fills_numbas_cache_and_says_why(monkeypatch, tmp_path, capsys):
@@ -184,7 +192,7 @@ def test_without_a_native_build_the_warmup_fills_numbas_cache_and_says_why(monke
     monkeypatch.setattr(serving, "cache_folder", lambda: tmp_path)
     monkeypatch.setattr(warmup, "build_native", no_compiler)
     # one small entry point keeps the compile short; the others take the same path
-    monkeypatch.setattr(serving, "compiled_kernels", lambda: {"damped_step": damped_step})
+    monkeypatch.setattr(serving, "compiled_kernels", lambda: {"joint_frames": joint_frames})
     assert warmup.main() == 0
     assert "no C compiler found" in native.failed()
     assert serving.cache_is_ready(tmp_path)
@@ -208,13 +216,13 @@ def test_a_process_served_the_native_module_never_imports_numba(built_native):
 def test_native_mode_serves_the_module_and_says_why_when_it_cannot_be_built(monkeypatch, tmp_path, built_native):
     monkeypatch.setenv("ENVFACTORY_KERNELS", "native")
     server = serving.KernelServer()
-    server.damped_step(np.eye(2), np.ones(2), 0.1)
+    _two_joint_frames(server)
     assert server.form == "native"
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))  # where no module is
     monkeypatch.setattr(serving.subprocess, "run", lambda *args, **kwargs: None)  # a build that leaves nothing
     native.mark_failed("Traceback ...\nCompileError: command 'gcc' failed: No such file or directory")
     with pytest.raises(RuntimeError, match="ENVFACTORY_KERNELS=native: .*command 'gcc' failed"):
-        serving.KernelServer().damped_step(np.eye(2), np.ones(2), 0.1)
+        _two_joint_frames(serving.KernelServer())
 
 
 def test_a_mark_from_other_sources_is_not_taken_for_ready(tmp_path):

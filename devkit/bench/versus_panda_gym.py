@@ -13,7 +13,9 @@ the median of the per-round ratios.
 
 Per env: steps/s of env.step (the policy's own time left out), the ratio to
 panda-gym's env of the same task in the same run, µs per step inside
-PyBullet's stepSimulation and outside it, substeps per step, simulated
+PyBullet's stepSimulation and outside it, the time outside it as a share of
+panda-gym's own in the same round (µs a step differ up to 1.7× between machines
+of one kind; the share holds), substeps per step, simulated
 seconds per wall second, reset time, the first 5 steps' time (a process's
 first steps load the compiled kernels: kept out of the timed steps),
 gym.make / import times and the process's peak memory. Random actions are action_space.sample() at full scale; the
@@ -350,6 +352,7 @@ COLUMNS = [
     ("steps/s", "steps_per_s", "{:,.0f}"),
     ("÷ panda-gym", "ratio", "{:.2f}×"),
     ("µs outside physics", "outside_us", "{:,.0f}"),
+    ("outside ÷ panda-gym's", "outside_ratio", "{:.2f}×"),
     ("physics µs/step", "physics_us", "{:,.0f}"),
     ("substeps/step", "substeps", "{:.1f}"),
     ("sim s / wall s", "sim_s_per_wall_s", "{:,.0f}"),
@@ -384,19 +387,23 @@ def summarise(results: list[dict], ids: list[str]) -> list[dict]:
         rows.append(row)
     by_id = {row["id"]: row for row in rows}
     for row in rows:
-        twin = by_id.get(panda_twin(row["id"]) or "")
-        row["ratio"] = None
-        if twin is not None:
-            # the ratio per round, then its median: both ran in the same round, back to back
-            ratios = [
-                mine["steps_per_s"] / other["steps_per_s"]
-                for mine in results
-                if mine["id"] == row["id"]
-                for other in results
-                if other["id"] == twin["id"] and other["seed"] == mine["seed"]
-            ]
-            row["ratio"] = statistics.median(ratios) if ratios else None
+        twin = panda_twin(row["id"])
+        row["ratio"] = same_round_ratio(results, row["id"], twin, "steps_per_s") if twin in by_id else None
+        row["outside_ratio"] = same_round_ratio(results, row["id"], twin, "outside_us") if twin in by_id else None
     return rows
+
+
+def same_round_ratio(results: list[dict], env_id: str, twin_id: str, key: str) -> float | None:
+    """The median over rounds of env_id's `key` ÷ its twin's: both ran in the same round, back to back, so the
+    ratio holds where µs do not (machines of one kind have differed 1.7× in µs a step)."""
+    ratios = [
+        mine[key] / other[key]
+        for mine in results
+        if mine["id"] == env_id and mine.get(key)
+        for other in results
+        if other["id"] == twin_id and other["seed"] == mine["seed"] and other.get(key)
+    ]
+    return statistics.median(ratios) if ratios else None
 
 
 def vector_scaling(ids: list[str], args, report: Report) -> None:

@@ -17,8 +17,8 @@ import numpy as np
 import pinocchio as pin
 
 from envfactory.geometry.frames import TaskFrame, base_rotation, place_base
+from envfactory.geometry.kernels.joint_table import JointTable
 from envfactory.geometry.kernels.serving import kernels
-from envfactory.geometry.vectors import length
 from envfactory.schema.models import RobotSpec
 
 
@@ -26,6 +26,9 @@ def quaternion_to_matrix(quaternion) -> np.ndarray:
     """Rotation matrix of an (x, y, z, w) quaternion, the order PyBullet and ROS use."""
     x, y, z, w = quaternion
     return pin.Quaternion(w, x, y, z).normalized().toRotationMatrix()
+
+
+_NO_ROTATION = np.eye(3)  # what the IK kernel is passed when no orientation is asked for (it reads none)
 
 
 @dataclass(frozen=True)
@@ -64,6 +67,15 @@ class Kinematics:
             self._gripper_gain = np.array([gain for _, gain in followers])
         self.ee_frame = self._frame_id(robot.ee_frame)
         self._q = pin.neutral(self.model)
+        # the tree as the compiled kernels pose it (the collision model's too), and the EE's chain in it
+        self.joint_table = JointTable(self.model, self.coordinate_drivers())
+        ee = self.model.frames[self.ee_frame]
+        chain, joint = [], ee.parentJoint
+        while joint > 0:
+            chain.append(joint)
+            joint = self.model.parents[joint]
+        self._ee_chain = np.array(chain[::-1], dtype=np.int64)
+        self._ee_placement = np.ascontiguousarray(ee.placement.homogeneous[:3])
 
     def measuring_copy(self) -> "Kinematics":
         """A copy sharing the model and every table, with scratch state of its own (Pinocchio's data and the
@@ -144,68 +156,42 @@ class Kinematics:
 
         Orientation is a soft objective: success is judged on position alone,
         so a target the wrist cannot reach at the asked orientation still
-        resolves to the nearest pose that puts the EE on the point.
+        resolves to the nearest pose that puts the EE on the point. Each
+        iteration steps by damped least squares from the clamped start
+        (at most 0.3 a joint, then held within the bounds): on position and
+        the weighted orientation error stacked, or, on an arm of fewer than
+        six joints, on position first and the orientation in what is left.
+        It stops on the point (with the orientation reached or no longer
+        improving), after five iterations that do not close in, or at
+        max_iterations. Compiled whole (kernels/inverse_kinematics.py).
         """
-        model, data = self.model, self.data
-        q_arm = np.clip(np.array(q_arm_start, dtype=float), self.arm_lower, self.arm_upper)
         target_position = np.asarray(target_position, dtype=float) - self.base_in_task
         if self._task_rotation is not None:  # into the model's frame, where the Jacobian is
             target_position = self._task_rotation.T @ target_position
             if target_rotation is not None:
                 target_rotation = self._task_rotation.T @ target_rotation
-        error, last_turn, closest, stalled = np.inf, np.inf, np.inf, 0
-        for _ in range(max_iterations):
-            q = self.full_q(q_arm, gripper)
-            pin.forwardKinematics(model, data, q)
-            placement = pin.updateFramePlacement(model, data, self.ee_frame)
-            position_error = target_position - placement.translation
-            error = length(position_error)
-            if error < closest - 1e-7:
-                closest, stalled = error, 0
-            else:
-                stalled += 1
-                if stalled >= 5:
-                    break  # no longer closing in (out of reach, or held at a joint bound): more steps would not help
-            # C order: Pinocchio's Jacobian is column-major, and the kernels are compiled for C-ordered rows alone
-            jacobian = np.ascontiguousarray(
-                pin.computeFrameJacobian(model, data, q, self.ee_frame, pin.LOCAL_WORLD_ALIGNED)[:, self._arm_v]
-            )
-            if target_rotation is None:
-                if error < tolerance:
-                    return IkResult(q_arm, True, error)
-                step = kernels.damped_step(jacobian[:3], position_error, damping)
-            else:
-                rotation_error = pin.log3(target_rotation @ placement.rotation.T)
-                turn = length(rotation_error)
-                # on the point, and the orientation as near as the arm allows (an arm of fewer than six
-                # joints cannot hold every orientation anywhere: its rotation error stops shrinking)
-                if error < tolerance and (turn * rotation_weight < 10 * tolerance or abs(last_turn - turn) < 1e-6):
-                    return IkResult(q_arm, True, error)
-                last_turn = turn
-                if len(q_arm) < 6:
-                    # the position comes first; the orientation gets what the joints can do without moving the point
-                    step = self._prioritised_step(jacobian, position_error, rotation_weight * rotation_error, damping)
-                else:
-                    step = kernels.damped_step(
-                        np.vstack([jacobian[:3], rotation_weight * jacobian[3:]]),
-                        np.concatenate([position_error, rotation_weight * rotation_error]),
-                        damping,
-                    )
-            # (np.minimum/np.maximum: np.clip's dispatch costs more than the arithmetic, a few times an iteration)
-            q_arm = np.minimum(
-                np.maximum(q_arm + np.minimum(np.maximum(step, -0.3), 0.3), self.arm_lower), self.arm_upper
-            )
+        table = self.joint_table
+        q_arm = np.empty(self.arm_lower.size)
+        error = kernels.solve_ik(
+            np.ascontiguousarray(q_arm_start, dtype=float),
+            self.arm_lower,
+            self.arm_upper,
+            float(gripper),
+            np.ascontiguousarray(target_position),
+            _NO_ROTATION if target_rotation is None else np.ascontiguousarray(target_rotation, dtype=float),
+            target_rotation is not None,
+            float(rotation_weight),
+            int(max_iterations),
+            float(tolerance),
+            float(damping),
+            self._ee_chain,
+            table.parent,
+            table.placement,
+            table.kind,
+            table.axis,
+            table.coordinate,
+            table.gain,
+            self._ee_placement,
+            q_arm,
+        )
         return IkResult(q_arm, error < tolerance, error)
-
-    @staticmethod
-    def _prioritised_step(
-        jacobian: np.ndarray, position_error: np.ndarray, rotation_error: np.ndarray, damping: float
-    ) -> np.ndarray:
-        """A joint step that closes the position error, plus the orientation step projected onto the joint
-        motions that leave the point where it is (damped least squares for both)."""
-        position_rows, rotation_rows = jacobian[:3], jacobian[3:]
-        inverse = kernels.damped_pseudo_inverse(position_rows, damping)
-        first = inverse @ position_error
-        null = np.eye(jacobian.shape[1]) - inverse @ position_rows
-        second = kernels.damped_step(rotation_rows @ null, rotation_error - rotation_rows @ first, damping)
-        return first + null @ second

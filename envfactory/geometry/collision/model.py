@@ -24,7 +24,6 @@ from envfactory.geometry.collision.meshes import with_meshes_stood_in
 from envfactory.geometry.collision.shapes import BOX_ROUNDING, Shape, box_of, capsule_of
 from envfactory.geometry.collision.structure import Structure
 from envfactory.geometry.gripper_sweep import GripperSweep
-from envfactory.geometry.kernels.joint_table import JointTable
 from envfactory.geometry.kernels.serving import kernels
 from envfactory.geometry.kinematics import Kinematics
 from envfactory.geometry.obstacles import Obstacle
@@ -155,7 +154,7 @@ class CollisionModel:
         self.padding = np.array([shape.padding for shape in self.shapes])
         self.moving_shapes = moving
         # what the compiled bounds need, as flat arrays
-        self._joints = JointTable(model, structure.drivers)
+        self._joints = kinematics.joint_table
         self._frames = np.zeros((model.njoints, 3, 4))
         self._shape_joint = np.array([shape.joint for shape in self.shapes], dtype=np.int64)
         self._local_ends = np.array([[shape.capsule_start, shape.capsule_end] for shape in self.shapes])

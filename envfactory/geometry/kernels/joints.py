@@ -12,7 +12,7 @@ from envfactory.geometry.kernels.joint_table import FIXED, REVOLUTE
 
 
 @njit(cache=True, inline="always")
-def _compose(up, local, out):
+def compose(up, local, out):
     """out = up * local for 3x4 rigid transforms [R | t] (written out: numba's @ would need BLAS)."""
     for i in range(3):
         for j in range(4):
@@ -27,28 +27,40 @@ def placed_point(frame, x, y, z, i):
 
 
 @njit(cache=True, inline="always")
-def joint_frames(coordinates, parent, placement, kind, axis, coordinate, gain, frames):
-    """Base-frame placements of every joint at these coordinates, as 3x4 rows [R | t]."""
+def joint_frame(joint, coordinates, parent, placement, kind, axis, coordinate, gain, frames, motion, local):
+    """frames[joint]: the joint's base-frame placement, its parent's being in place (motion, local: 3x4 scratch)."""
+    if kind[joint] == FIXED:
+        compose(frames[parent[joint]], placement[joint], frames[joint])
+        return
+    value = gain[joint] * coordinates[coordinate[joint]]
+    x, y, z = axis[joint, 0], axis[joint, 1], axis[joint, 2]
+    motion[:, :] = 0.0
+    if kind[joint] == REVOLUTE:  # Rodrigues' rotation about the unit axis
+        c, s = np.cos(value), np.sin(value)
+        t = 1.0 - c
+        motion[0, 0], motion[0, 1], motion[0, 2] = c + t * x * x, t * x * y - s * z, t * x * z + s * y
+        motion[1, 0], motion[1, 1], motion[1, 2] = t * x * y + s * z, c + t * y * y, t * y * z - s * x
+        motion[2, 0], motion[2, 1], motion[2, 2] = t * x * z - s * y, t * y * z + s * x, c + t * z * z
+    else:
+        motion[0, 0] = motion[1, 1] = motion[2, 2] = 1.0
+        motion[0, 3], motion[1, 3], motion[2, 3] = x * value, y * value, z * value
+    compose(placement[joint], motion, local)
+    compose(frames[parent[joint]], local, frames[joint])
+
+
+@njit(cache=True, inline="always")
+def root_frame(frames):
+    """frames[0], the base's own placement: the identity."""
     frames[0, :, :] = 0.0
     for k in range(3):
         frames[0, k, k] = 1.0
+
+
+@njit(cache=True, inline="always")
+def joint_frames(coordinates, parent, placement, kind, axis, coordinate, gain, frames):
+    """Base-frame placements of every joint at these coordinates, as 3x4 rows [R | t]."""
+    root_frame(frames)
     motion = np.zeros((3, 4))
     local = np.empty((3, 4))
     for joint in range(1, parent.shape[0]):
-        if kind[joint] == FIXED:
-            _compose(frames[parent[joint]], placement[joint], frames[joint])
-            continue
-        value = gain[joint] * coordinates[coordinate[joint]]
-        x, y, z = axis[joint, 0], axis[joint, 1], axis[joint, 2]
-        motion[:, :] = 0.0
-        if kind[joint] == REVOLUTE:  # Rodrigues' rotation about the unit axis
-            c, s = np.cos(value), np.sin(value)
-            t = 1.0 - c
-            motion[0, 0], motion[0, 1], motion[0, 2] = c + t * x * x, t * x * y - s * z, t * x * z + s * y
-            motion[1, 0], motion[1, 1], motion[1, 2] = t * x * y + s * z, c + t * y * y, t * y * z - s * x
-            motion[2, 0], motion[2, 1], motion[2, 2] = t * x * z - s * y, t * y * z + s * x, c + t * z * z
-        else:
-            motion[0, 0] = motion[1, 1] = motion[2, 2] = 1.0
-            motion[0, 3], motion[1, 3], motion[2, 3] = x * value, y * value, z * value
-        _compose(placement[joint], motion, local)
-        _compose(frames[parent[joint]], local, frames[joint])
+        joint_frame(joint, coordinates, parent, placement, kind, axis, coordinate, gain, frames, motion, local)

@@ -34,7 +34,16 @@ MODULE = "envfactory_kernels_native"
 KERNELS = Path(__file__).parent
 # the modules of numba kernels (serving.py serves them); every file whose code the module holds is one of them or
 # a module of the constants they read as globals
-KERNEL_MODULES = ("joints", "pose", "finger_sweep", "motion", "bisection", "spheres", "damped_least_squares")
+KERNEL_MODULES = (
+    "joints",
+    "pose",
+    "finger_sweep",
+    "motion",
+    "bisection",
+    "spheres",
+    "damped_least_squares",
+    "inverse_kinematics",
+)
 SOURCES = (*KERNEL_MODULES, "joint_table", "outcomes")
 FAILED_FILE = "native-build.failed"
 

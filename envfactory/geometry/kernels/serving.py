@@ -38,8 +38,7 @@ ENTRY_POINTS = {
     "motion_proof": "motion",
     "capsule_motion_unproven": "bisection",
     "motion_clear_of_spheres": "spheres",
-    "damped_step": "damped_least_squares",
-    "damped_pseudo_inverse": "damped_least_squares",
+    "solve_ik": "inverse_kinematics",
 }
 MODES = ("auto", "native", "compiled", "interpreted")
 READY_FILE = "envfactory-kernels.ready"

@@ -40,8 +40,7 @@ SIGNATURES = {
         (F1, F1, F1, I1, F1, F1, F1, F1, F1, int64, int64, *TREE) + (I1, F3, F3, F2, F1, F1, I1, F2, F2, I1, I1, B1)
     ],
     "motion_clear_of_spheres": [(F1, F1, F1, *TREE, I1, F3, I1, F1, F2, float64, F2, F1, F1, float64, int64)],
-    "damped_step": [(F2, F1, float64)],
-    "damped_pseudo_inverse": [(F2, float64)],
+    "solve_ik": [(F1, F1, F1, float64, F1, F2, boolean, float64, int64, float64, float64, I1, *TREE, F2, F1)],
 }
 
 
