@@ -3,6 +3,9 @@ around it (in its parent joint's frame), and the fitting itself."""
 
 from __future__ import annotations
 
+import itertools
+import math
+import random
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -83,55 +86,79 @@ def fit_capsule(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     return center + axis * low, center + axis * high, radius
 
 
-# a point this much (relative) beyond a circle still counts as on it: the circle is refit around the points anyway
+# a point this much (relative) beyond a circle still counts as on it: the capsule is measured around the points anyway
 _ON_CIRCLE = 1e-12
 
 
 def smallest_circle(points: np.ndarray) -> tuple[np.ndarray, float]:
-    """The smallest circle holding every 2D point: centre and radius (Welzl's incremental construction, in a fixed
-    shuffled order, which makes it linear in the points on average; each search for a point outside is one array
-    operation)."""
-    shuffled = points[np.random.default_rng(0).permutation(len(points))]
-    return _circle_holding(shuffled, len(shuffled), [])
+    """The smallest circle holding every 2D point: centre and radius. Only the corners of the points' convex hull
+    can lie on it, so Welzl's incremental construction runs on those (a mesh's few hundred vertices seen along an
+    axis leave a few dozen), in a fixed shuffled order, on plain floats: per point, numpy's calls would cost more
+    than the arithmetic."""
+    corners = _hull_corners(points)
+    random.Random(0).shuffle(corners)
+    (x, y), radius = _circle_holding(corners, len(corners), [])
+    return np.array([x, y]), radius
 
 
-def _circle_holding(points: np.ndarray, count: int, boundary: list[np.ndarray]) -> tuple[np.ndarray, float]:
+def _hull_corners(points: np.ndarray) -> list[tuple[float, float]]:
+    """The corners of the points' 2D convex hull (Andrew's monotone chain); all of them when fewer than three."""
+    ordered = sorted(set(map(tuple, points.tolist())))
+    if len(ordered) < 3:
+        return ordered
+    chains: list[list[tuple[float, float]]] = []
+    for sweep in (ordered, ordered[::-1]):
+        chain: list[tuple[float, float]] = []
+        for x, y in sweep:
+            # the last corner goes while it does not turn left on the way to this point (cross product written out:
+            # a call per test would cost more than the test)
+            while (
+                len(chain) >= 2
+                and (chain[-1][0] - chain[-2][0]) * (y - chain[-2][1])
+                - (chain[-1][1] - chain[-2][1]) * (x - chain[-2][0])
+                <= 0
+            ):
+                chain.pop()
+            chain.append((x, y))
+        chains.append(chain)
+    lower, upper = chains
+    return lower[:-1] + upper[:-1]
+
+
+def _circle_holding(points: list, count: int, boundary: list) -> tuple[tuple[float, float], float]:
     """The smallest circle holding points[:count] with every point of `boundary` (at most three) on it."""
     if boundary:
-        center, radius = _circle_through(boundary)
+        (cx, cy), radius = _circle_through(boundary)
         k = 0
     else:
-        center, radius, k = points[0], 0.0, 1
+        (cx, cy), radius, k = points[0], 0.0, 1
     while k < count:
-        gaps = np.hypot(*(points[k:count] - center).T)
-        outside = np.flatnonzero(gaps > radius * (1 + _ON_CIRCLE) + _ON_CIRCLE)
-        if outside.size == 0:
-            break
-        k += int(outside[0])
-        if len(boundary) == 2:
-            center, radius = _circle_through([*boundary, points[k]])
-        else:
-            center, radius = _circle_holding(points, k, [*boundary, points[k]])
+        x, y = points[k]
+        if math.hypot(x - cx, y - cy) > radius * (1 + _ON_CIRCLE) + _ON_CIRCLE:
+            if len(boundary) == 2:
+                (cx, cy), radius = _circle_through([*boundary, points[k]])
+            else:
+                (cx, cy), radius = _circle_holding(points, k, [*boundary, points[k]])
         k += 1
-    return center, radius
+    return (cx, cy), radius
 
 
-def _circle_through(boundary: list[np.ndarray]) -> tuple[np.ndarray, float]:
+def _circle_through(boundary: list) -> tuple[tuple[float, float], float]:
     """The smallest circle with these one to three points on it (three in a line: the widest pair's)."""
     if len(boundary) == 1:
         return boundary[0], 0.0
     if len(boundary) == 2:
-        center = (boundary[0] + boundary[1]) / 2
-        return center, float(np.hypot(*(boundary[0] - center)))
-    a, b, c = boundary
-    ab, ac = b - a, c - a
-    cross = 2.0 * (ab[0] * ac[1] - ab[1] * ac[0])
+        (ax, ay), (bx, by) = boundary
+        return ((ax + bx) / 2, (ay + by) / 2), math.hypot(ax - bx, ay - by) / 2
+    (ax, ay), (bx, by), (cx, cy) = boundary
+    abx, aby, acx, acy = bx - ax, by - ay, cx - ax, cy - ay
+    cross = 2.0 * (abx * acy - aby * acx)
     if abs(cross) < 1e-18:
-        pairs = [_circle_through([p, q]) for p, q in ((a, b), (a, c), (b, c))]
+        pairs = [_circle_through([p, q]) for p, q in itertools.combinations(boundary, 2)]
         return max(pairs, key=lambda circle: circle[1])
-    ab2, ac2 = ab @ ab, ac @ ac
-    center = a + np.array([ac[1] * ab2 - ab[1] * ac2, ab[0] * ac2 - ac[0] * ab2]) / cross
-    return center, float(np.hypot(*(a - center)))
+    ab2, ac2 = abx * abx + aby * aby, acx * acx + acy * acy
+    x, y = ax + (acy * ab2 - aby * ac2) / cross, ay + (abx * ac2 - acx * ab2) / cross
+    return (x, y), math.hypot(ax - x, ay - y)
 
 
 def fit_box_frame(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
