@@ -385,15 +385,14 @@ def summarise(results: list[dict], ids: list[str]) -> list[dict]:
         episodes = sum(r["episodes"] for r in mine)
         row["success"] = f"{sum(r['successes'] for r in mine)}/{episodes}" if episodes else "—"
         rows.append(row)
-    by_id = {row["id"]: row for row in rows}
     for row in rows:
-        twin = panda_twin(row["id"])
-        row["ratio"] = same_round_ratio(results, row["id"], twin, "steps_per_s") if twin in by_id else None
-        row["outside_ratio"] = same_round_ratio(results, row["id"], twin, "outside_us") if twin in by_id else None
+        twin = panda_twin(row["id"])  # None for panda-gym's own rows: no result has it, so no ratio
+        row["ratio"] = same_round_ratio(results, row["id"], twin, "steps_per_s")
+        row["outside_ratio"] = same_round_ratio(results, row["id"], twin, "outside_us")
     return rows
 
 
-def same_round_ratio(results: list[dict], env_id: str, twin_id: str, key: str) -> float | None:
+def same_round_ratio(results: list[dict], env_id: str, twin_id: str | None, key: str) -> float | None:
     """The median over rounds of env_id's `key` ÷ its twin's: both ran in the same round, back to back, so the
     ratio holds where µs do not (machines of one kind have differed 1.7× in µs a step)."""
     ratios = [

@@ -56,7 +56,6 @@ class Kinematics:
         # so those positions stay a bare sum
         self._task_rotation = None if np.array_equal(to_task.rotation, np.eye(3)) else to_task.rotation.copy()
         self._arm_q = np.array([self._q_index(j.name) for j in robot.arm_joints])
-        self._arm_v = np.array([self.model.idx_vs[self.model.getJointId(j.name)] for j in robot.arm_joints])
         self.arm_lower = np.array([j.lower for j in robot.arm_joints])
         self.arm_upper = np.array([j.upper for j in robot.arm_joints])
         self._gripper_q: np.ndarray = np.zeros(0, dtype=int)

@@ -67,8 +67,8 @@ def fit_capsule(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     took 12.2 cm of radius about its mean, 9.0 cm about the circle's centre, and every bound the safety proof
     draws from a capsule is that much looser.)"""
     mean = points.mean(axis=0)
-    axis = np.linalg.svd(points - mean, full_matrices=False)[2][0]
-    across_axes = np.linalg.svd(np.eye(3) - np.outer(axis, axis))[0][:, :2]  # two unit vectors normal to the axis
+    axis, *normals = np.linalg.svd(points - mean, full_matrices=False)[2]  # the other two span the plane across it
+    across_axes = np.array(normals).T
     middle, _ = smallest_circle((points - mean) @ across_axes)
     center = mean + across_axes @ middle
     offsets = points - center

@@ -164,7 +164,7 @@ def solve_ik(
     `chain`: the EE's joints from the base (its frame hangs off the last, at ee_placement); the tree's tables are
     JointTable's, with the gripper's coordinate after the arm's."""
     arm = q_start.shape[0]
-    coordinates = np.empty(coordinate.max() + 1 if coordinate.shape[0] else arm)
+    coordinates = np.empty(coordinate.max() + 1)  # the arm's, then the gripper's if it has one
     if coordinates.shape[0] > arm:
         coordinates[arm:] = gripper
     frames = np.empty((parent.shape[0], 3, 4))
